@@ -1,0 +1,25 @@
+use std::path::PathBuf;
+
+/// Errors from core types: scene specs, cameras, poses.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    #[error("cannot read scene spec: {source}: {path}")]
+    ReadSpec {
+        source: std::io::Error,
+        path: PathBuf,
+    },
+    #[error("malformed scene spec: {message}: {path}")]
+    ParseSpec { message: String, path: PathBuf },
+    #[error("invalid scene spec: {0}")]
+    InvalidSpec(String),
+    #[error("unknown camera preset {0:?} (known: linemod, d455, d455-720, ycbv)")]
+    UnknownCamera(String),
+    #[error("invalid pose: {0}")]
+    InvalidPose(String),
+    #[error("cannot place {name} without interpenetration after {tries} tries (placement area {area_m:?} m); enlarge [placement] area_m or use fewer objects")]
+    Placement {
+        name: String,
+        tries: u32,
+        area_m: [f64; 2],
+    },
+}

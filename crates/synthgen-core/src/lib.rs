@@ -1,0 +1,36 @@
+//! Core types of synthgen: poses, cameras, meshes, scene specs, deterministic sampling and
+//! the maths behind BOP annotations. No heavy dependencies.
+//!
+//! ```
+//! use synthgen_core::{Intrinsics, Pose};
+//! use glam::DVec3;
+//! let k = Intrinsics::LINEMOD;
+//! let cam_from_obj = Pose::new(glam::DMat3::IDENTITY, DVec3::new(0.0, 0.0, 1.0));
+//! let (u, v) = k.project(cam_from_obj.transform_point(DVec3::ZERO)).unwrap();
+//! assert!((u - k.cx).abs() < 1e-9 && (v - k.cy).abs() < 1e-9);
+//! ```
+
+pub mod annotate;
+pub mod camera;
+mod error;
+pub mod mesh;
+pub mod pose;
+pub mod progress;
+pub mod rng;
+pub mod sample;
+pub mod scene;
+pub mod symmetry;
+
+pub use annotate::{annotate, AloneDepth, GtInfo, ObjectAnnotation, RenderedFrame};
+pub use camera::Intrinsics;
+pub use error::Error;
+pub use glam;
+pub use mesh::{Aabb, Material, Model, Primitive, Texture};
+pub use pose::Pose;
+pub use progress::{NoProgress, Progress};
+pub use sample::{FrameScene, ObjectInstance, SceneObject, SceneSampler};
+pub use scene::SceneSpec;
+pub use symmetry::Symmetries;
+
+/// The synthgen version, written into every manifest.
+pub const VERSION: &str = env!("CARGO_PKG_VERSION");

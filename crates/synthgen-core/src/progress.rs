@@ -1,0 +1,17 @@
+//! Progress reporting from library code without printing: the binary implements this with
+//! progress bars; tests and libraries use `NoProgress`.
+
+pub trait Progress: Sync {
+    /// Starts a phase with `total` steps (0 when unknown).
+    fn start(&self, _label: &str, _total: u64) {}
+    /// `n` more steps done.
+    fn advance(&self, _n: u64) {}
+    /// A non-fatal problem worth telling the user about (a missing texture, a fallback).
+    fn warn(&self, _message: &str) {}
+    fn finish(&self) {}
+}
+
+/// Reports nothing.
+pub struct NoProgress;
+
+impl Progress for NoProgress {}

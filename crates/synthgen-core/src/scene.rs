@@ -1,0 +1,424 @@
+//! The scene spec: everything that is randomized per frame, with its ranges. Read from TOML
+//! (`scenes/*.toml`), every field optional with the default documented here.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::camera::Intrinsics;
+use crate::Error;
+
+/// A closed range `[min, max]` sampled uniformly.
+pub type Range = [f64; 2];
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SceneSpec {
+    pub camera: CameraSpec,
+    pub camera_pose: CameraPoseSpec,
+    pub placement: PlacementSpec,
+    pub ground: GroundSpec,
+    pub lights: LightSpec,
+    pub background: BackgroundSpec,
+    pub materials: MaterialSpec,
+    /// Objects declared in the spec (in addition to `--objects` on the command line).
+    pub objects: Vec<ObjectSpec>,
+}
+
+impl Default for SceneSpec {
+    fn default() -> Self {
+        Self {
+            camera: CameraSpec::default(),
+            camera_pose: CameraPoseSpec::default(),
+            placement: PlacementSpec::default(),
+            ground: GroundSpec::default(),
+            lights: LightSpec::default(),
+            background: BackgroundSpec::default(),
+            materials: MaterialSpec::default(),
+            objects: Vec::new(),
+        }
+    }
+}
+
+/// Camera intrinsics: a preset name, optionally overridden field by field.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CameraSpec {
+    /// `linemod` (default), `d455`, `d455-720` or `ycbv`.
+    pub preset: String,
+    pub width: Option<u32>,
+    pub height: Option<u32>,
+    pub fx: Option<f64>,
+    pub fy: Option<f64>,
+    pub cx: Option<f64>,
+    pub cy: Option<f64>,
+}
+
+impl Default for CameraSpec {
+    fn default() -> Self {
+        Self {
+            preset: "linemod".into(),
+            width: None,
+            height: None,
+            fx: None,
+            fy: None,
+            cx: None,
+            cy: None,
+        }
+    }
+}
+
+impl CameraSpec {
+    pub fn intrinsics(&self) -> Result<Intrinsics, Error> {
+        let mut k = Intrinsics::preset(&self.preset)?;
+        if let Some(v) = self.width {
+            k.width = v;
+        }
+        if let Some(v) = self.height {
+            k.height = v;
+        }
+        if let Some(v) = self.fx {
+            k.fx = v;
+        }
+        if let Some(v) = self.fy {
+            k.fy = v;
+        }
+        if let Some(v) = self.cx {
+            k.cx = v;
+        }
+        if let Some(v) = self.cy {
+            k.cy = v;
+        }
+        k.validate()?;
+        Ok(k)
+    }
+}
+
+/// Camera placed on a shell around a look-at point near the objects.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CameraPoseSpec {
+    /// Distance from the look-at point, metres. Default 0.6..1.1 (Linemod-like).
+    pub distance_m: Range,
+    /// Elevation above the ground plane, degrees (90 = straight down). Default 20..80.
+    pub elevation_deg: Range,
+    /// Azimuth around the vertical axis, degrees. Default 0..360.
+    pub azimuth_deg: Range,
+    /// The look-at point is the centre of the placed objects plus a uniform offset up to this
+    /// many metres per horizontal axis. Default 0.05.
+    pub look_at_jitter_m: f64,
+    /// Rotation about the optical axis, degrees. Default -10..10.
+    pub inplane_deg: Range,
+}
+
+impl Default for CameraPoseSpec {
+    fn default() -> Self {
+        Self {
+            distance_m: [0.6, 1.1],
+            elevation_deg: [20.0, 80.0],
+            azimuth_deg: [0.0, 360.0],
+            look_at_jitter_m: 0.05,
+            inplane_deg: [-10.0, 10.0],
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Orientation {
+    /// Model +z up, random rotation about z (objects stand as scanned).
+    Upright,
+    /// Uniformly random rotation, lowest point resting on the plane.
+    Random,
+}
+
+/// Objects on a ground plane (world z = 0, z up), non-overlapping footprints.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PlacementSpec {
+    /// `upright` (default) or `random`.
+    pub orientation: Orientation,
+    /// Size of the rectangle (x, y) centred on the world origin where object centres land,
+    /// metres. Default 0.5 x 0.5.
+    pub area_m: [f64; 2],
+    /// Extra clearance between footprints, metres. Default 0.005.
+    pub min_gap_m: f64,
+    /// Attempts per object before the frame's placement fails. Default 200.
+    pub max_tries: u32,
+}
+
+impl Default for PlacementSpec {
+    fn default() -> Self {
+        Self {
+            orientation: Orientation::Upright,
+            area_m: [0.5, 0.5],
+            min_gap_m: 0.005,
+            max_tries: 200,
+        }
+    }
+}
+
+/// The support plane, rendered as geometry (it has depth, like a real table).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct GroundSpec {
+    /// Render the plane. Default true.
+    pub visible: bool,
+    /// Side length of the square plane, metres. Default 3.0.
+    pub size_m: f64,
+    /// sRGB colour range per channel; each frame draws a colour between these. Default
+    /// a grey-brown table tone.
+    pub color_min: [f32; 3],
+    pub color_max: [f32; 3],
+    /// Procedural checker/noise texture strength 0..1 (0 = plain). Default 0.3.
+    pub texture_strength: f32,
+}
+
+impl Default for GroundSpec {
+    fn default() -> Self {
+        Self {
+            visible: true,
+            size_m: 3.0,
+            color_min: [0.25, 0.22, 0.2],
+            color_max: [0.75, 0.7, 0.65],
+            texture_strength: 0.3,
+        }
+    }
+}
+
+/// Point lights on a hemisphere above the scene plus an ambient term.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LightSpec {
+    /// Number of point lights, inclusive range. Default 1..2.
+    pub count: [u32; 2],
+    /// Distance from the scene centre, metres. Default 1.0..3.0.
+    pub distance_m: Range,
+    /// Elevation, degrees. Default 30..85.
+    pub elevation_deg: Range,
+    /// Intensity multiplier. Default 0.6..1.2.
+    pub intensity: Range,
+    /// Max per-channel deviation from white. Default 0.15.
+    pub color_jitter: f64,
+    /// Ambient light level. Default 0.15..0.35.
+    pub ambient: Range,
+}
+
+impl Default for LightSpec {
+    fn default() -> Self {
+        Self {
+            count: [1, 2],
+            distance_m: [1.0, 3.0],
+            elevation_deg: [30.0, 85.0],
+            intensity: [0.6, 1.2],
+            color_jitter: 0.15,
+            ambient: [0.15, 0.35],
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BackgroundKind {
+    /// A plain colour drawn from `color_min..color_max`.
+    Color,
+    /// Per-pixel uniform noise.
+    Noise,
+    /// Random crops from the images in `images_dir`.
+    Images,
+}
+
+/// What is seen where no geometry is (above the horizon, past the plane).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct BackgroundSpec {
+    /// `color`, `noise` (default) or `images`.
+    pub kind: BackgroundKind,
+    pub color_min: [f32; 3],
+    pub color_max: [f32; 3],
+    /// Folder of PNG/JPEG images for `kind = "images"`.
+    pub images_dir: Option<PathBuf>,
+}
+
+impl Default for BackgroundSpec {
+    fn default() -> Self {
+        Self {
+            kind: BackgroundKind::Noise,
+            color_min: [0.0, 0.0, 0.0],
+            color_max: [1.0, 1.0, 1.0],
+            images_dir: None,
+        }
+    }
+}
+
+/// Per-frame material jitter applied on top of each model's own colours.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MaterialSpec {
+    /// Multiplicative brightness jitter per object, e.g. 0.8..1.2. Default 0.85..1.15.
+    pub brightness: Range,
+    /// Specular weight range. Default 0.05..0.4.
+    pub specular: Range,
+    /// Blinn-Phong exponent range. Default 8..64.
+    pub shininess: Range,
+}
+
+impl Default for MaterialSpec {
+    fn default() -> Self {
+        Self {
+            brightness: [0.85, 1.15],
+            specular: [0.05, 0.4],
+            shininess: [8.0, 64.0],
+        }
+    }
+}
+
+/// An object declared in the scene spec.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectSpec {
+    /// Mesh path, relative to the spec file.
+    pub path: PathBuf,
+    /// BOP object id. Default: order of appearance, from 1 (or the number in `obj_000008.ply`).
+    pub obj_id: Option<u32>,
+    /// `mm`, `m` or `auto` (default).
+    pub units: Option<String>,
+    /// How many instances per frame. Default 1.
+    #[serde(default = "one")]
+    pub count: u32,
+}
+
+fn one() -> u32 {
+    1
+}
+
+impl SceneSpec {
+    /// Reads a TOML spec. Object paths are resolved relative to the file's folder.
+    pub fn from_toml_file(path: &Path) -> Result<SceneSpec, Error> {
+        let text = std::fs::read_to_string(path).map_err(|source| Error::ReadSpec {
+            source,
+            path: path.to_path_buf(),
+        })?;
+        let mut spec = Self::from_toml_str(&text).map_err(|e| match e {
+            Error::ParseSpec { message, .. } => Error::ParseSpec {
+                message,
+                path: path.to_path_buf(),
+            },
+            other => other,
+        })?;
+        let base = path.parent().unwrap_or(Path::new("."));
+        for o in &mut spec.objects {
+            if o.path.is_relative() {
+                o.path = base.join(&o.path);
+            }
+        }
+        if let Some(dir) = &mut spec.background.images_dir {
+            if dir.is_relative() {
+                *dir = base.join(&*dir);
+            }
+        }
+        Ok(spec)
+    }
+
+    pub fn from_toml_str(text: &str) -> Result<SceneSpec, Error> {
+        let spec: SceneSpec = toml::from_str(text).map_err(|e| Error::ParseSpec {
+            message: e.to_string().trim().replace('\n', " "),
+            path: PathBuf::from("<string>"),
+        })?;
+        spec.validate()?;
+        Ok(spec)
+    }
+
+    pub fn to_toml(&self) -> String {
+        // Serializing plain data with no maps keyed by non-strings cannot fail.
+        toml::to_string_pretty(self).unwrap_or_default()
+    }
+
+    /// Checks ranges and values; errors name the field.
+    pub fn validate(&self) -> Result<(), Error> {
+        self.camera.intrinsics()?;
+        let ranges: [(&str, Range); 12] = [
+            ("camera_pose.distance_m", self.camera_pose.distance_m),
+            ("camera_pose.elevation_deg", self.camera_pose.elevation_deg),
+            ("camera_pose.azimuth_deg", self.camera_pose.azimuth_deg),
+            ("camera_pose.inplane_deg", self.camera_pose.inplane_deg),
+            ("lights.distance_m", self.lights.distance_m),
+            ("lights.elevation_deg", self.lights.elevation_deg),
+            ("lights.intensity", self.lights.intensity),
+            ("lights.ambient", self.lights.ambient),
+            ("materials.brightness", self.materials.brightness),
+            ("materials.specular", self.materials.specular),
+            ("materials.shininess", self.materials.shininess),
+            ("placement.area_m", self.placement.area_m),
+        ];
+        for (name, [lo, hi]) in ranges {
+            if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
+                return Err(Error::InvalidSpec(format!(
+                    "{name} must be finite with min <= max, got [{lo}, {hi}]"
+                )));
+            }
+        }
+        if self.camera_pose.distance_m[0] <= 0.0 {
+            return Err(Error::InvalidSpec(
+                "camera_pose.distance_m must be positive".into(),
+            ));
+        }
+        let [e0, e1] = self.camera_pose.elevation_deg;
+        if e0 < -90.0 || e1 > 90.0 {
+            return Err(Error::InvalidSpec(
+                "camera_pose.elevation_deg must lie within -90..90".into(),
+            ));
+        }
+        if self.lights.count[0] > self.lights.count[1] || self.lights.count[1] > 16 {
+            return Err(Error::InvalidSpec(
+                "lights.count must be [min, max] with min <= max <= 16".into(),
+            ));
+        }
+        if self.placement.max_tries == 0 {
+            return Err(Error::InvalidSpec("placement.max_tries must be >= 1".into()));
+        }
+        if self.background.kind == BackgroundKind::Images && self.background.images_dir.is_none()
+        {
+            return Err(Error::InvalidSpec(
+                "background.kind = \"images\" needs background.images_dir".into(),
+            ));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn empty_toml_is_default() {
+        assert_eq!(SceneSpec::from_toml_str("").unwrap(), SceneSpec::default());
+    }
+
+    #[test]
+    fn default_round_trips_through_toml() {
+        let s = SceneSpec::default();
+        assert_eq!(SceneSpec::from_toml_str(&s.to_toml()).unwrap(), s);
+    }
+
+    #[test]
+    fn unknown_field_is_an_error() {
+        let e = SceneSpec::from_toml_str("[camera]\nfocal = 3\n").unwrap_err();
+        assert!(e.to_string().contains("focal"), "{e}");
+    }
+
+    #[test]
+    fn inverted_range_is_an_error() {
+        let e = SceneSpec::from_toml_str("[camera_pose]\ndistance_m = [2.0, 1.0]\n").unwrap_err();
+        assert!(e.to_string().contains("camera_pose.distance_m"), "{e}");
+    }
+
+    #[test]
+    fn camera_override() {
+        let s = SceneSpec::from_toml_str("[camera]\npreset = \"d455\"\nfx = 400.0\n").unwrap();
+        let k = s.camera.intrinsics().unwrap();
+        assert_eq!(k.fx, 400.0);
+        assert_eq!(k.width, 640);
+    }
+}
