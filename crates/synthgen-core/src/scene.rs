@@ -11,7 +11,7 @@ use crate::Error;
 /// A closed range `[min, max]` sampled uniformly.
 pub type Range = [f64; 2];
 
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SceneSpec {
     pub camera: CameraSpec,
@@ -23,21 +23,6 @@ pub struct SceneSpec {
     pub materials: MaterialSpec,
     /// Objects declared in the spec (in addition to `--objects` on the command line).
     pub objects: Vec<ObjectSpec>,
-}
-
-impl Default for SceneSpec {
-    fn default() -> Self {
-        Self {
-            camera: CameraSpec::default(),
-            camera_pose: CameraPoseSpec::default(),
-            placement: PlacementSpec::default(),
-            ground: GroundSpec::default(),
-            lights: LightSpec::default(),
-            background: BackgroundSpec::default(),
-            materials: MaterialSpec::default(),
-            objects: Vec::new(),
-        }
-    }
 }
 
 /// Camera intrinsics: a preset name, optionally overridden field by field.
