@@ -1,0 +1,137 @@
+use std::path::{Path, PathBuf};
+
+/// Errors from reading and writing datasets. Messages name the file last.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    #[error("no space left on device: {op} {path}")]
+    NoSpace { op: &'static str, path: PathBuf },
+    #[error("cannot {op}: {source}: {path}")]
+    Io {
+        op: &'static str,
+        source: std::io::Error,
+        path: PathBuf,
+    },
+    #[error("missing file: {path}")]
+    MissingFile { path: PathBuf },
+    /// Syntax or type error; serde's message carries the line and column.
+    #[error("malformed {file}: {source}: {path}")]
+    Json {
+        file: String,
+        source: serde_json::Error,
+        path: PathBuf,
+    },
+    /// Well-formed JSON with wrong content (NaN pose, non-orthonormal rotation, mismatched
+    /// counts...).
+    #[error("malformed {file}: {message}: {path}")]
+    Malformed {
+        file: String,
+        message: String,
+        path: PathBuf,
+    },
+    #[error("cannot encode image: {message}: {path}")]
+    Encode { message: String, path: PathBuf },
+    #[error("cannot decode image: {message}: {path}")]
+    Decode { message: String, path: PathBuf },
+    /// A frame handed to the writer does not fit the dataset (sizes, counts, values).
+    #[error("invalid frame {frame_index}: {message}")]
+    InvalidFrame { frame_index: u64, message: String },
+    #[error("invalid writer options: {0}")]
+    InvalidOptions(String),
+    /// A value that JSON cannot hold (NaN, infinity) in data to be written.
+    #[error("cannot write non-finite number in {what}: {path}")]
+    NonFinite { what: String, path: PathBuf },
+}
+
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+fn file_name(path: &Path) -> String {
+    path.file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| path.display().to_string())
+}
+
+fn is_no_space(e: &std::io::Error) -> bool {
+    // ENOSPC on Linux and macOS; ERROR_HANDLE_DISK_FULL / ERROR_DISK_FULL on Windows.
+    let code = e.raw_os_error();
+    if cfg!(windows) {
+        matches!(code, Some(39) | Some(112))
+    } else {
+        code == Some(28)
+    }
+}
+
+impl Error {
+    /// An io error while doing `op` ("write", "read", ...) on `path`.
+    pub fn io(op: &'static str, path: impl Into<PathBuf>, source: std::io::Error) -> Error {
+        let path = path.into();
+        if source.kind() == std::io::ErrorKind::NotFound && op == "read" {
+            return Error::MissingFile { path };
+        }
+        if is_no_space(&source) {
+            let op = match op {
+                "write" => "writing",
+                "rename" => "renaming",
+                "create directory" => "creating directory",
+                other => other,
+            };
+            return Error::NoSpace { op, path };
+        }
+        Error::Io { op, source, path }
+    }
+
+    pub(crate) fn json(path: &Path, source: serde_json::Error) -> Error {
+        Error::Json {
+            file: file_name(path),
+            source,
+            path: path.to_path_buf(),
+        }
+    }
+
+    pub(crate) fn malformed(path: &Path, message: impl Into<String>) -> Error {
+        Error::Malformed {
+            file: file_name(path),
+            message: message.into(),
+            path: path.to_path_buf(),
+        }
+    }
+
+    /// The file the error is about, when there is one.
+    pub fn path(&self) -> Option<&Path> {
+        match self {
+            Error::NoSpace { path, .. }
+            | Error::Io { path, .. }
+            | Error::MissingFile { path }
+            | Error::Json { path, .. }
+            | Error::Malformed { path, .. }
+            | Error::Encode { path, .. }
+            | Error::Decode { path, .. }
+            | Error::NonFinite { path, .. } => Some(path),
+            Error::InvalidFrame { .. } | Error::InvalidOptions(_) => None,
+        }
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn no_space_is_named() {
+        let e = Error::io(
+            "write",
+            "/data/x.png",
+            std::io::Error::from_raw_os_error(if cfg!(windows) { 112 } else { 28 }),
+        );
+        assert_eq!(
+            e.to_string(),
+            "no space left on device: writing /data/x.png"
+        );
+    }
+
+    #[test]
+    fn missing_file_on_read() {
+        let e = Error::io("read", "/nope", std::io::ErrorKind::NotFound.into());
+        assert_eq!(e.to_string(), "missing file: /nope");
+    }
+}

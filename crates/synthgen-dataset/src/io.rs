@@ -1,0 +1,146 @@
+//! File output that never leaves a half-written file under its final name.
+
+use std::fs::File;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use crate::error::{Error, Result};
+
+/// Suffix of the temporary files [`atomic_write`] creates next to their targets.
+pub const TEMP_SUFFIX: &str = ".synthgen-tmp";
+
+static TEMP_COUNTER: AtomicU64 = AtomicU64::new(0);
+
+/// Whether `name` is one of our temporary files (left behind only by a crash).
+pub fn is_temp_file(name: &str) -> bool {
+    name.starts_with('.') && name.ends_with(TEMP_SUFFIX)
+}
+
+fn temp_path(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    // Unique per process and call, so parallel writers of the same target never share one.
+    let n = TEMP_COUNTER.fetch_add(1, Ordering::Relaxed);
+    path.with_file_name(format!(".{name}.{}.{n}{TEMP_SUFFIX}", std::process::id()))
+}
+
+/// Writes `bytes` to `path` atomically: a temporary file in the same folder, then a rename.
+/// Readers see the old file or the new one, never a partial one.
+pub fn atomic_write(path: &Path, bytes: &[u8]) -> Result<()> {
+    atomic_write_with(path, bytes, false)
+}
+
+/// [`atomic_write`], with `fsync` forcing the data to disk before the rename (slower; for
+/// files that must survive a power cut, such as the annotation JSON of a finished chunk).
+pub fn atomic_write_with(path: &Path, bytes: &[u8], fsync: bool) -> Result<()> {
+    let tmp = temp_path(path);
+    let written = (|| {
+        let mut f = File::create(&tmp)?;
+        f.write_all(bytes)?;
+        if fsync {
+            f.sync_all()?;
+        }
+        Ok(())
+    })();
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(Error::io("write", path, e));
+    }
+    if let Err(e) = std::fs::rename(&tmp, path) {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(Error::io("rename", path, e));
+    }
+    Ok(())
+}
+
+/// `std::fs::create_dir_all` with the path in the error.
+pub fn create_dir_all(path: &Path) -> Result<()> {
+    std::fs::create_dir_all(path).map_err(|e| Error::io("create directory", path, e))
+}
+
+/// `std::fs::read` with the path in the error (a missing file is [`Error::MissingFile`]).
+pub fn read(path: &Path) -> Result<Vec<u8>> {
+    std::fs::read(path).map_err(|e| Error::io("read", path, e))
+}
+
+/// Removes temporary files a crashed run left in `dir` (not recursive); returns how many.
+pub fn remove_stale_temp_files(dir: &Path) -> Result<usize> {
+    let entries = match std::fs::read_dir(dir) {
+        Ok(e) => e,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
+        Err(e) => return Err(Error::io("list directory", dir, e)),
+    };
+    let mut n = 0;
+    for entry in entries {
+        let entry = entry.map_err(|e| Error::io("list directory", dir, e))?;
+        if is_temp_file(&entry.file_name().to_string_lossy()) {
+            let p = entry.path();
+            std::fs::remove_file(&p).map_err(|e| Error::io("remove", &p, e))?;
+            n += 1;
+        }
+    }
+    Ok(n)
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+
+    fn names(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn atomic_write_leaves_no_temp_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.json");
+        atomic_write(&p, b"one").unwrap();
+        atomic_write_with(&p, b"two", true).unwrap();
+        assert_eq!(std::fs::read(&p).unwrap(), b"two");
+        assert_eq!(names(dir.path()), ["a.json"]);
+    }
+
+    #[test]
+    fn failed_write_names_path_and_cleans_up() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("missing_dir").join("a.json");
+        let e = atomic_write(&p, b"x").unwrap_err();
+        assert!(e.to_string().ends_with(&p.display().to_string()), "{e}");
+        assert!(e.to_string().starts_with("cannot write: "), "{e}");
+        assert!(names(dir.path()).is_empty());
+    }
+
+    #[test]
+    fn parallel_writes_to_one_target() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("x.bin");
+        std::thread::scope(|s| {
+            for i in 0..8u8 {
+                let p = &p;
+                s.spawn(move || atomic_write(p, &[i; 1000]).unwrap());
+            }
+        });
+        let b = std::fs::read(&p).unwrap();
+        assert_eq!(b.len(), 1000);
+        assert!(b.iter().all(|&v| v == b[0]));
+        assert_eq!(names(dir.path()), ["x.bin"]);
+    }
+
+    #[test]
+    fn stale_temp_files_are_removed() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join(format!(".a.png.1.2{TEMP_SUFFIX}")), b"").unwrap();
+        std::fs::write(dir.path().join("a.png"), b"").unwrap();
+        assert_eq!(remove_stale_temp_files(dir.path()).unwrap(), 1);
+        assert_eq!(names(dir.path()), ["a.png"]);
+    }
+}
