@@ -1,0 +1,96 @@
+//! Quick timing without criterion: renders the benchmark scenes repeatedly on one thread and
+//! prints the median and minimum time per frame (minimum = least disturbed by other load).
+//!
+//! `cargo run --release -p synthgen-render --example frame_timing [rounds]`
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use synthgen_core::{annotate, RenderedFrame, SceneObject, SceneSampler, SceneSpec};
+use synthgen_render::CpuRenderer;
+
+#[path = "../tests/render/ply.rs"]
+mod ply;
+
+fn main() -> anyhow::Result<()> {
+    let rounds: usize = std::env::args()
+        .nth(1)
+        .map(|s| s.parse())
+        .transpose()?
+        .unwrap_or(5);
+    let root = std::env::var_os("SYNTHGEN_LMO_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| {
+            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/lmo")
+        });
+    let ids = [1u32, 5, 6, 8, 9];
+    let models = ids
+        .iter()
+        .map(|id| ply::read_ascii_ply(&root.join(format!("models/obj_{id:06}.ply")), 0.001))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let objects = models
+        .iter()
+        .enumerate()
+        .map(|(i, m)| SceneObject {
+            model_index: i,
+            obj_id: ids[i],
+            name: m.name.clone(),
+            support_points_m: m.support_points(256),
+        })
+        .collect();
+    let sampler = SceneSampler::new(SceneSpec::default(), objects, 2024)?;
+    let scenes = (0..32)
+        .map(|i| sampler.sample(i))
+        .collect::<Result<Vec<_>, _>>()?;
+    let r = CpuRenderer::new(models, vec![])?;
+    let mut out = RenderedFrame::default();
+    let (mut render_ms, mut ann_ms) = (Vec::new(), Vec::new());
+    for _ in 0..rounds {
+        for s in &scenes {
+            let t0 = Instant::now();
+            r.render_into(s, &mut out)?;
+            let t1 = Instant::now();
+            std::hint::black_box(annotate(
+                out.width,
+                out.height,
+                &out.depth_m,
+                &out.alone,
+                0.015,
+            ));
+            let t2 = Instant::now();
+            render_ms.push((t1 - t0).as_secs_f64() * 1e3);
+            ann_ms.push((t2 - t1).as_secs_f64() * 1e3);
+        }
+    }
+    let (mut obj_px, mut ground_px, mut bg_px, mut alone_px) = (0usize, 0usize, 0usize, 0usize);
+    for s in &scenes {
+        r.render_into(s, &mut out)?;
+        for (&d, &i) in out.depth_m.iter().zip(&out.instance) {
+            match (d > 0.0, i) {
+                (false, _) => bg_px += 1,
+                (true, 0) => ground_px += 1,
+                _ => obj_px += 1,
+            }
+        }
+        alone_px += out.alone.iter().map(|a| a.depth_m.len()).sum::<usize>();
+    }
+    let n = scenes.len();
+    println!(
+        "per frame: {} object px, {} ground px, {} background px, {} alone window px",
+        obj_px / n,
+        ground_px / n,
+        bg_px / n,
+        alone_px / n
+    );
+    for (name, mut v) in [("render", render_ms), ("annotate", ann_ms)] {
+        v.sort_by(|a, b| a.total_cmp(b));
+        println!(
+            "{name:>9}: median {:.3} ms, min {:.3} ms, p90 {:.3} ms ({} frames)",
+            v[v.len() / 2],
+            v[0],
+            v[v.len() * 9 / 10],
+            v.len()
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,412 @@
+//! The embedded CPU renderer: per object a windowed raster (its alone depth), then a
+//! composite with the ground plane, then deferred shading of the visible pixels.
+
+use std::cell::RefCell;
+use std::sync::Arc;
+
+use rayon::prelude::*;
+use synthgen_core::scene::BackgroundKind;
+use synthgen_core::{AloneDepth, FrameScene, Model, ObjectInstance, RenderedFrame, Texture};
+
+use crate::background::Background;
+use crate::color::ColorLuts;
+use crate::ground::{select, Ground, GroundRow, TileTables};
+use crate::prepare::{prepare, validate_texture, PreparedModel};
+use crate::raster::{raster_object, ObjScratch, Projection, Rect};
+use crate::shade::{shade_pixels, Light, ShadeBatch, ShadeParams};
+use crate::{Error, Renderer};
+
+/// Tunables of the CPU renderer.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CpuOptions {
+    /// Near clipping plane, metres along the optical axis. Default 0.01.
+    pub near_m: f32,
+}
+
+impl Default for CpuOptions {
+    fn default() -> Self {
+        Self { near_m: 0.01 }
+    }
+}
+
+/// The embedded rasterizer. Immutable after construction, so one renderer can serve all
+/// threads (`render_frames` renders frames in parallel).
+pub struct CpuRenderer {
+    models: Arc<[PreparedModel]>,
+    backgrounds: Vec<Arc<Texture>>,
+    options: CpuOptions,
+    luts: ColorLuts,
+    tiles: TileTables,
+}
+
+/// Buffers reused from frame to frame on each thread, so a frame allocates only its output.
+#[derive(Default)]
+struct Scratch {
+    objs: Vec<ObjScratch>,
+    xmap: Vec<u32>,
+    ymap: Vec<u32>,
+    cam_lights: Vec<Light>,
+    batch: ShadeBatch,
+    ground_row: GroundRow,
+}
+
+thread_local! {
+    static SCRATCH: RefCell<Scratch> = RefCell::new(Scratch::default());
+}
+
+/// Instance ids are u16 with 0 for the background.
+const MAX_OBJECTS: usize = u16::MAX as usize - 1;
+
+impl CpuRenderer {
+    /// Prepares the models (validated: indices in range, attribute lengths, finite
+    /// positions, texture sizes) and the background images for `BackgroundKind::Images`.
+    pub fn new(models: Vec<Model>, backgrounds: Vec<Arc<Texture>>) -> Result<Self, Error> {
+        Self::with_options(models, backgrounds, CpuOptions::default())
+    }
+
+    pub fn with_options(
+        models: Vec<Model>,
+        backgrounds: Vec<Arc<Texture>>,
+        options: CpuOptions,
+    ) -> Result<Self, Error> {
+        if !(options.near_m.is_finite() && options.near_m > 0.0) {
+            return Err(Error::InvalidOption {
+                name: "near_m",
+                reason: format!("must be finite and > 0, got {}", options.near_m),
+            });
+        }
+        for b in &backgrounds {
+            validate_texture(b)?;
+        }
+        let models = models
+            .into_iter()
+            .map(prepare)
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(CpuRenderer {
+            models: models.into(),
+            backgrounds,
+            options,
+            luts: ColorLuts::new(),
+            tiles: TileTables::new(),
+        })
+    }
+
+    pub fn options(&self) -> &CpuOptions {
+        &self.options
+    }
+
+    pub fn model_count(&self) -> usize {
+        self.models.len()
+    }
+
+    fn validate(&self, scene: &FrameScene) -> Result<(), Error> {
+        let k = &scene.intrinsics;
+        k.validate().map_err(|e| Error::InvalidIntrinsics {
+            reason: e.to_string(),
+        })?;
+        if scene.objects.len() > MAX_OBJECTS {
+            return Err(Error::TooManyObjects {
+                count: scene.objects.len(),
+                max: MAX_OBJECTS,
+            });
+        }
+        for (i, o) in scene.objects.iter().enumerate() {
+            if o.model_index >= self.models.len() {
+                return Err(Error::UnknownModel {
+                    object: i,
+                    model_index: o.model_index,
+                    model_count: self.models.len(),
+                });
+            }
+            o.cam_from_obj
+                .validate(1e-4)
+                .map_err(|e| Error::InvalidPose {
+                    what: format!("object {i} ({})", self.models[o.model_index].name),
+                    reason: e.to_string(),
+                })?;
+        }
+        if scene.background.kind == BackgroundKind::Images && self.backgrounds.is_empty() {
+            return Err(Error::NoBackgroundImages);
+        }
+        if let Some(g) = &scene.ground {
+            g.cam_from_plane
+                .validate(1e-4)
+                .map_err(|e| Error::InvalidPose {
+                    what: "ground plane".into(),
+                    reason: e.to_string(),
+                })?;
+        }
+        Ok(())
+    }
+
+    /// Renders into `out`, reusing its buffers (no allocation once they have grown).
+    pub fn render_into(&self, scene: &FrameScene, out: &mut RenderedFrame) -> Result<(), Error> {
+        self.validate(scene)?;
+        SCRATCH.with(|cell| match cell.try_borrow_mut() {
+            Ok(mut s) => self.render_with(scene, out, &mut s),
+            // Only reachable if rendering re-entered itself on this thread.
+            Err(_) => self.render_with(scene, out, &mut Scratch::default()),
+        })
+    }
+
+    fn render_with(
+        &self,
+        scene: &FrameScene,
+        out: &mut RenderedFrame,
+        scratch: &mut Scratch,
+    ) -> Result<(), Error> {
+        let k = &scene.intrinsics;
+        let (w, h) = (k.width as usize, k.height as usize);
+        let proj = Projection {
+            fx: k.fx as f32,
+            fy: k.fy as f32,
+            cx: k.cx as f32,
+            cy: k.cy as f32,
+            near_m: self.options.near_m,
+        };
+        let n = w * h;
+        out.width = k.width;
+        out.height = k.height;
+        // Depth and instance are accumulated into and must start at 0. Every rgb pixel is
+        // written below (background, ground or object); clearing it too is cheap insurance.
+        reset(&mut out.rgb, n * 3, 0);
+        reset(&mut out.depth_m, n, 0.0);
+        reset(&mut out.instance, n, 0);
+        out.alone
+            .resize_with(scene.objects.len(), AloneDepth::default);
+        if scratch.objs.len() < scene.objects.len() {
+            scratch
+                .objs
+                .resize_with(scene.objects.len(), ObjScratch::default);
+        }
+
+        let ground = scene.ground.as_ref().map(Ground::new);
+
+        // The canvas for alone renders is three times the image, centred on it.
+        let (wi, hi) = (k.width as i32, k.height as i32);
+        let canvas = Rect {
+            x0: -wi,
+            y0: -hi,
+            x1: 2 * wi,
+            y1: 2 * hi,
+        };
+        let image = Rect {
+            x0: 0,
+            y0: 0,
+            x1: wi,
+            y1: hi,
+        };
+        for ((inst, alone), os) in scene
+            .objects
+            .iter()
+            .zip(out.alone.iter_mut())
+            .zip(scratch.objs.iter_mut())
+        {
+            let model = &self.models[inst.model_index];
+            let rot = inst.cam_from_obj.rotation.as_mat3();
+            let t = inst.cam_from_obj.translation_m.as_vec3();
+            let win = raster_object(model, &rot, t, &proj, canvas, os, &mut alone.depth_m);
+            alone.x0 = win.x0;
+            alone.y0 = win.y0;
+            alone.width = win.width() as u32;
+            alone.height = win.height() as u32;
+        }
+
+        composite(&out.alone, &image, w, &mut out.depth_m, &mut out.instance);
+
+        let params = ShadeParams {
+            ambient: scene.ambient.max(0.0),
+        };
+        scratch.cam_lights.clear();
+        scratch
+            .cam_lights
+            .extend(scene.lights.iter().map(Light::from_point_light));
+        let bg = Background::new(
+            &scene.background,
+            &self.backgrounds,
+            w,
+            h,
+            &mut scratch.xmap,
+            &mut scratch.ymap,
+        )?;
+        shade_background_and_ground(
+            &bg,
+            ground.as_ref(),
+            &proj,
+            &params,
+            &scratch.cam_lights,
+            &self.tiles,
+            &self.luts,
+            out,
+            &mut scratch.ground_row,
+        );
+        for (i, (inst, os)) in scene.objects.iter().zip(&scratch.objs).enumerate() {
+            shade_object(
+                &self.models[inst.model_index],
+                inst,
+                i as u16 + 1,
+                os,
+                &proj,
+                &params,
+                &scratch.cam_lights,
+                &self.luts,
+                &mut scratch.batch,
+                out,
+            );
+        }
+        Ok(())
+    }
+}
+
+/// Nearest object per pixel from the objects' alone depths (ties to the lower index); the
+/// ground is tested against the result afterwards.
+#[inline(never)]
+fn composite(
+    alone: &[AloneDepth],
+    image: &Rect,
+    w: usize,
+    depth: &mut [f32],
+    instance: &mut [u16],
+) {
+    for (i, a) in alone.iter().enumerate() {
+        let id = i as u16 + 1;
+        let win = Rect {
+            x0: a.x0,
+            y0: a.y0,
+            x1: a.x0 + a.width as i32,
+            y1: a.y0 + a.height as i32,
+        };
+        let vis = win.intersect(image);
+        if vis.is_empty() {
+            continue;
+        }
+        let aw = a.width as usize;
+        for y in vis.y0..vis.y1 {
+            let src = &a.depth_m[(y - win.y0) as usize * aw..][(vis.x0 - win.x0) as usize..]
+                [..vis.width()];
+            let o = y as usize * w + vis.x0 as usize;
+            let dst = &mut depth[o..o + vis.width()];
+            let ins = &mut instance[o..o + vis.width()];
+            for ((&z, d), inst) in src.iter().zip(dst).zip(ins) {
+                let win = (z > 0.0) & ((*d == 0.0) | (z < *d));
+                *d = select(win, z, *d);
+                let m = 0u16.wrapping_sub(win as u16);
+                *inst = (id & m) | (*inst & !m);
+            }
+        }
+    }
+}
+
+/// The ground plane (depth test against the objects, then its colour) and the background,
+/// row by row.
+#[inline(never)]
+#[allow(clippy::too_many_arguments)]
+fn shade_background_and_ground(
+    bg: &Background,
+    ground: Option<&Ground>,
+    proj: &Projection,
+    params: &ShadeParams,
+    lights: &[Light],
+    tables: &TileTables,
+    luts: &ColorLuts,
+    out: &mut RenderedFrame,
+    row: &mut GroundRow,
+) {
+    let w = out.width as usize;
+    for (y, ((depth, inst), rgb)) in out
+        .depth_m
+        .chunks_exact_mut(w)
+        .zip(out.instance.chunks_exact_mut(w))
+        .zip(out.rgb.chunks_exact_mut(w * 3))
+        .enumerate()
+    {
+        if let Some(g) = ground {
+            g.draw_row(y, proj, params, lights, tables, luts, depth, inst, rgb, row);
+        }
+        bg.fill_row(y, depth, rgb);
+    }
+}
+
+/// Shades the pixels object `id` won, from the triangle ids of its window.
+#[inline(never)]
+#[allow(clippy::too_many_arguments)]
+fn shade_object(
+    model: &PreparedModel,
+    inst: &ObjectInstance,
+    id: u16,
+    os: &ObjScratch,
+    proj: &Projection,
+    params: &ShadeParams,
+    cam_lights: &[Light],
+    luts: &ColorLuts,
+    batch: &mut ShadeBatch,
+    out: &mut RenderedFrame,
+) {
+    let w = out.width as usize;
+    let image = Rect {
+        x0: 0,
+        y0: 0,
+        x1: out.width as i32,
+        y1: out.height as i32,
+    };
+    let win = os.window;
+    let vis = win.intersect(&image);
+    if vis.is_empty() {
+        return;
+    }
+    batch.clear();
+    let aw = win.width();
+    for y in vis.y0..vis.y1 {
+        let ids =
+            &os.ids[(y - win.y0) as usize * aw..][(vis.x0 - win.x0) as usize..][..vis.width()];
+        let o = y as usize * w + vis.x0 as usize;
+        let inst_row = &out.instance[o..o + vis.width()];
+        for (k, (&i, &tri)) in inst_row.iter().zip(ids).enumerate() {
+            if i == id {
+                batch.push((o + k) as u32, tri, vis.x0 + k as i32, y);
+            }
+        }
+    }
+    shade_pixels(
+        model,
+        inst,
+        proj,
+        params,
+        cam_lights,
+        luts,
+        batch,
+        &mut out.rgb,
+    );
+}
+
+/// `v = vec![value; n]`, reusing the allocation when it is big enough (a fresh zeroed
+/// allocation comes from `calloc`, cheaper than writing zeros).
+fn reset<T: Copy>(v: &mut Vec<T>, n: usize, value: T) {
+    if v.capacity() < n {
+        *v = vec![value; n];
+    } else {
+        v.clear();
+        v.resize(n, value);
+    }
+}
+
+impl Renderer for CpuRenderer {
+    fn render(&self, scene: &FrameScene) -> Result<RenderedFrame, Error> {
+        let mut out = RenderedFrame::default();
+        self.render_into(scene, &mut out)?;
+        Ok(out)
+    }
+
+    fn name(&self) -> &str {
+        "cpu"
+    }
+}
+
+/// Renders `scenes` in parallel (rayon, one frame per task). The result is the same, byte for
+/// byte, whatever the number of threads.
+pub fn render_frames(
+    renderer: &CpuRenderer,
+    scenes: &[FrameScene],
+) -> Vec<Result<RenderedFrame, Error>> {
+    scenes.par_iter().map(|s| renderer.render(s)).collect()
+}

@@ -1,0 +1,436 @@
+//! The ground plane: depth by exact ray-plane intersection per pixel centre (no triangles,
+//! so no near-plane clipping is needed), and a cheap procedural tile texture.
+//!
+//! The ground covers most of a typical frame, so its shading is written as branch-free
+//! whole-row passes the compiler vectorizes (plane coordinates, one pass per light), with only
+//! the table lookups (tiles, sRGB) left scalar.
+
+use synthgen_core::glam::Vec3;
+use synthgen_core::sample::GroundInstance;
+
+use crate::color::{srgb_index, srgb_to_linear_f32, ColorLuts, MAGIC, TO_SRGB_MAX};
+use crate::raster::Projection;
+use crate::shade::{Light, ShadeParams};
+
+/// Side of the fine texture tiles, metres; coarse tiles are 4 x 4 fine ones (8 cm).
+const FINE_TILE_M: f32 = 0.02;
+/// The tile table covers TILES x TILES fine tiles (5.12 m, more than a default 3 m plane)
+/// and repeats beyond.
+const TILES_LOG2: u32 = 8;
+const TILES: usize = 1 << TILES_LOG2;
+const TILE_MASK: i32 = TILES as i32 - 1;
+
+/// The tile pattern, built once per renderer: per fine tile 0.7 x its coarse tile's random
+/// value + 0.3 x its own, quantized to a byte.
+pub(crate) struct TileTables {
+    pattern: Vec<u8>,
+}
+
+impl TileTables {
+    pub fn new() -> TileTables {
+        let unit = |h: u32| (h >> 8) as f32 / 16_777_216.0;
+        let pattern = (0..TILES * TILES)
+            .map(|k| {
+                let (i, j) = ((k % TILES) as u32, (k / TILES) as u32);
+                let coarse = unit(hash32((i >> 2) | ((j >> 2) << 16) ^ 0x51ed_270b));
+                let fine = unit(hash32(i | (j << 16) ^ 0x2545_f491));
+                ((0.7 * coarse + 0.3 * fine) * 255.0 + 0.5) as u8
+            })
+            .collect();
+        TileTables { pattern }
+    }
+}
+
+/// The plane in the camera frame.
+pub(crate) struct Ground {
+    origin: Vec3,
+    e1: Vec3,
+    e2: Vec3,
+    normal: Vec3,
+    /// normal . origin
+    num: f32,
+    half_m: f32,
+    albedo_linear: [f32; 3],
+    strength: f32,
+    /// Per-frame offset into the tile table (x, y), so frames differ.
+    offsets: [i32; 2],
+}
+
+impl Ground {
+    pub fn new(g: &GroundInstance) -> Ground {
+        let r = g.cam_from_plane.rotation;
+        let origin = g.cam_from_plane.translation_m.as_vec3();
+        let normal = r.z_axis.as_vec3();
+        let s = g.texture_seed;
+        Ground {
+            origin,
+            e1: r.x_axis.as_vec3(),
+            e2: r.y_axis.as_vec3(),
+            normal,
+            num: normal.dot(origin),
+            half_m: (g.size_m * 0.5) as f32,
+            albedo_linear: g.color.map(srgb_to_linear_f32),
+            strength: g.texture_strength.clamp(0.0, 1.0),
+            offsets: [
+                (s as i32) & TILE_MASK,
+                ((s >> TILES_LOG2) as i32) & TILE_MASK,
+            ],
+        }
+    }
+
+    /// Pixels of row `y` that can hold the plane, from the six linear constraints in x that
+    /// make a hit (in front of the camera, beyond the near plane, inside the square), with a
+    /// pixel of margin: the exact per-pixel test decides within it.
+    pub fn row_span(&self, y: usize, proj: &Projection, width: usize) -> (usize, usize) {
+        let (fx, fy) = (proj.fx as f64, proj.fy as f64);
+        let (cx, cy) = (proj.cx as f64, proj.cy as f64);
+        let num = self.num as f64;
+        if num == 0.0 {
+            return (0, 0); // the camera lies in the plane
+        }
+        let s = num.signum();
+        let dy = (y as f64 - cy) / fy;
+        // Ray of pixel x: d = (x / fx - cx / fx, dy, 1); n.d, e1.d, e2.d are affine in x.
+        let aff = |v: Vec3| {
+            let v = v.as_dvec3();
+            (v.x / fx, -v.x * cx / fx + v.y * dy + v.z)
+        };
+        let (na, nb) = aff(self.normal);
+        let (ua, ub) = aff(self.e1);
+        let (va, vb) = aff(self.e2);
+        let (uc, vc) = (
+            self.e1.as_dvec3().dot(self.origin.as_dvec3()),
+            self.e2.as_dvec3().dot(self.origin.as_dvec3()),
+        );
+        let h = self.half_m as f64;
+        let near = proj.near_m as f64;
+        // With D = n.d and s D > 0: t = num / D >= near  <=>  |num| - near s D >= 0;
+        // u = num (e1.d) / D - uc in [-h, h)  <=>  s num (e1.d) - (uc -+ h) s D  >=< 0.
+        let cons = [
+            (s * na, s * nb),
+            (-near * s * na, num.abs() - near * s * nb),
+            (
+                s * (num * ua - (uc - h) * na),
+                s * (num * ub - (uc - h) * nb),
+            ),
+            (
+                -s * (num * ua - (uc + h) * na),
+                -s * (num * ub - (uc + h) * nb),
+            ),
+            (
+                s * (num * va - (vc - h) * na),
+                s * (num * vb - (vc - h) * nb),
+            ),
+            (
+                -s * (num * va - (vc + h) * na),
+                -s * (num * vb - (vc + h) * nb),
+            ),
+        ];
+        let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
+        for (a, b) in cons {
+            // a x + b >= 0
+            if a > 0.0 {
+                lo = lo.max(-b / a);
+            } else if a < 0.0 {
+                hi = hi.min(-b / a);
+            } else if b < 0.0 {
+                return (0, 0);
+            }
+        }
+        // Empty, or NaN from a degenerate pose.
+        if lo.is_nan() || hi.is_nan() || lo > hi {
+            return (0, 0);
+        }
+        let x0 = (lo.floor() - 1.0).clamp(0.0, width as f64) as usize;
+        let x1 = (hi.ceil() + 2.0).clamp(0.0, width as f64) as usize;
+        (x0, x1.max(x0))
+    }
+
+    /// The plane's depth (z along the optical axis) at the centres of pixels `x0..` of row
+    /// `y`: the ray-plane intersection where it lies beyond the near plane and inside the
+    /// square, else 0.
+    pub fn plane_depths(&self, y: usize, proj: &Projection, x0: usize, t: &mut [f32]) {
+        let (ifx, ify) = (1.0 / proj.fx, 1.0 / proj.fy);
+        let (ox, dy) = (-proj.cx * ifx, (y as f32 - proj.cy) * ify);
+        let n_a = self.normal.x * ifx;
+        let n_b = self.normal.x * ox + self.normal.y * dy + self.normal.z;
+        let (u_a, u_b) = (self.e1.x * ifx, self.e1.x * ox + self.e1.y * dy + self.e1.z);
+        let (v_a, v_b) = (self.e2.x * ifx, self.e2.x * ox + self.e2.y * dy + self.e2.z);
+        let (u_c, v_c) = (self.e1.dot(self.origin), self.e2.dot(self.origin));
+        let h = self.half_m;
+        for (i, tv) in t.iter_mut().enumerate() {
+            let xf = (x0 + i) as i32 as f32; // i32 converts in vector registers, usize does not
+            let tt = self.num / (n_a * xf + n_b);
+            let u = tt * (u_a * xf + u_b) - u_c;
+            let v = tt * (v_a * xf + v_b) - v_c;
+            // Selects, so the loop vectorizes; NaN and inf fail the compares.
+            let hit = (tt >= proj.near_m) & (u >= -h) & (u < h) & (v >= -h) & (v < h);
+            *tv = select(hit, tt, 0.0);
+        }
+    }
+
+    /// Draws the plane into row `y`: per pixel centre the exact ray-plane depth (z along the
+    /// optical axis) where the ray hits the square beyond the near plane, kept where nearer
+    /// than (or as near as) the objects already in `depth` (instance 0); then its colour,
+    /// ground colour x tile texture x (ambient + Lambert, no specular), written over the
+    /// row's whole ground span. The caller draws objects and background over it.
+    #[allow(clippy::too_many_arguments)]
+    pub fn draw_row(
+        &self,
+        y: usize,
+        proj: &Projection,
+        params: &ShadeParams,
+        lights: &[Light],
+        tables: &TileTables,
+        luts: &ColorLuts,
+        depth: &mut [f32],
+        instance: &mut [u16],
+        rgb: &mut [u8],
+        row: &mut GroundRow,
+    ) {
+        let (s0, s1) = self.row_span(y, proj, depth.len());
+        if s0 >= s1 {
+            return;
+        }
+        let (ifx, ify) = (1.0 / proj.fx, 1.0 / proj.fy);
+        let dy = (y as f32 - proj.cy) * ify;
+        let GroundRow {
+            t,
+            tile,
+            f,
+            f_lut,
+            strength,
+            samples,
+            idx,
+        } = row;
+
+        // Depth test over the span; `t` keeps the plane depth for shading.
+        let sw = s1 - s0;
+        t.resize(sw, 0.0);
+        self.plane_depths(y, proj, s0, &mut t[..sw]);
+        for ((&tv, d), id) in t[..sw]
+            .iter()
+            .zip(&mut depth[s0..s1])
+            .zip(&mut instance[s0..s1])
+        {
+            let win = (tv > 0.0) & ((*d == 0.0) | (tv <= *d));
+            *d = select(win, tv, *d);
+            *id &= !0u16.wrapping_sub(win as u16);
+        }
+        // The hits of a row lie on a line of the plane, whose intersection with the square is
+        // one segment: shade from the first hit to the last.
+        let Some(first) = t[..sw].iter().position(|&v| v > 0.0) else {
+            return;
+        };
+        let last = t[..sw].iter().rposition(|&v| v > 0.0).map_or(first, |l| l) + 1;
+        let (x0, x1) = (s0 + first, s0 + last);
+        let w = x1 - x0;
+        let t = &mut t[first..last];
+        // Pixel x0 + i of the span has the ray direction (ox + i / fx, dy, 1).
+        let ox = (x0 as f32 - proj.cx) * ifx;
+        f.resize(w, 0.0);
+        tile.resize(w, 0);
+        let (f, tile) = (&mut f[..w], &mut tile[..w]);
+
+        // Fine tile per pixel. Plane coordinates are affine in x once multiplied by t:
+        // u = t (a x + b) - c.
+        let (u_a, u_b) = (self.e1.x * ifx, self.e1.x * ox + self.e1.y * dy + self.e1.z);
+        let (v_a, v_b) = (self.e2.x * ifx, self.e2.x * ox + self.e2.y * dy + self.e2.z);
+        let (u_c, v_c) = (self.e1.dot(self.origin), self.e2.dot(self.origin));
+        let [otx, oty] = self.offsets;
+        for (i, (&tv, k)) in t.iter().zip(tile.iter_mut()).enumerate() {
+            let xf = i as i32 as f32;
+            let fu = floor_low_bits((tv * (u_a * xf + u_b) - u_c) * (1.0 / FINE_TILE_M)) + otx;
+            let fv = floor_low_bits((tv * (v_a * xf + v_b) - v_c) * (1.0 / FINE_TILE_M)) + oty;
+            *k = ((fu & TILE_MASK) | ((fv & TILE_MASK) << TILES_LOG2)) as u32;
+        }
+        // Texture factor: mean 1, contrast `strength`.
+        if f_lut.len() != 256 || *strength != self.strength {
+            let s2 = self.strength * 2.0;
+            f_lut.clear();
+            f_lut.extend((0..256).map(|v| 1.0 + s2 * (v as f32 / 255.0 - 0.5)));
+            *strength = self.strength;
+        }
+        let f_lut = &f_lut[..256];
+        for (fx, &k) in f.iter_mut().zip(tile.iter()) {
+            *fx = f_lut[tables.pattern[k as usize & (TILES * TILES - 1)] as usize];
+        }
+
+        // Irradiance x albedo, pre-scaled to the sRGB table's range: exact every LIGHT_STEP
+        // pixels and linear in between (it varies slowly over the plane). On the plane
+        // n.(L - p) is the light's height above it, the same for every pixel, so Lambert
+        // reduces to height / distance.
+        let scale = self.albedo_linear.map(|a| a * TO_SRGB_MAX as f32);
+        let side = if self.num > 0.0 { -1.0 } else { 1.0 };
+        let ns = (w - 1) / LIGHT_STEP + 2;
+        samples.clear();
+        for s in 0..ns {
+            let i = (s * LIGHT_STEP).min(w - 1);
+            let ti = t[i];
+            let p = Vec3::new((ox + i as f32 * ifx) * ti, dy * ti, ti);
+            let mut es = [params.ambient; 3];
+            for l in lights {
+                let height = side * (self.normal.dot(l.position) - self.num);
+                if height > 0.0 {
+                    let k = height / (l.position - p).length();
+                    for (ec, lc) in es.iter_mut().zip(l.color) {
+                        *ec += lc * k;
+                    }
+                }
+            }
+            samples.push(std::array::from_fn(|c| es[c] * scale[c]));
+        }
+        // Irradiance linear between samples, x texture -> sRGB table index. Fixed-size chunks
+        // so the inner loops unroll and vectorize.
+        const RAMP: [f32; LIGHT_STEP] = {
+            let mut r = [0.0; LIGHT_STEP];
+            let mut i = 0;
+            while i < LIGHT_STEP {
+                r[i] = i as f32;
+                i += 1;
+            }
+            r
+        };
+        for (c, ic) in idx.iter_mut().enumerate() {
+            ic.resize(w, 0);
+            let ic = &mut ic[..w];
+            let mut chunks = ic
+                .chunks_exact_mut(LIGHT_STEP)
+                .zip(f.chunks_exact(LIGHT_STEP));
+            for (s, (ixs, fs)) in chunks.by_ref().enumerate() {
+                let a = samples[s][c];
+                let step = (samples[s + 1][c] - a) * (1.0 / LIGHT_STEP as f32);
+                for ((ix, &fx), r) in ixs.iter_mut().zip(fs).zip(RAMP) {
+                    *ix = srgb_index((a + step * r) * fx);
+                }
+            }
+            let done = w / LIGHT_STEP * LIGHT_STEP;
+            if done < w {
+                let s = w / LIGHT_STEP;
+                let a = samples[s][c];
+                let step = (samples[s + 1][c] - a) / ((w - done).max(2) - 1) as f32;
+                for ((ix, &fx), r) in ic[done..].iter_mut().zip(&f[done..]).zip(RAMP) {
+                    *ix = srgb_index((a + step * r) * fx);
+                }
+            }
+        }
+        let [ir, ig, ib] = &*idx;
+        for (((px, &r), &g), &b) in rgb[x0 * 3..x1 * 3]
+            .chunks_exact_mut(3)
+            .zip(&ir[..w])
+            .zip(&ig[..w])
+            .zip(&ib[..w])
+        {
+            px[0] = luts.srgb_at(r);
+            px[1] = luts.srgb_at(g);
+            px[2] = luts.srgb_at(b);
+        }
+    }
+}
+
+/// Pixels between exact irradiance samples along a ground row.
+const LIGHT_STEP: usize = 16;
+
+/// `if c { a } else { b }` as bit operations. A plain `if` on a value loaded from the
+/// same slot gets turned into a conditional store, which does not vectorize.
+#[inline(always)]
+pub(crate) fn select(c: bool, a: f32, b: f32) -> f32 {
+    let m = 0u32.wrapping_sub(c as u32);
+    f32::from_bits((a.to_bits() & m) | (b.to_bits() & !m))
+}
+
+/// floor(x) modulo 2^16 (enough for the tile masks), for |x| < 2^21, without a float-to-int
+/// cast.
+#[inline(always)]
+fn floor_low_bits(x: f32) -> i32 {
+    ((x - 0.5 + MAGIC).to_bits() & 0xffff) as i32
+}
+
+/// Row buffers for `Ground::shade_row`, reused across rows and frames.
+#[derive(Debug, Default)]
+pub(crate) struct GroundRow {
+    /// Plane depth per pixel.
+    t: Vec<f32>,
+    /// Tile table index per pixel.
+    tile: Vec<u32>,
+    /// Texture factor per pixel, and per pattern byte for `strength`.
+    f: Vec<f32>,
+    f_lut: Vec<f32>,
+    strength: f32,
+    /// Exact irradiance samples along the row.
+    samples: Vec<[f32; 3]>,
+    /// sRGB table index per channel and pixel.
+    idx: [Vec<u16>; 3],
+}
+
+/// A fast 32-bit integer hash (lowbias32).
+#[inline(always)]
+pub(crate) fn hash32(mut x: u32) -> u32 {
+    x ^= x >> 16;
+    x = x.wrapping_mul(0x7feb_352d);
+    x ^= x >> 15;
+    x = x.wrapping_mul(0x846c_a68b);
+    x ^= x >> 16;
+    x
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use synthgen_core::glam::{DMat3, DVec3};
+    use synthgen_core::Pose;
+
+    fn ground(rot: DMat3, t: DVec3, size_m: f64) -> Ground {
+        Ground::new(&GroundInstance {
+            cam_from_plane: Pose::new(rot, t),
+            size_m,
+            color: [0.5; 3],
+            texture_strength: 0.3,
+            texture_seed: 1,
+        })
+    }
+
+    /// The analytic span of each row holds every pixel the exact per-pixel test hits.
+    #[test]
+    fn row_span_contains_every_hit() {
+        let proj = Projection {
+            fx: 572.4,
+            fy: 573.6,
+            cx: 325.3,
+            cy: 242.0,
+            near_m: 0.01,
+        };
+        let (w, h) = (640usize, 480usize);
+        let mut t = vec![0.0f32; w];
+        let mut hits = 0usize;
+        let mut state = 7u64;
+        let mut rnd = || {
+            state = synthgen_core::rng::splitmix64(state);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for case in 0..60 {
+            let axis = DVec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5).normalize();
+            let rot = DMat3::from_axis_angle(axis, rnd() * 6.3);
+            let pos = DVec3::new(rnd() - 0.5, rnd() - 0.5, rnd() * 2.0 - 0.3);
+            let size = if case % 3 == 0 { 0.3 } else { 3.0 };
+            let g = ground(rot, pos, size);
+            for y in 0..h {
+                g.plane_depths(y, &proj, 0, &mut t);
+                let (s0, s1) = g.row_span(y, &proj, w);
+                for (x, &tv) in t.iter().enumerate() {
+                    if tv > 0.0 {
+                        hits += 1;
+                        assert!(
+                            x >= s0 && x < s1,
+                            "case {case} row {y}: hit at {x} outside {s0}..{s1}"
+                        );
+                    }
+                }
+            }
+        }
+        assert!(
+            hits > 100_000,
+            "the cases should see the plane: {hits} hits"
+        );
+    }
+}

@@ -1,0 +1,13 @@
+//! Integration tests of the CPU renderer, one module per area.
+
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod background;
+mod common;
+mod determinism;
+mod geometry;
+mod golden;
+mod linemod;
+mod occlusion;
+#[allow(dead_code)]
+mod ply;
