@@ -71,9 +71,7 @@ impl Intrinsics {
 
     /// Row-major 3x3 K, as BOP's `cam_K`.
     pub fn k_row_major(&self) -> [f64; 9] {
-        [
-            self.fx, 0.0, self.cx, 0.0, self.fy, self.cy, 0.0, 0.0, 1.0,
-        ]
+        [self.fx, 0.0, self.cx, 0.0, self.fy, self.cy, 0.0, 0.0, 1.0]
     }
 
     /// Builds intrinsics from a row-major K and an image size.

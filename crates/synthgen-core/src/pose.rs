@@ -98,7 +98,9 @@ impl Pose {
         }
         let det = self.rotation.determinant();
         if (det - 1.0).abs() > tol {
-            return Err(Error::InvalidPose(format!("rotation determinant {det:.6} != 1")));
+            return Err(Error::InvalidPose(format!(
+                "rotation determinant {det:.6} != 1"
+            )));
         }
         let rrt = self.rotation * self.rotation.transpose();
         let dev = (rrt - DMat3::IDENTITY)
@@ -189,7 +191,10 @@ mod tests {
     #[test]
     fn row_major_layout_matches_bop() {
         // 90° about z: x -> y. Row-major [[0,-1,0],[1,0,0],[0,0,1]].
-        let p = Pose::new(DMat3::from_rotation_z(std::f64::consts::FRAC_PI_2), DVec3::ZERO);
+        let p = Pose::new(
+            DMat3::from_rotation_z(std::f64::consts::FRAC_PI_2),
+            DVec3::ZERO,
+        );
         let r = p.rotation_row_major();
         let want = [0.0, -1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0];
         for (a, b) in r.iter().zip(want) {

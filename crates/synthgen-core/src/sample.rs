@@ -164,7 +164,8 @@ impl SceneSampler {
         let ground = g.visible.then(|| {
             let mut rng = frame_rng(self.seed, frame_index, Stream::Ground);
             let t: f32 = rng.gen();
-            let color = std::array::from_fn(|i| g.color_min[i] + t * (g.color_max[i] - g.color_min[i]));
+            let color =
+                std::array::from_fn(|i| g.color_min[i] + t * (g.color_max[i] - g.color_min[i]));
             let world_from_plane = Pose::new(DMat3::IDENTITY, DVec3::new(center.x, center.y, 0.0));
             GroundInstance {
                 cam_from_plane: cam_from_world.compose(&world_from_plane),

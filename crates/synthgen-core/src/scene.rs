@@ -360,10 +360,11 @@ impl SceneSpec {
             ));
         }
         if self.placement.max_tries == 0 {
-            return Err(Error::InvalidSpec("placement.max_tries must be >= 1".into()));
+            return Err(Error::InvalidSpec(
+                "placement.max_tries must be >= 1".into(),
+            ));
         }
-        if self.background.kind == BackgroundKind::Images && self.background.images_dir.is_none()
-        {
+        if self.background.kind == BackgroundKind::Images && self.background.images_dir.is_none() {
             return Err(Error::InvalidSpec(
                 "background.kind = \"images\" needs background.images_dir".into(),
             ));

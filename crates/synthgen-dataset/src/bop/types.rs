@@ -67,6 +67,28 @@ pub struct ModelInfo {
     pub symmetries: Symmetries,
 }
 
+impl ModelInfo {
+    /// Extents and diameter of a model (metres in, millimetres out), no symmetries.
+    pub fn from_model(model: &synthgen_core::Model) -> ModelInfo {
+        let (min, size) = model.aabb().map_or(([0.0; 3], [0.0; 3]), |bb| {
+            (
+                bb.min.as_dvec3().to_array().map(|v| v * 1000.0),
+                bb.size().as_dvec3().to_array().map(|v| v * 1000.0),
+            )
+        });
+        ModelInfo {
+            diameter: model.diameter_m() * 1000.0,
+            min_x: min[0],
+            min_y: min[1],
+            min_z: min[2],
+            size_x: size[0],
+            size_y: size[1],
+            size_z: size[2],
+            symmetries: Symmetries::default(),
+        }
+    }
+}
+
 /// One image's entry of `scene_camera.json`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct SceneCamera {

@@ -1,0 +1,50 @@
+//! One module per command; each exposes `run(args, printer) -> anyhow::Result<ExitStatus>`.
+
+pub mod render;
+
+use crate::ExitStatus;
+
+/// Bad input (a broken mesh, a malformed spec, an unwritable folder) exits with 1; anything
+/// else is an internal error (2).
+pub fn exit_status_for(err: &anyhow::Error) -> ExitStatus {
+    let user = err.chain().any(|c| {
+        c.is::<synthgen_core::Error>()
+            || c.is::<synthgen_assets::Error>()
+            || c.is::<synthgen_dataset::Error>()
+            || c.is::<std::io::Error>()
+            || c.is::<UserError>()
+    });
+    if user {
+        ExitStatus::Failure
+    } else {
+        ExitStatus::Error
+    }
+}
+
+/// A problem with what the user asked for, with a hint on what to do instead.
+#[derive(Debug)]
+pub struct UserError {
+    pub message: String,
+    pub hint: Option<String>,
+}
+
+impl std::fmt::Display for UserError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+impl std::error::Error for UserError {}
+
+pub fn user_error(message: impl Into<String>, hint: impl Into<String>) -> anyhow::Error {
+    anyhow::Error::new(UserError {
+        message: message.into(),
+        hint: Some(hint.into()),
+    })
+}
+
+pub fn hint_for(err: &anyhow::Error) -> Option<String> {
+    err.chain()
+        .find_map(|c| c.downcast_ref::<UserError>())
+        .and_then(|u| u.hint.clone())
+}

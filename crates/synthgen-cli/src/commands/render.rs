@@ -1,0 +1,524 @@
+//! `synthgen render`: sample scenes, render them, write a BOP dataset.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use rayon::prelude::*;
+use synthgen_assets::Units;
+use synthgen_core::sample::SceneObject;
+use synthgen_core::scene::{BackgroundKind, Orientation};
+use synthgen_core::{Model, Progress, SceneSampler, SceneSpec, Texture};
+use synthgen_dataset::bop::{BopWriter, BopWriterOptions, ModelInfo, RgbFormat};
+use synthgen_dataset::manifest::{write_manifest, Manifest};
+use synthgen_render::{CpuRenderer, Renderer};
+
+use crate::cli::{
+    Backend, BackgroundArg, OrientationArg, RenderArgs, RgbFormat as RgbArg, UnitsArg,
+};
+use crate::commands::user_error;
+use crate::{ExitStatus, Printer};
+
+/// One mesh to load, with where it came from.
+struct ObjectSource {
+    path: PathBuf,
+    units: Units,
+    obj_id: Option<u32>,
+    count: u32,
+}
+
+pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
+    let started = Instant::now();
+    check_backend(args.backend)?;
+    let spec = build_spec(&args)?;
+    let sources = collect_sources(&args, &spec)?;
+    check_out_dir(&args.out, args.force)?;
+
+    // Models, in the order given; ids from flags, the spec, file names, or 1, 2, ...
+    let mut models = Vec::new();
+    for s in &sources {
+        let loaded = synthgen_assets::load_model(&s.path, s.units, printer)
+            .with_context(|| format!("cannot load object {}", s.path.display()))?;
+        if let Some(note) = &loaded.auto_note {
+            printer.info(note);
+        }
+        models.push(loaded.model);
+    }
+    let ids = assign_obj_ids(&sources, &args.obj_ids)?;
+    let scene_objects = scene_objects(&models, &ids, &sources);
+
+    let backgrounds = load_backgrounds(&spec, printer)?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(args.jobs.unwrap_or(0))
+        .build()
+        .context("cannot start worker threads")?;
+
+    let intrinsics = spec.camera.intrinsics()?;
+    let frame_range = args.first_frame..args.first_frame + args.frames;
+    let writer = BopWriter::create(
+        &args.out,
+        BopWriterOptions {
+            split: args.split.clone(),
+            chunk_size: args.chunk_size,
+            rgb_format: match args.rgb_format {
+                RgbArg::Png => RgbFormat::Png,
+                RgbArg::Jpg => RgbFormat::Jpg {
+                    quality: args.jpg_quality,
+                },
+            },
+            depth_scale: args.depth_scale,
+            frame_range: Some(frame_range.clone()),
+            ..BopWriterOptions::new(intrinsics)
+        },
+    )?;
+    writer.write_camera_json()?;
+    write_models(&writer, &models, &ids)?;
+
+    let sampler = SceneSampler::new(spec.clone(), scene_objects, args.seed)?;
+    let renderer = CpuRenderer::new(models.clone(), backgrounds)?;
+    let delta_m = args.visib_delta_m as f32;
+
+    let frames: Vec<u64> = frame_range.collect();
+    printer.start("rendering", args.frames);
+    let mut failures: Vec<(u64, String)> = Vec::new();
+    // Batches bound memory (a frame's buffers are dropped once it is written) while giving
+    // every thread several frames to work on.
+    let batch = (pool.current_num_threads() * 8).max(8);
+    'outer: for batch_frames in frames.chunks(batch) {
+        let results: Vec<(u64, Result<_>)> = pool.install(|| {
+            batch_frames
+                .par_iter()
+                .map(|&i| {
+                    let r = (|| {
+                        let scene = sampler.sample(i)?;
+                        let frame = renderer.render(&scene)?;
+                        let ann = synthgen_core::annotate(
+                            frame.width,
+                            frame.height,
+                            &frame.depth_m,
+                            &frame.alone,
+                            delta_m,
+                        );
+                        let rec = writer.write_frame(i, &scene, &frame, &ann)?;
+                        printer.advance(1);
+                        anyhow::Ok(rec)
+                    })();
+                    (i, r)
+                })
+                .collect()
+        });
+        for (i, r) in results {
+            match r {
+                // Records arrive in frame order; a scene folder's JSON is written as soon as
+                // its last frame of this run is in.
+                Ok(rec) => {
+                    writer.add_record(rec)?;
+                }
+                Err(e) => {
+                    printer.warning(format!("frame {i} failed: {e:#}"));
+                    failures.push((i, format!("{e:#}")));
+                    if args.fail_fast {
+                        break 'outer;
+                    }
+                }
+            }
+        }
+    }
+    let summary = writer.finish()?;
+    printer.finish();
+    if summary.depth_out_of_range_px > 0 {
+        printer.warning(format!(
+            "{} depth pixels were beyond what a 16-bit PNG holds at depth_scale {} and were written as 0 (invalid)",
+            summary.depth_out_of_range_px, args.depth_scale
+        ));
+        printer.hint("pass --depth-scale 1.0 for 1 mm steps up to 65 m");
+    }
+    let written = summary.frames;
+
+    let elapsed = started.elapsed().as_secs_f64();
+    let mut manifest = Manifest::new(std::env::args().collect(), args.seed);
+    manifest.backend = "cpu".into();
+    manifest.frames = written;
+    manifest.scene_spec = serde_json::to_value(&spec).context("cannot serialize the scene spec")?;
+    manifest.extra = serde_json::json!({
+        "first_frame": args.first_frame,
+        "objects": sources.iter().zip(&ids).map(|(s, id)| serde_json::json!({
+            "path": s.path, "obj_id": id, "count": s.count,
+        })).collect::<Vec<_>>(),
+        "visib_delta_m": args.visib_delta_m,
+        "failed_frames": failures.iter().map(|f| f.0).collect::<Vec<_>>(),
+    });
+    write_manifest(&args.out, &manifest)?;
+
+    summarize(printer, &args, &models, written, &failures, elapsed);
+    Ok(if failures.is_empty() {
+        ExitStatus::Success
+    } else {
+        ExitStatus::Failure
+    })
+}
+
+fn check_backend(backend: Backend) -> Result<()> {
+    match backend {
+        Backend::Cpu => Ok(()),
+        Backend::Blender if cfg!(feature = "blender") => Err(user_error(
+            "the blender backend is not implemented yet",
+            "use --backend cpu (the default); Blender rendering is tracked in the project's issues",
+        )),
+        Backend::Blender => Err(user_error(
+            "synthgen was not compiled with the `blender` feature",
+            "use --backend cpu (the default), or rebuild with `--features blender`",
+        )),
+    }
+}
+
+/// The scene spec: defaults, then `--scene FILE`, then flags.
+fn build_spec(args: &RenderArgs) -> Result<SceneSpec> {
+    let mut spec = match &args.scene {
+        Some(path) => SceneSpec::from_toml_file(path)
+            .with_context(|| format!("invalid scene spec {}", path.display()))?,
+        None => SceneSpec::default(),
+    };
+    if let Some(name) = &args.camera {
+        spec.camera.preset = name.clone();
+    }
+    if let Some(k) = &args.camera_k {
+        if k.len() != 4 {
+            return Err(user_error(
+                format!("--camera-k needs 4 numbers, got {}", k.len()),
+                "write it as --camera-k 572.41,573.57,325.26,242.05 (fx,fy,cx,cy in pixels)",
+            ));
+        }
+        spec.camera.fx = Some(k[0]);
+        spec.camera.fy = Some(k[1]);
+        spec.camera.cx = Some(k[2]);
+        spec.camera.cy = Some(k[3]);
+    }
+    if let Some(s) = &args.image_size {
+        if s.len() != 2 {
+            return Err(user_error(
+                format!("--image-size needs 2 numbers, got {}", s.len()),
+                "write it as --image-size 640,480",
+            ));
+        }
+        spec.camera.width = Some(s[0]);
+        spec.camera.height = Some(s[1]);
+    }
+    if let Some(r) = args.distance_m {
+        spec.camera_pose.distance_m = r;
+    }
+    if let Some(r) = args.elevation_deg {
+        spec.camera_pose.elevation_deg = r;
+    }
+    if let Some(o) = args.orientation {
+        spec.placement.orientation = match o {
+            OrientationArg::Upright => Orientation::Upright,
+            OrientationArg::Random => Orientation::Random,
+        };
+    }
+    if let Some(b) = args.background {
+        spec.background.kind = match b {
+            BackgroundArg::Color => BackgroundKind::Color,
+            BackgroundArg::Noise => BackgroundKind::Noise,
+            BackgroundArg::Images => BackgroundKind::Images,
+        };
+    }
+    if let Some(dir) = &args.background_dir {
+        spec.background.images_dir = Some(dir.clone());
+        if args.background.is_none() {
+            spec.background.kind = BackgroundKind::Images;
+        }
+    }
+    spec.validate()?;
+    Ok(spec)
+}
+
+fn units_of(arg: UnitsArg) -> Units {
+    match arg {
+        UnitsArg::Auto => Units::Auto,
+        UnitsArg::Mm => Units::Mm,
+        UnitsArg::M => Units::M,
+    }
+}
+
+fn collect_sources(args: &RenderArgs, spec: &SceneSpec) -> Result<Vec<ObjectSource>> {
+    let mut sources: Vec<ObjectSource> = args
+        .objects
+        .iter()
+        .map(|p| ObjectSource {
+            path: p.clone(),
+            units: units_of(args.units),
+            obj_id: None,
+            count: 1,
+        })
+        .collect();
+    for o in &spec.objects {
+        let units = match o.units.as_deref() {
+            None => units_of(args.units),
+            Some(u) => u.parse::<Units>().map_err(|_| {
+                user_error(
+                    format!(
+                        "unknown units {u:?} for {} in the scene spec",
+                        o.path.display()
+                    ),
+                    "use units = \"mm\", \"m\" or \"auto\"",
+                )
+            })?,
+        };
+        sources.push(ObjectSource {
+            path: o.path.clone(),
+            units,
+            obj_id: o.obj_id,
+            count: o.count,
+        });
+    }
+    if sources.is_empty() {
+        return Err(user_error(
+            "no objects to render",
+            "pass meshes with --objects, e.g. `synthgen render --objects drill.obj`, or list them as [[objects]] in a --scene file",
+        ));
+    }
+    if !args.obj_ids.is_empty() && args.obj_ids.len() != args.objects.len() {
+        return Err(user_error(
+            format!(
+                "--obj-ids has {} ids but --objects has {} meshes",
+                args.obj_ids.len(),
+                args.objects.len()
+            ),
+            "give one id per mesh, in the same order",
+        ));
+    }
+    Ok(sources)
+}
+
+/// The number in BOP-style names such as `obj_000008.ply` or `obj_08.ply`.
+fn id_from_name(path: &Path) -> Option<u32> {
+    let stem = path.file_stem()?.to_str()?;
+    let digits = stem.strip_prefix("obj_")?;
+    digits.parse::<u32>().ok().filter(|&v| v > 0)
+}
+
+/// Object ids in source order: explicit ids first, then file-name ids, then the smallest free.
+fn assign_obj_ids(sources: &[ObjectSource], flag_ids: &[u32]) -> Result<Vec<u32>> {
+    let mut ids: Vec<Option<u32>> = sources
+        .iter()
+        .enumerate()
+        .map(|(i, s)| {
+            flag_ids
+                .get(i)
+                .copied()
+                .or(s.obj_id)
+                .or_else(|| id_from_name(&s.path))
+        })
+        .collect();
+    let mut by_path: BTreeMap<u32, &Path> = BTreeMap::new();
+    for (s, id) in sources.iter().zip(&ids) {
+        if let Some(id) = id {
+            if *id == 0 {
+                return Err(user_error(
+                    "object id 0 is not allowed",
+                    "BOP ids start at 1",
+                ));
+            }
+            match by_path.get(id) {
+                Some(p) if *p != s.path.as_path() => {
+                    return Err(user_error(
+                        format!(
+                            "object id {id} is given to both {} and {}",
+                            p.display(),
+                            s.path.display()
+                        ),
+                        "pass distinct ids with --obj-ids",
+                    ))
+                }
+                _ => {
+                    by_path.insert(*id, &s.path);
+                }
+            }
+        }
+    }
+    let mut next = 1;
+    for (s, id) in sources.iter().zip(ids.iter_mut()) {
+        if id.is_none() {
+            // The same file listed twice shares one id.
+            if let Some((&k, _)) = by_path.iter().find(|(_, p)| **p == s.path.as_path()) {
+                *id = Some(k);
+                continue;
+            }
+            while by_path.contains_key(&next) {
+                next += 1;
+            }
+            by_path.insert(next, &s.path);
+            *id = Some(next);
+        }
+    }
+    Ok(ids.into_iter().map(|i| i.unwrap_or(0)).collect())
+}
+
+fn scene_objects(models: &[Model], ids: &[u32], sources: &[ObjectSource]) -> Vec<SceneObject> {
+    let mut out = Vec::new();
+    for (i, ((m, &id), s)) in models.iter().zip(ids).zip(sources).enumerate() {
+        let support = m.support_points(256);
+        for _ in 0..s.count {
+            out.push(SceneObject {
+                model_index: i,
+                obj_id: id,
+                name: m.name.clone(),
+                support_points_m: support.clone(),
+            });
+        }
+    }
+    out
+}
+
+fn check_out_dir(out: &Path, force: bool) -> Result<()> {
+    if let Ok(mut entries) = std::fs::read_dir(out) {
+        if entries.next().is_some() && !force {
+            return Err(user_error(
+                format!("output folder is not empty: {}", out.display()),
+                "choose another --out, or pass --force to write into it",
+            ));
+        }
+    } else if out.exists() {
+        return Err(user_error(
+            format!("output path exists and is not a folder: {}", out.display()),
+            "choose another --out",
+        ));
+    }
+    Ok(())
+}
+
+fn load_backgrounds(spec: &SceneSpec, printer: &Printer) -> Result<Vec<Arc<Texture>>> {
+    if spec.background.kind != BackgroundKind::Images {
+        return Ok(Vec::new());
+    }
+    let Some(dir) = &spec.background.images_dir else {
+        return Ok(Vec::new());
+    };
+    let images = synthgen_assets::load_images_in_dir(dir, printer)
+        .with_context(|| format!("cannot load background images from {}", dir.display()))?;
+    if images.is_empty() {
+        return Err(user_error(
+            format!("no PNG or JPEG images in {}", dir.display()),
+            "point --background-dir at a folder of images, or use --background noise",
+        ));
+    }
+    printer.info(format!(
+        "{} background images from {}",
+        images.len(),
+        dir.display()
+    ));
+    Ok(images)
+}
+
+/// models/obj_XXXXXX.ply in millimetres and models_info.json, once per object id.
+fn write_models(writer: &BopWriter, models: &[Model], ids: &[u32]) -> Result<()> {
+    let mut infos: BTreeMap<u32, ModelInfo> = BTreeMap::new();
+    for (m, &id) in models.iter().zip(ids) {
+        if infos.contains_key(&id) {
+            continue;
+        }
+        let path = writer.model_ply_path(id)?;
+        synthgen_assets::write_ply(&path, m, 1000.0)
+            .with_context(|| format!("cannot write model {}", path.display()))?;
+        infos.insert(id, ModelInfo::from_model(m));
+    }
+    let entries: Vec<(u32, ModelInfo)> = infos.into_iter().collect();
+    writer.write_models_info(&entries)?;
+    Ok(())
+}
+
+fn summarize(
+    printer: &Printer,
+    args: &RenderArgs,
+    models: &[Model],
+    written: u64,
+    failures: &[(u64, String)],
+    elapsed_s: f64,
+) {
+    let names: Vec<&str> = models.iter().map(|m| m.name.as_str()).collect();
+    let fps = if elapsed_s > 0.0 {
+        written as f64 / elapsed_s
+    } else {
+        0.0
+    };
+    let scenes = if written == 0 {
+        0
+    } else {
+        (args.first_frame + args.frames - 1) / u64::from(args.chunk_size.max(1))
+            - args.first_frame / u64::from(args.chunk_size.max(1))
+            + 1
+    };
+    printer.info(format!(
+        "Rendered {written} frames of {} object{} ({}) in {elapsed_s:.1} s ({fps:.1} frames/s) \
+         with the embedded CPU renderer, seed {}; wrote a BOP dataset to {} (split {}, {scenes} \
+         scene folder{}).{}",
+        models.len(),
+        if models.len() == 1 { "" } else { "s" },
+        names.join(", "),
+        args.seed,
+        args.out.display(),
+        args.split,
+        if scenes == 1 { "" } else { "s" },
+        if failures.is_empty() {
+            String::new()
+        } else {
+            format!(
+                " {} frame{} failed (first: frame {}: {}).",
+                failures.len(),
+                if failures.len() == 1 { "" } else { "s" },
+                failures[0].0,
+                failures[0].1
+            )
+        }
+    ));
+    if written > 0 {
+        printer.hint(format!(
+            "look at {}",
+            args.out
+                .join(&args.split)
+                .join(format!(
+                    "{:06}",
+                    args.first_frame / u64::from(args.chunk_size.max(1))
+                ))
+                .join("rgb")
+                .display()
+        ));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn src(p: &str) -> ObjectSource {
+        ObjectSource {
+            path: PathBuf::from(p),
+            units: Units::Auto,
+            obj_id: None,
+            count: 1,
+        }
+    }
+
+    #[test]
+    fn ids_from_names_then_free_numbers() {
+        let s = [
+            src("a/obj_000008.ply"),
+            src("drill.obj"),
+            src("obj_01.ply"),
+            src("banana.obj"),
+        ];
+        assert_eq!(assign_obj_ids(&s, &[]).unwrap(), vec![8, 2, 1, 3]);
+    }
+
+    #[test]
+    fn flag_ids_win_and_duplicates_are_errors() {
+        let s = [src("drill.obj"), src("banana.obj")];
+        assert_eq!(assign_obj_ids(&s, &[5, 6]).unwrap(), vec![5, 6]);
+        assert!(assign_obj_ids(&s, &[5, 5]).is_err());
+        let same = [src("drill.obj"), src("drill.obj")];
+        assert_eq!(assign_obj_ids(&same, &[]).unwrap(), vec![1, 1]);
+    }
+}

@@ -1,0 +1,53 @@
+//! The `synthgen` command-line tool. `main.rs` only calls [`main`]; argument structs live in
+//! `cli.rs`, each command's body in `commands/<verb>.rs`.
+
+use std::process::ExitCode;
+
+use clap::Parser;
+use synthgen_core::Progress;
+
+pub mod cli;
+pub mod commands;
+pub mod printer;
+
+pub use printer::Printer;
+
+/// How a command ended. Exit codes: 0 ok, 1 bad input or some items failed, 2 internal error.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ExitStatus {
+    Success,
+    Failure,
+    Error,
+}
+
+impl From<ExitStatus> for ExitCode {
+    fn from(s: ExitStatus) -> Self {
+        match s {
+            ExitStatus::Success => ExitCode::from(0),
+            ExitStatus::Failure => ExitCode::from(1),
+            ExitStatus::Error => ExitCode::from(2),
+        }
+    }
+}
+
+pub fn main() -> ExitCode {
+    let cli = cli::Cli::parse();
+    let printer = Printer::new(cli.quiet);
+    let result = match cli.command {
+        cli::Command::Render(args) => commands::render::run(*args, &printer),
+    };
+    match result {
+        Ok(status) => status.into(),
+        Err(err) => {
+            printer.finish();
+            eprintln!("error: {err}");
+            for cause in err.chain().skip(1) {
+                eprintln!("  caused by: {cause}");
+            }
+            if let Some(hint) = commands::hint_for(&err) {
+                eprintln!("hint: {hint}");
+            }
+            commands::exit_status_for(&err).into()
+        }
+    }
+}

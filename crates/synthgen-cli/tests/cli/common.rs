@@ -1,0 +1,41 @@
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+pub fn synthgen() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_synthgen"));
+    c.env_remove("RUST_LOG");
+    c
+}
+
+/// Runs the binary and returns its output, printing stderr for debugging failures.
+pub fn run(cmd: &mut Command) -> Output {
+    let out = cmd.output().expect("synthgen runs");
+    eprintln!(
+        "--- synthgen stderr ---\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// `../shared/data` beside the checkout, when present.
+pub fn shared_data() -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
+    if p.is_dir() {
+        Some(p.canonicalize().expect("canonical path"))
+    } else {
+        eprintln!("skipped: shared data not found at {}", p.display());
+        None
+    }
+}
+
+/// The repository root.
+pub fn repo_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .canonicalize()
+        .expect("repo root")
+}

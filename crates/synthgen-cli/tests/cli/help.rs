@@ -1,0 +1,39 @@
+//! `--help` output is part of the interface: snapshot it. Regenerate with SYNTHGEN_BLESS=1.
+
+use crate::common::{run, synthgen};
+
+fn check_snapshot(name: &str, args: &[&str]) {
+    let out = run(synthgen().args(args).env("COLUMNS", "100"));
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout).replace("synthgen.exe", "synthgen");
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/snapshots")
+        .join(name);
+    if std::env::var_os("SYNTHGEN_BLESS").is_some() {
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(&path, &text).unwrap();
+        return;
+    }
+    let want = std::fs::read_to_string(&path).unwrap_or_else(|_| {
+        panic!(
+            "missing snapshot {}; run with SYNTHGEN_BLESS=1 to create it",
+            path.display()
+        )
+    });
+    assert_eq!(
+        text,
+        want,
+        "help changed; if intended, re-run with SYNTHGEN_BLESS=1 ({})",
+        path.display()
+    );
+}
+
+#[test]
+fn top_level_help() {
+    check_snapshot("help.txt", &["--help"]);
+}
+
+#[test]
+fn render_help() {
+    check_snapshot("render_help.txt", &["render", "--help"]);
+}

@@ -1,0 +1,365 @@
+//! `synthgen render` end to end: real meshes in, a BOP dataset out, checked by reading it back.
+
+use std::path::Path;
+
+use synthgen_assets::Units;
+use synthgen_core::glam::DVec3;
+use synthgen_core::sample::SceneObject;
+use synthgen_core::{NoProgress, SceneSampler, SceneSpec};
+use synthgen_dataset::bop::{read_mask, BopDataset};
+
+use crate::common::{repo_root, run, shared_data, stderr, synthgen};
+
+/// An ascii PLY box, 8 x 6 x 4 cm, in metres.
+pub fn box_ply() -> String {
+    let (x, y, z) = (0.04, 0.03, 0.02);
+    let v = [
+        (-x, -y, -z),
+        (x, -y, -z),
+        (x, y, -z),
+        (-x, y, -z),
+        (-x, -y, z),
+        (x, -y, z),
+        (x, y, z),
+        (-x, y, z),
+    ];
+    let f = [
+        [0, 2, 1],
+        [0, 3, 2],
+        [4, 5, 6],
+        [4, 6, 7],
+        [0, 1, 5],
+        [0, 5, 4],
+        [2, 3, 7],
+        [2, 7, 6],
+        [1, 2, 6],
+        [1, 6, 5],
+        [0, 4, 7],
+        [0, 7, 3],
+    ];
+    let mut s = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 8\nproperty float x\nproperty float y\nproperty float z\nelement face 12\nproperty list uchar int vertex_indices\nend_header\n",
+    );
+    for (a, b, c) in v {
+        s += &format!("{a} {b} {c}\n");
+    }
+    for t in f {
+        s += &format!("3 {} {} {}\n", t[0], t[1], t[2]);
+    }
+    s
+}
+
+/// Distance from p to triangle abc (Ericson, Real-Time Collision Detection 5.1.5).
+fn point_triangle_distance(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> f64 {
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return p.distance(a);
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return p.distance(b);
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return p.distance(a + v * ab);
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return p.distance(c);
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return p.distance(a + w * ac);
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return p.distance(b + w * (c - b));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    let (v, w) = (vb * denom, vc * denom);
+    p.distance(a + ab * v + ac * w)
+}
+
+struct Surface {
+    tris: Vec<[DVec3; 3]>,
+    /// Bounding sphere per triangle, to skip far ones cheaply.
+    spheres: Vec<(DVec3, f64)>,
+}
+
+impl Surface {
+    fn new(model: &synthgen_core::Model) -> Surface {
+        let mut tris = Vec::new();
+        for p in &model.primitives {
+            for t in &p.triangles {
+                tris.push(t.map(|i| p.positions_m[i as usize].as_dvec3()));
+            }
+        }
+        let spheres = tris
+            .iter()
+            .map(|t| {
+                let c = (t[0] + t[1] + t[2]) / 3.0;
+                let r = t.iter().map(|v| v.distance(c)).fold(0.0, f64::max);
+                (c, r)
+            })
+            .collect();
+        Surface { tris, spheres }
+    }
+
+    fn distance(&self, p: DVec3) -> f64 {
+        let mut best = f64::INFINITY;
+        for (t, (c, r)) in self.tris.iter().zip(&self.spheres) {
+            if p.distance(*c) - r >= best {
+                continue;
+            }
+            best = best.min(point_triangle_distance(p, t[0], t[1], t[2]));
+        }
+        best
+    }
+}
+
+fn percentile(v: &mut [f64], q: f64) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[((v.len() - 1) as f64 * q).round() as usize]
+}
+
+/// Back-projects the depth under every mask_visib and checks the points lie on the model.
+fn check_geometry(root: &Path, max_points_per_instance: usize) -> usize {
+    let ds = BopDataset::open(root).unwrap();
+    let scene = ds.read_scene("train_pbr", 0).unwrap();
+    let mut surfaces = std::collections::BTreeMap::new();
+    let mut dists = Vec::new();
+    let mut instances = 0;
+    for im in scene.im_ids() {
+        let cam = &scene.camera[&im];
+        let k = cam.intrinsics(ds.camera.width, ds.camera.height);
+        let depth = scene.read_depth_m(im).unwrap();
+        let info = &scene.gt_info.as_ref().unwrap()[&im];
+        for (gt_id, gt) in scene.gt[&im].iter().enumerate() {
+            let surface = surfaces.entry(gt.obj_id).or_insert_with(|| {
+                let m = synthgen_assets::load_model(
+                    &ds.model_ply_path(gt.obj_id),
+                    Units::Mm,
+                    &NoProgress,
+                )
+                .unwrap();
+                Surface::new(&m.model)
+            });
+            let mask = read_mask(&scene.mask_visib_path(im, gt_id)).unwrap();
+            let full = read_mask(&scene.mask_path(im, gt_id)).unwrap();
+            let visib = mask.data.iter().filter(|&&v| v == 255).count() as u64;
+            assert_eq!(visib, info[gt_id].px_count_visib, "image {im} gt {gt_id}");
+            let n_full = full.data.iter().filter(|&&v| v == 255).count() as u64;
+            assert!(n_full <= info[gt_id].px_count_all && visib <= n_full);
+            let obj_from_cam = gt.cam_from_obj().inverse();
+            let pixels: Vec<usize> = (0..mask.data.len())
+                .filter(|&i| mask.data[i] == 255 && depth.data[i] > 0.0)
+                .collect();
+            if pixels.is_empty() {
+                continue;
+            }
+            instances += 1;
+            let step = (pixels.len() / max_points_per_instance).max(1);
+            for &i in pixels.iter().step_by(step) {
+                let (u, v) = (
+                    (i % mask.width as usize) as f64,
+                    (i / mask.width as usize) as f64,
+                );
+                let p_cam = k.back_project(u, v, depth.data[i] as f64);
+                dists.push(surface.distance(obj_from_cam.transform_point(p_cam)));
+            }
+        }
+    }
+    let median = percentile(&mut dists, 0.5) * 1000.0;
+    let p95 = percentile(&mut dists, 0.95) * 1000.0;
+    eprintln!(
+        "geometry: {} points from {instances} instances: median {median:.3} mm, p95 {p95:.3} mm",
+        dists.len()
+    );
+    assert!(median < 1.0, "median distance to the model {median} mm");
+    assert!(p95 < 3.0, "95th percentile distance to the model {p95} mm");
+    instances
+}
+
+#[test]
+fn linemod_driller_depth_lies_on_the_model() {
+    let Some(data) = shared_data() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("lm");
+    let o = run(synthgen()
+        .arg("render")
+        .arg("--objects")
+        .arg(data.join("lmo/models/obj_000008.ply"))
+        .arg(data.join("lmo/models/obj_000001.ply"))
+        .args([
+            "--camera", "linemod", "--frames", "6", "--seed", "7", "-q", "--out",
+        ])
+        .arg(&out));
+    assert!(o.status.success());
+    let instances = check_geometry(&out, 300);
+    assert!(instances >= 6, "only {instances} visible instances");
+}
+
+#[test]
+fn user_form_obj_in_metres_warns_about_missing_texture() {
+    let Some(data) = shared_data() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let drill = data.join("ycb/YcbPowerDrill");
+    std::fs::copy(
+        drill.join("textured_simple_reoriented.obj"),
+        dir.path().join("drill.obj"),
+    )
+    .unwrap();
+    std::fs::copy(
+        drill.join("textured_simple_reoriented.mtl"),
+        dir.path().join("textured_simple_reoriented.mtl"),
+    )
+    .unwrap();
+    // Exactly as a user types it: defaults for frames (100) and output (data/synth).
+    let o = run(synthgen()
+        .current_dir(dir.path())
+        .args(["render", "--objects", "drill.obj"]));
+    assert!(o.status.success());
+    let e = stderr(&o);
+    assert!(e.contains("texture_map.png"), "{e}");
+    assert!(
+        e.contains("metres"),
+        "auto units should say what it decided: {e}"
+    );
+    assert!(e.contains("100 frames"), "{e}");
+    let root = dir.path().join("data/synth");
+    let ds = BopDataset::open(&root).unwrap();
+    let scene = ds.read_scene("train_pbr", 0).unwrap();
+    assert_eq!(scene.im_ids().count(), 100);
+    assert!(root.join("synthgen.json").is_file());
+    // The model was written in millimetres: the drill is ~0.2 m long, so ~200 mm.
+    let info = &ds.models_info.as_ref().unwrap()[&1];
+    assert!(info.diameter > 150.0 && info.diameter < 400.0, "{info:?}");
+    check_geometry(&root, 100);
+}
+
+#[test]
+fn ply_in_millimetres() {
+    let Some(data) = shared_data() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let o = run(synthgen()
+        .current_dir(dir.path())
+        .arg("render")
+        .arg("--objects")
+        .arg(data.join("lmo/models/obj_000001.ply"))
+        .args(["--frames", "3", "--out", "ape"]));
+    assert!(o.status.success());
+    assert!(stderr(&o).contains("millimetres"), "{}", stderr(&o));
+    let ds = BopDataset::open(&dir.path().join("ape")).unwrap();
+    // Id from the file name, diameter as in the BOP models_info (102.099 mm).
+    let info = &ds.models_info.as_ref().unwrap()[&1];
+    assert!((info.diameter - 102.099).abs() < 0.2, "{info:?}");
+}
+
+fn render_box(out: &Path, extra: &[&str]) {
+    let dir = out.parent().unwrap();
+    let mesh = dir.join("box.ply");
+    std::fs::write(&mesh, box_ply()).unwrap();
+    let o = run(synthgen()
+        .args(["render", "-q", "--objects"])
+        .arg(&mesh)
+        .arg(&mesh)
+        .args(["--frames", "5", "--seed", "3", "--chunk-size", "2", "--out"])
+        .arg(out)
+        .args(extra));
+    assert!(o.status.success());
+}
+
+#[test]
+fn same_seed_same_bytes_whatever_the_thread_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = dir.path().join("a");
+    let b = dir.path().join("b");
+    render_box(&a, &["--jobs", "1"]);
+    render_box(&b, &["--jobs", "2"]);
+    for rel in [
+        "train_pbr/000000/scene_gt.json",
+        "train_pbr/000001/scene_gt_info.json",
+        "train_pbr/000002/scene_camera.json",
+        "train_pbr/000002/rgb/000000.png",
+        "train_pbr/000001/depth/000001.png",
+        "train_pbr/000001/mask_visib/000001_000001.png",
+    ] {
+        let x = std::fs::read(a.join(rel)).unwrap();
+        let y = std::fs::read(b.join(rel)).unwrap();
+        assert!(x == y, "{rel} differs between runs");
+    }
+}
+
+#[test]
+fn written_poses_match_the_sampler_and_rest_on_the_plane() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o");
+    render_box(&out, &[]);
+    // Rebuild the frames from the manifest: the dataset says how to make it again.
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("synthgen.json")).unwrap()).unwrap();
+    let spec: SceneSpec = serde_json::from_value(manifest["scene_spec"].clone()).unwrap();
+    let seed = manifest["seed"].as_u64().unwrap();
+    let m = synthgen_assets::load_model(&dir.path().join("box.ply"), Units::Auto, &NoProgress)
+        .unwrap()
+        .model;
+    let objects: Vec<SceneObject> = (0..2)
+        .map(|_| SceneObject {
+            model_index: 0,
+            obj_id: 1,
+            name: "box".into(),
+            support_points_m: m.support_points(256),
+        })
+        .collect();
+    let sampler = SceneSampler::new(spec, objects, seed).unwrap();
+    let ds = BopDataset::open(&out).unwrap();
+    let mut n = 0;
+    for scene_id in ds.scene_ids("train_pbr").unwrap() {
+        let scene = ds.read_scene("train_pbr", scene_id).unwrap();
+        for im in scene.im_ids() {
+            let frame = sampler
+                .sample(u64::from(scene_id) * 2 + u64::from(im))
+                .unwrap();
+            let cam_from_world = scene.camera[&im].cam_from_world().unwrap();
+            for (gt, inst) in scene.gt[&im].iter().zip(&frame.objects) {
+                let p = gt.cam_from_obj();
+                let want = inst.cam_from_obj;
+                let dr = (p.rotation - want.rotation)
+                    .to_cols_array()
+                    .iter()
+                    .fold(0.0f64, |a, v| a.max(v.abs()));
+                assert!(dr < 1e-6, "rotation differs by {dr}");
+                assert!((p.translation_m - want.translation_m).length() < 1e-6);
+                // Box bottom on the plane z = 0 (world), within float and mm printing.
+                let world_from_obj = cam_from_world.inverse().compose(&p);
+                let zmin = [-1.0, 1.0]
+                    .iter()
+                    .flat_map(|&sx| [-1.0, 1.0].map(move |sy| (sx, sy)))
+                    .flat_map(|(sx, sy)| {
+                        [-1.0, 1.0].map(move |sz| DVec3::new(sx * 0.04, sy * 0.03, sz * 0.02))
+                    })
+                    .map(|c| world_from_obj.transform_point(c).z)
+                    .fold(f64::INFINITY, f64::min);
+                assert!(zmin.abs() < 1e-5, "box rests at z = {zmin}");
+                n += 1;
+            }
+        }
+    }
+    assert_eq!(n, 10);
+}
+
+#[test]
+fn readme_setup_command_mesh_exists() {
+    // The README's first command renders datasets/meshes/driller.ply; keep it in the repo.
+    let p = repo_root().join("datasets/meshes/driller.ply");
+    assert!(p.is_file(), "missing {}", p.display());
+    let m = synthgen_assets::load_model(&p, Units::Auto, &NoProgress).unwrap();
+    assert_eq!(m.model.name, "driller");
+    assert!(m.model.triangle_count() > 10_000);
+}
