@@ -40,10 +40,7 @@ pub(crate) fn load_gltf(
         reason,
         path: path.to_path_buf(),
     };
-    let bytes = std::fs::read(path).map_err(|source| Error::Read {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes = crate::read_file(path)?;
     let ::gltf::Gltf { document, blob } =
         ::gltf::Gltf::from_slice(&bytes).map_err(|e| gltf_err(e.to_string()))?;
     let base = crate::model_dir(path);

@@ -93,6 +93,14 @@ pub fn load_model_cached(
 
 /// The directory of a model file, canonical when possible, for resolving the files it names
 /// (MTL, textures, buffers) and for printing their full paths.
+/// Reads a whole mesh file, naming it in the error.
+pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, Error> {
+    std::fs::read(path).map_err(|source| Error::Read {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
 pub(crate) fn model_dir(path: &Path) -> std::path::PathBuf {
     let dir = path
         .parent()

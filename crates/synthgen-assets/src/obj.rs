@@ -16,10 +16,7 @@ pub(crate) fn load_obj(
     textures: &mut TextureCache,
     progress: &dyn Progress,
 ) -> Result<Model, Error> {
-    let bytes = std::fs::read(path).map_err(|source| Error::Read {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes = crate::read_file(path)?;
     let dir = crate::model_dir(path);
     let options = tobj::LoadOptions {
         triangulate: true,

@@ -27,10 +27,7 @@ pub(crate) fn load_ply(
     textures: &mut TextureCache,
     progress: &dyn Progress,
 ) -> Result<Model, Error> {
-    let bytes = std::fs::read(path).map_err(|source| Error::Read {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes = crate::read_file(path)?;
     let mut prim = parse_ply(&bytes, path, progress)?;
     // A texture without texture coordinates could not be mapped: ignore it.
     let texture_file = prim.texture_file.take().filter(|_| prim.prim.uvs.is_some());

@@ -51,7 +51,7 @@ fn no_objects_gives_a_hint() {
 fn blender_backend_says_how_to_enable_it() {
     let dir = tempfile::tempdir().unwrap();
     let mesh = dir.path().join("box.ply");
-    std::fs::write(&mesh, crate::render::box_ply()).unwrap();
+    crate::render::write_box_ply(&mesh);
     let out = run(synthgen()
         .args(["render", "--backend", "blender", "--objects"])
         .arg(&mesh)
@@ -65,7 +65,7 @@ fn blender_backend_says_how_to_enable_it() {
 fn non_empty_output_folder_needs_force() {
     let dir = tempfile::tempdir().unwrap();
     let mesh = dir.path().join("box.ply");
-    std::fs::write(&mesh, crate::render::box_ply()).unwrap();
+    crate::render::write_box_ply(&mesh);
     let out_dir = dir.path().join("o");
     std::fs::create_dir_all(&out_dir).unwrap();
     std::fs::write(out_dir.join("keep.txt"), "mine").unwrap();
@@ -88,7 +88,7 @@ fn malformed_scene_spec_names_file_and_field() {
     let spec = dir.path().join("bad.toml");
     std::fs::write(&spec, "[camera_pose]\ndistance_m = [2.0, 1.0]\n").unwrap();
     let mesh = dir.path().join("box.ply");
-    std::fs::write(&mesh, crate::render::box_ply()).unwrap();
+    crate::render::write_box_ply(&mesh);
     let out = run(synthgen()
         .args(["render", "--objects"])
         .arg(&mesh)

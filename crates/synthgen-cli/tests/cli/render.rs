@@ -10,43 +10,10 @@ use synthgen_dataset::bop::{read_mask, BopDataset};
 
 use crate::common::{repo_root, run, shared_data, stderr, synthgen};
 
-/// An ascii PLY box, 8 x 6 x 4 cm, in metres.
-pub fn box_ply() -> String {
-    let (x, y, z) = (0.04, 0.03, 0.02);
-    let v = [
-        (-x, -y, -z),
-        (x, -y, -z),
-        (x, y, -z),
-        (-x, y, -z),
-        (-x, -y, z),
-        (x, -y, z),
-        (x, y, z),
-        (-x, y, z),
-    ];
-    let f = [
-        [0, 2, 1],
-        [0, 3, 2],
-        [4, 5, 6],
-        [4, 6, 7],
-        [0, 1, 5],
-        [0, 5, 4],
-        [2, 3, 7],
-        [2, 7, 6],
-        [1, 2, 6],
-        [1, 6, 5],
-        [0, 4, 7],
-        [0, 7, 3],
-    ];
-    let mut s = String::from(
-        "ply\nformat ascii 1.0\nelement vertex 8\nproperty float x\nproperty float y\nproperty float z\nelement face 12\nproperty list uchar int vertex_indices\nend_header\n",
-    );
-    for (a, b, c) in v {
-        s += &format!("{a} {b} {c}\n");
-    }
-    for t in f {
-        s += &format!("3 {} {} {}\n", t[0], t[1], t[2]);
-    }
-    s
+/// Writes a binary PLY box, 8 x 6 x 4 cm, in metres, at `path`.
+pub fn write_box_ply(path: &Path) {
+    let m = synthgen_core::Model::cuboid("box", synthgen_core::glam::Vec3::new(0.08, 0.06, 0.04));
+    synthgen_assets::write_ply(path, &m, 1.0).unwrap();
 }
 
 /// Distance from p to triangle abc (Ericson, Real-Time Collision Detection 5.1.5).
@@ -264,7 +231,7 @@ fn ply_in_millimetres() {
 fn render_box(out: &Path, extra: &[&str]) {
     let dir = out.parent().unwrap();
     let mesh = dir.join("box.ply");
-    std::fs::write(&mesh, box_ply()).unwrap();
+    write_box_ply(&mesh);
     let o = run(synthgen()
         .args(["render", "-q", "--objects"])
         .arg(&mesh)
