@@ -12,11 +12,11 @@
 use std::path::PathBuf;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use synthgen_core::{annotate, FrameScene, RenderedFrame, SceneObject, SceneSampler, SceneSpec};
+use synthgen_assets::Units;
+use synthgen_core::{
+    annotate, FrameScene, NoProgress, RenderedFrame, SceneObject, SceneSampler, SceneSpec,
+};
 use synthgen_render::{render_frames, CpuRenderer, Renderer};
-
-#[path = "../tests/render/ply.rs"]
-mod ply;
 
 const IDS: [u32; 5] = [1, 5, 6, 8, 9];
 const SCENES: u64 = 32;
@@ -31,8 +31,9 @@ fn setup() -> (CpuRenderer, Vec<FrameScene>) {
         .iter()
         .map(|id| {
             let p = root.join(format!("models/obj_{id:06}.ply"));
-            ply::read_ascii_ply(&p, 0.001)
+            synthgen_assets::load_model(&p, Units::Mm, &NoProgress)
                 .unwrap_or_else(|e| panic!("cannot read {}: {e}", p.display()))
+                .model
         })
         .collect();
     let objects = models

@@ -30,8 +30,14 @@ fn linear_to_srgb_f32(l: f32) -> f32 {
 /// loop vectorizes.
 #[inline(always)]
 pub(crate) fn srgb_index(v: f32) -> u16 {
+    srgb_index32(v) as u16
+}
+
+/// `srgb_index` kept in 32 bits, which saves packing lanes to 16 bits in vector code.
+#[inline(always)]
+pub(crate) fn srgb_index32(v: f32) -> u32 {
     let v = v.max(0.0).min(TO_SRGB_MAX as f32); // NaN -> 0
-    ((v + MAGIC).to_bits() & 0xffff) as u16
+    (v + MAGIC).to_bits() & 0xffff
 }
 
 /// 1.5 * 2^23: adding it to |x| < 2^22 leaves round(x) in the low mantissa bits.
@@ -41,24 +47,27 @@ pub(crate) const MAGIC: f32 = 12_582_912.0;
 pub(crate) struct ColorLuts {
     /// sRGB byte -> linear 0..1.
     pub to_linear: [f32; 256],
-    to_srgb: Box<[u8; TO_SRGB_STEPS]>,
+    /// Indexed by any u16, so lookups need no bounds check or mask; entries past
+    /// `TO_SRGB_MAX` repeat the last one (they are never touched, so never cached).
+    to_srgb: Box<[u8; 1 << 16]>,
 }
 
 impl ColorLuts {
     pub fn new() -> ColorLuts {
         let to_linear = std::array::from_fn(|i| srgb_to_linear_f32(i as f32 / 255.0));
         let to_srgb = Box::new(std::array::from_fn(|i| {
-            let l = i as f32 / (TO_SRGB_STEPS - 1) as f32;
+            let l = i.min(TO_SRGB_MAX) as f32 / (TO_SRGB_STEPS - 1) as f32;
             (linear_to_srgb_f32(l) * 255.0 + 0.5) as u8
         }));
         ColorLuts { to_linear, to_srgb }
     }
 
-    /// The table entry `i` (`0..=TO_SRGB_MAX`, as `srgb_index` gives; larger indices wrap).
+    /// The table entry `i` (`0..=TO_SRGB_MAX`, as `srgb_index` gives; larger indices give
+    /// the entry at `TO_SRGB_MAX`).
     #[inline(always)]
     pub fn srgb_at(&self, i: u16) -> u8 {
-        // The mask proves the index in range: no bounds check in the hot loops.
-        self.to_srgb[i as usize & TO_SRGB_MAX]
+        // A u16 index is always in range: no bounds check in the hot loops.
+        self.to_srgb[i as usize]
     }
 }
 

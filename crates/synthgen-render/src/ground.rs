@@ -1,14 +1,14 @@
 //! The ground plane: depth by exact ray-plane intersection per pixel centre (no triangles,
 //! so no near-plane clipping is needed), and a cheap procedural tile texture.
 //!
-//! The ground covers most of a typical frame, so its shading is written as branch-free
-//! whole-row passes the compiler vectorizes (plane coordinates, one pass per light), with only
-//! the table lookups (tiles, sRGB) left scalar.
+//! The ground covers most of a typical frame, so a row is drawn in few branch-free passes
+//! the compiler vectorizes (depth, depth test and tile index in one; then colour per chunk of
+//! pixels), with only the table lookups (tile pattern, sRGB) left scalar.
 
 use synthgen_core::glam::Vec3;
 use synthgen_core::sample::GroundInstance;
 
-use crate::color::{srgb_index, srgb_to_linear_f32, ColorLuts, MAGIC, TO_SRGB_MAX};
+use crate::color::{srgb_index32, srgb_to_linear_f32, ColorLuts, MAGIC, TO_SRGB_MAX};
 use crate::raster::Projection;
 use crate::shade::{Light, ShadeParams};
 
@@ -146,26 +146,46 @@ impl Ground {
         (x0, x1.max(x0))
     }
 
+    /// The row's affine coefficients: pixel x of row `y` has the ray direction
+    /// (x / fx - cx / fx, dy, 1), along which n.d, e1.d and e2.d are affine in x.
+    #[inline(always)]
+    fn row_coeffs(&self, y: usize, proj: &Projection) -> RowCoeffs {
+        let (ifx, ify) = (1.0 / proj.fx, 1.0 / proj.fy);
+        let (ox, dy) = (-proj.cx * ifx, (y as f32 - proj.cy) * ify);
+        RowCoeffs {
+            n_a: self.normal.x * ifx,
+            n_b: self.normal.x * ox + self.normal.y * dy + self.normal.z,
+            u_a: self.e1.x * ifx,
+            u_b: self.e1.x * ox + self.e1.y * dy + self.e1.z,
+            v_a: self.e2.x * ifx,
+            v_b: self.e2.x * ox + self.e2.y * dy + self.e2.z,
+            u_c: self.e1.dot(self.origin),
+            v_c: self.e2.dot(self.origin),
+        }
+    }
+
+    /// At the centre of pixel `xf` of the row: the plane depth where the ray hits the square
+    /// beyond the near plane (else 0), and the plane coordinates (u, v) of the hit.
+    /// Selects, not branches, so loops over it vectorize; NaN and inf fail the compares.
+    #[inline(always)]
+    fn eval(&self, c: &RowCoeffs, near: f32, xf: f32) -> (f32, f32, f32) {
+        let tt = self.num / (c.n_a * xf + c.n_b);
+        let u = tt * (c.u_a * xf + c.u_b) - c.u_c;
+        let v = tt * (c.v_a * xf + c.v_b) - c.v_c;
+        let h = self.half_m;
+        let hit = (tt >= near) & (u >= -h) & (u < h) & (v >= -h) & (v < h);
+        (select(hit, tt, 0.0), u, v)
+    }
+
     /// The plane's depth (z along the optical axis) at the centres of pixels `x0..` of row
     /// `y`: the ray-plane intersection where it lies beyond the near plane and inside the
     /// square, else 0.
+    #[cfg(test)]
     pub fn plane_depths(&self, y: usize, proj: &Projection, x0: usize, t: &mut [f32]) {
-        let (ifx, ify) = (1.0 / proj.fx, 1.0 / proj.fy);
-        let (ox, dy) = (-proj.cx * ifx, (y as f32 - proj.cy) * ify);
-        let n_a = self.normal.x * ifx;
-        let n_b = self.normal.x * ox + self.normal.y * dy + self.normal.z;
-        let (u_a, u_b) = (self.e1.x * ifx, self.e1.x * ox + self.e1.y * dy + self.e1.z);
-        let (v_a, v_b) = (self.e2.x * ifx, self.e2.x * ox + self.e2.y * dy + self.e2.z);
-        let (u_c, v_c) = (self.e1.dot(self.origin), self.e2.dot(self.origin));
-        let h = self.half_m;
+        let c = self.row_coeffs(y, proj);
         for (i, tv) in t.iter_mut().enumerate() {
             let xf = (x0 + i) as i32 as f32; // i32 converts in vector registers, usize does not
-            let tt = self.num / (n_a * xf + n_b);
-            let u = tt * (u_a * xf + u_b) - u_c;
-            let v = tt * (v_a * xf + v_b) - v_c;
-            // Selects, so the loop vectorizes; NaN and inf fail the compares.
-            let hit = (tt >= proj.near_m) & (u >= -h) & (u < h) & (v >= -h) & (v < h);
-            *tv = select(hit, tt, 0.0);
+            *tv = self.eval(&c, proj.near_m, xf).0;
         }
     }
 
@@ -192,30 +212,37 @@ impl Ground {
         if s0 >= s1 {
             return;
         }
-        let (ifx, ify) = (1.0 / proj.fx, 1.0 / proj.fy);
-        let dy = (y as f32 - proj.cy) * ify;
         let GroundRow {
             t,
             tile,
+            pattern,
             f,
-            f_lut,
-            strength,
             samples,
-            idx,
         } = row;
 
-        // Depth test over the span; `t` keeps the plane depth for shading.
+        // One vectorized pass over the span: plane depth (kept in `t` for shading), depth
+        // test against the objects, and the fine tile under the pixel centre.
         let sw = s1 - s0;
         t.resize(sw, 0.0);
-        self.plane_depths(y, proj, s0, &mut t[..sw]);
-        for ((&tv, d), id) in t[..sw]
-            .iter()
+        tile.resize(sw, 0);
+        let c = self.row_coeffs(y, proj);
+        let [otx, oty] = self.offsets;
+        for (i, (((tv, k), d), id)) in t[..sw]
+            .iter_mut()
+            .zip(&mut tile[..sw])
             .zip(&mut depth[s0..s1])
             .zip(&mut instance[s0..s1])
+            .enumerate()
         {
-            let win = (tv > 0.0) & ((*d == 0.0) | (tv <= *d));
-            *d = select(win, tv, *d);
+            let xf = (s0 + i) as i32 as f32;
+            let (tt, u, v) = self.eval(&c, proj.near_m, xf);
+            *tv = tt;
+            let win = (tt > 0.0) & ((*d == 0.0) | (tt <= *d));
+            *d = select(win, tt, *d);
             *id &= !0u16.wrapping_sub(win as u16);
+            let fu = floor_low_bits(u * (1.0 / FINE_TILE_M)) + otx;
+            let fv = floor_low_bits(v * (1.0 / FINE_TILE_M)) + oty;
+            *k = ((fu & TILE_MASK) | ((fv & TILE_MASK) << TILES_LOG2)) as u32;
         }
         // The hits of a row lie on a line of the plane, whose intersection with the square is
         // one segment: shade from the first hit to the last.
@@ -225,41 +252,30 @@ impl Ground {
         let last = t[..sw].iter().rposition(|&v| v > 0.0).map_or(first, |l| l) + 1;
         let (x0, x1) = (s0 + first, s0 + last);
         let w = x1 - x0;
-        let t = &mut t[first..last];
-        // Pixel x0 + i of the span has the ray direction (ox + i / fx, dy, 1).
-        let ox = (x0 as f32 - proj.cx) * ifx;
-        f.resize(w, 0.0);
-        tile.resize(w, 0);
-        let (f, tile) = (&mut f[..w], &mut tile[..w]);
+        let t = &t[first..last];
 
-        // Fine tile per pixel. Plane coordinates are affine in x once multiplied by t:
-        // u = t (a x + b) - c.
-        let (u_a, u_b) = (self.e1.x * ifx, self.e1.x * ox + self.e1.y * dy + self.e1.z);
-        let (v_a, v_b) = (self.e2.x * ifx, self.e2.x * ox + self.e2.y * dy + self.e2.z);
-        let (u_c, v_c) = (self.e1.dot(self.origin), self.e2.dot(self.origin));
-        let [otx, oty] = self.offsets;
-        for (i, (&tv, k)) in t.iter().zip(tile.iter_mut()).enumerate() {
-            let xf = i as i32 as f32;
-            let fu = floor_low_bits((tv * (u_a * xf + u_b) - u_c) * (1.0 / FINE_TILE_M)) + otx;
-            let fv = floor_low_bits((tv * (v_a * xf + v_b) - v_c) * (1.0 / FINE_TILE_M)) + oty;
-            *k = ((fu & TILE_MASK) | ((fv & TILE_MASK) << TILES_LOG2)) as u32;
+        // Texture factor per pixel, mean 1, contrast `strength`: the table lookups alone in a
+        // scalar pass, the arithmetic in a vectorized one. Padded with 1 to whole chunks of
+        // LIGHT_STEP pixels.
+        let wp = w.div_ceil(LIGHT_STEP) * LIGHT_STEP;
+        pattern.resize(w, 0);
+        for (p, &k) in pattern[..w].iter_mut().zip(&tile[first..last]) {
+            *p = tables.pattern[k as usize & (TILES * TILES - 1)];
         }
-        // Texture factor: mean 1, contrast `strength`.
-        if f_lut.len() != 256 || *strength != self.strength {
-            let s2 = self.strength * 2.0;
-            f_lut.clear();
-            f_lut.extend((0..256).map(|v| 1.0 + s2 * (v as f32 / 255.0 - 0.5)));
-            *strength = self.strength;
+        f.resize(wp, 0.0);
+        let s2 = self.strength * 2.0;
+        for (fx, &p) in f[..w].iter_mut().zip(&pattern[..w]) {
+            *fx = 1.0 + s2 * (p as f32 / 255.0 - 0.5);
         }
-        let f_lut = &f_lut[..256];
-        for (fx, &k) in f.iter_mut().zip(tile.iter()) {
-            *fx = f_lut[tables.pattern[k as usize & (TILES * TILES - 1)] as usize];
-        }
+        f[w..wp].fill(1.0);
 
         // Irradiance x albedo, pre-scaled to the sRGB table's range: exact every LIGHT_STEP
         // pixels and linear in between (it varies slowly over the plane). On the plane
         // n.(L - p) is the light's height above it, the same for every pixel, so Lambert
-        // reduces to height / distance.
+        // reduces to height / distance. Pixel x0 + i has the ray direction (ox + i / fx, dy, 1).
+        let (ifx, ify) = (1.0 / proj.fx, 1.0 / proj.fy);
+        let dy = (y as f32 - proj.cy) * ify;
+        let ox = (x0 as f32 - proj.cx) * ifx;
         let scale = self.albedo_linear.map(|a| a * TO_SRGB_MAX as f32);
         let side = if self.num > 0.0 { -1.0 } else { 1.0 };
         let ns = (w - 1) / LIGHT_STEP + 2;
@@ -280,56 +296,106 @@ impl Ground {
             }
             samples.push(std::array::from_fn(|c| es[c] * scale[c]));
         }
-        // Irradiance linear between samples, x texture -> sRGB table index. Fixed-size chunks
-        // so the inner loops unroll and vectorize.
-        const RAMP: [f32; LIGHT_STEP] = {
-            let mut r = [0.0; LIGHT_STEP];
-            let mut i = 0;
-            while i < LIGHT_STEP {
-                r[i] = i as f32;
-                i += 1;
-            }
-            r
-        };
-        for (c, ic) in idx.iter_mut().enumerate() {
-            ic.resize(w, 0);
-            let ic = &mut ic[..w];
-            let mut chunks = ic
-                .chunks_exact_mut(LIGHT_STEP)
-                .zip(f.chunks_exact(LIGHT_STEP));
-            for (s, (ixs, fs)) in chunks.by_ref().enumerate() {
-                let a = samples[s][c];
-                let step = (samples[s + 1][c] - a) * (1.0 / LIGHT_STEP as f32);
-                for ((ix, &fx), r) in ixs.iter_mut().zip(fs).zip(RAMP) {
-                    *ix = srgb_index((a + step * r) * fx);
-                }
-            }
-            let done = w / LIGHT_STEP * LIGHT_STEP;
-            if done < w {
-                let s = w / LIGHT_STEP;
-                let a = samples[s][c];
-                let step = (samples[s + 1][c] - a) / ((w - done).max(2) - 1) as f32;
-                for ((ix, &fx), r) in ic[done..].iter_mut().zip(&f[done..]).zip(RAMP) {
-                    *ix = srgb_index((a + step * r) * fx);
-                }
+
+        // Per chunk of LIGHT_STEP pixels: irradiance linear between its samples x texture ->
+        // sRGB table indices (vectorized, in registers), then the table lookups packed four
+        // pixels to three 32-bit stores.
+        let samples = &samples[..];
+        let mut ix = [[0u32; LIGHT_STEP]; 3];
+        let out = &mut rgb[x0 * 3..x1 * 3];
+        let mut px_chunks = out.chunks_exact_mut(3 * LIGHT_STEP);
+        for (s, (px, fs)) in px_chunks
+            .by_ref()
+            .zip(f.chunks_exact(LIGHT_STEP))
+            .enumerate()
+        {
+            // Fixed-size arrays, so the inner loops unroll (the conversions cannot fail).
+            if let (Ok(px), Ok(fs)) = (
+                <&mut [u8; 3 * LIGHT_STEP]>::try_from(px),
+                <&[f32; LIGHT_STEP]>::try_from(fs),
+            ) {
+                chunk_indices(&samples[s..s + 2], fs, LIGHT_STEP as f32, &mut ix);
+                pack_chunk(&ix, px, luts);
             }
         }
-        let [ir, ig, ib] = &*idx;
-        for (((px, &r), &g), &b) in rgb[x0 * 3..x1 * 3]
-            .chunks_exact_mut(3)
-            .zip(&ir[..w])
-            .zip(&ig[..w])
-            .zip(&ib[..w])
-        {
-            px[0] = luts.srgb_at(r);
-            px[1] = luts.srgb_at(g);
-            px[2] = luts.srgb_at(b);
+        let rest = px_chunks.into_remainder();
+        if !rest.is_empty() {
+            // The last, partial chunk ends at the row's last hit, where its sample is taken.
+            let s = w / LIGHT_STEP;
+            let done = s * LIGHT_STEP;
+            let den = ((w - done).max(2) - 1) as f32;
+            if let Ok(fs) = <&[f32; LIGHT_STEP]>::try_from(&f[done..done + LIGHT_STEP]) {
+                chunk_indices(&samples[s..s + 2], fs, den, &mut ix);
+            }
+            for (i, px) in rest.chunks_exact_mut(3).enumerate() {
+                px[0] = luts.srgb_at(ix[0][i] as u16);
+                px[1] = luts.srgb_at(ix[1][i] as u16);
+                px[2] = luts.srgb_at(ix[2][i] as u16);
+            }
         }
     }
 }
 
+/// Per-row coefficients of `Ground::eval`.
+struct RowCoeffs {
+    n_a: f32,
+    n_b: f32,
+    u_a: f32,
+    u_b: f32,
+    v_a: f32,
+    v_b: f32,
+    u_c: f32,
+    v_c: f32,
+}
+
 /// Pixels between exact irradiance samples along a ground row.
 const LIGHT_STEP: usize = 16;
+
+/// 0, 1, .., LIGHT_STEP - 1 as floats.
+const RAMP: [f32; LIGHT_STEP] = {
+    let mut r = [0.0; LIGHT_STEP];
+    let mut i = 0;
+    while i < LIGHT_STEP {
+        r[i] = i as f32;
+        i += 1;
+    }
+    r
+};
+
+/// sRGB table indices per channel for a chunk of pixels: irradiance linear from
+/// `samples[0]` in steps of (`samples[1]` - `samples[0]`) / `den`, times the texture factor.
+#[inline(always)]
+fn chunk_indices(
+    samples: &[[f32; 3]],
+    fs: &[f32; LIGHT_STEP],
+    den: f32,
+    ix: &mut [[u32; LIGHT_STEP]; 3],
+) {
+    let (s0, s1) = (samples[0], samples[1]);
+    for (c, ixc) in ix.iter_mut().enumerate() {
+        let a = s0[c];
+        let step = (s1[c] - a) / den;
+        for ((o, &fx), r) in ixc.iter_mut().zip(fs).zip(RAMP) {
+            *o = srgb_index32((a + step * r) * fx);
+        }
+    }
+}
+
+/// The sRGB bytes of a chunk of pixels from their table indices per channel, written four
+/// pixels (12 bytes) at a time as three 32-bit words instead of twelve byte stores.
+#[inline(always)]
+fn pack_chunk(ix: &[[u32; LIGHT_STEP]; 3], px: &mut [u8; 3 * LIGHT_STEP], luts: &ColorLuts) {
+    for (q, out) in px.chunks_exact_mut(12).enumerate() {
+        let i = 4 * q;
+        let b = |c: usize, j: usize| luts.srgb_at(ix[c][(i + j) % LIGHT_STEP] as u16) as u32;
+        let w0 = b(0, 0) | b(1, 0) << 8 | b(2, 0) << 16 | b(0, 1) << 24;
+        let w1 = b(1, 1) | b(2, 1) << 8 | b(0, 2) << 16 | b(1, 2) << 24;
+        let w2 = b(2, 2) | b(0, 3) << 8 | b(1, 3) << 16 | b(2, 3) << 24;
+        out[0..4].copy_from_slice(&w0.to_le_bytes());
+        out[4..8].copy_from_slice(&w1.to_le_bytes());
+        out[8..12].copy_from_slice(&w2.to_le_bytes());
+    }
+}
 
 /// `if c { a } else { b }` as bit operations. A plain `if` on a value loaded from the
 /// same slot gets turned into a conditional store, which does not vectorize.
@@ -346,21 +412,19 @@ fn floor_low_bits(x: f32) -> i32 {
     ((x - 0.5 + MAGIC).to_bits() & 0xffff) as i32
 }
 
-/// Row buffers for `Ground::shade_row`, reused across rows and frames.
+/// Row buffers for `Ground::draw_row`, reused across rows and frames.
 #[derive(Debug, Default)]
 pub(crate) struct GroundRow {
     /// Plane depth per pixel.
     t: Vec<f32>,
     /// Tile table index per pixel.
     tile: Vec<u32>,
-    /// Texture factor per pixel, and per pattern byte for `strength`.
+    /// Tile pattern byte per pixel.
+    pattern: Vec<u8>,
+    /// Texture factor per pixel.
     f: Vec<f32>,
-    f_lut: Vec<f32>,
-    strength: f32,
     /// Exact irradiance samples along the row.
     samples: Vec<[f32; 3]>,
-    /// sRGB table index per channel and pixel.
-    idx: [Vec<u16>; 3],
 }
 
 /// A fast 32-bit integer hash (lowbias32).

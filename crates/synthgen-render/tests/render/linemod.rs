@@ -3,18 +3,22 @@
 
 use std::path::Path;
 
-use synthgen_core::{annotate, Model, SceneObject, SceneSampler, SceneSpec};
+use synthgen_core::{annotate, Model, NoProgress, SceneObject, SceneSampler, SceneSpec};
 use synthgen_render::{CpuRenderer, Renderer};
 
 use crate::common::*;
-use crate::ply::read_ascii_ply;
 
 pub const LMO_IDS: [u32; 5] = [1, 5, 6, 8, 9];
 
 fn load(dir: &Path) -> Vec<Model> {
     LMO_IDS
         .iter()
-        .map(|id| read_ascii_ply(&dir.join(format!("obj_{id:06}.ply")), 0.001).unwrap())
+        .map(|id| {
+            let path = dir.join(format!("obj_{id:06}.ply"));
+            synthgen_assets::load_model(&path, synthgen_assets::Units::Mm, &NoProgress)
+                .unwrap()
+                .model
+        })
         .collect()
 }
 

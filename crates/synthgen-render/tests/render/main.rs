@@ -9,5 +9,3 @@ mod geometry;
 mod golden;
 mod linemod;
 mod occlusion;
-#[allow(dead_code)]
-mod ply;
