@@ -31,6 +31,8 @@ pub mod bop;
 mod error;
 pub mod io;
 pub mod manifest;
+pub mod mix;
+pub mod source;
 
 pub use error::{Error, Result};
 pub use manifest::{read_manifest, write_manifest, Manifest};
