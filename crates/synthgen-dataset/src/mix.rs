@@ -20,8 +20,8 @@ use serde::Serialize;
 use synthgen_core::rng::splitmix64;
 use synthgen_core::{GtInfo, Progress};
 
-use crate::bop::chunk::write_map;
 use crate::bop::json::{save_json_dict, save_json_object};
+use crate::bop::write_map;
 use crate::bop::{GtEntry, ModelInfo, SceneCamera};
 use crate::error::{Error, Result};
 use crate::io::{atomic_write, create_dir_all};
@@ -114,7 +114,12 @@ pub fn allocate(n: usize, sizes: &[usize]) -> Vec<usize> {
 }
 
 /// Draws `n` of `pool` (indices into `keys`), stratified by key; result sorted.
-fn stratified_draw<K: Ord>(keys: &[K], pool: &[usize], n: usize, rng: &mut ChaCha8Rng) -> Vec<usize> {
+fn stratified_draw<K: Ord>(
+    keys: &[K],
+    pool: &[usize],
+    n: usize,
+    rng: &mut ChaCha8Rng,
+) -> Vec<usize> {
     let mut strata: BTreeMap<&K, Vec<usize>> = BTreeMap::new();
     for &i in pool {
         strata.entry(&keys[i]).or_default().push(i);
@@ -155,7 +160,12 @@ pub fn plan_mix<K: Ord>(
         });
     }
     let all_real: Vec<usize> = (0..real_keys.len()).collect();
-    let test = stratified_draw(real_keys, &all_real, test_count, &mut rng(seed, STREAM_TEST));
+    let test = stratified_draw(
+        real_keys,
+        &all_real,
+        test_count,
+        &mut rng(seed, STREAM_TEST),
+    );
     let pool: Vec<usize> = all_real
         .into_iter()
         .filter(|i| test.binary_search(i).is_err())
@@ -442,7 +452,11 @@ fn copy_frame_files(
         report,
     )?;
     if let Some(depth) = &frame.depth {
-        link_or_copy(depth, &dir.join("depth").join(format!("{im_id:06}.png")), report)?;
+        link_or_copy(
+            depth,
+            &dir.join("depth").join(format!("{im_id:06}.png")),
+            report,
+        )?;
     }
     for (folder, masks) in [("mask", &frame.masks), ("mask_visib", &frame.masks_visib)] {
         for (gt_id, mask) in masks.iter().enumerate() {
@@ -497,14 +511,16 @@ fn write_models(
     let path = models.join("models_info.json");
     let mut entries = Vec::with_capacity(info.len());
     for (id, mi) in &info {
-        entries.push((id, serde_json::to_value(mi).map_err(|e| Error::json(&path, e))?));
+        entries.push((
+            id,
+            serde_json::to_value(mi).map_err(|e| Error::json(&path, e))?,
+        ));
     }
-    let text = save_json_dict(entries.iter().map(|(k, v)| (k, v))).map_err(|_| {
-        Error::NonFinite {
+    let text =
+        save_json_dict(entries.iter().map(|(k, v)| (k, v))).map_err(|_| Error::NonFinite {
             what: "models_info".into(),
             path: path.clone(),
-        }
-    })?;
+        })?;
     atomic_write(&path, text.as_bytes())
 }
 
@@ -532,13 +548,21 @@ mod tests {
     fn too_many_frames_says_how_many_there_are() {
         let real = vec![1u32; 20];
         let synth = vec![1u32; 5];
-        let c = MixCounts { real: 19, synth: 0, test: Some(2) };
+        let c = MixCounts {
+            real: 19,
+            synth: 0,
+            test: Some(2),
+        };
         let e = plan_mix(&real, &synth, c, 0, p(), Path::new("/s")).unwrap_err();
         assert_eq!(
             e.to_string(),
             "asked for 19 real training frames but only 18 are available (20 real frames, 2 held out for the test split): /data/x"
         );
-        let c = MixCounts { real: 1, synth: 6, test: Some(2) };
+        let c = MixCounts {
+            real: 1,
+            synth: 6,
+            test: Some(2),
+        };
         let e = plan_mix(&real, &synth, c, 0, p(), Path::new("/s")).unwrap_err();
         assert_eq!(
             e.to_string(),
@@ -559,7 +583,11 @@ mod tests {
         let mut keys = vec![vec![1u32]; 60];
         keys.extend(vec![vec![2u32]; 30]);
         keys.extend(vec![vec![1u32, 2]; 10]);
-        let c = MixCounts { real: 45, synth: 0, test: Some(10) };
+        let c = MixCounts {
+            real: 45,
+            synth: 0,
+            test: Some(10),
+        };
         let plan = plan_mix(&keys, &keys, c, 3, p(), p()).unwrap();
         let count = |ids: &[usize], k: &[u32]| ids.iter().filter(|&&i| keys[i] == k).count();
         assert_eq!(count(&plan.test, &[1]), 6);
