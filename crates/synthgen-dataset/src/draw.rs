@@ -135,8 +135,8 @@ impl Canvas {
                 }
                 let n = (y1 - y0) * (x1 - x0);
                 let o = (y as usize * out.width as usize + x as usize) * 3;
-                for k in 0..3 {
-                    out.rgb[o + k] = (acc[k] / n.max(1)) as u8;
+                for (dst, a) in out.rgb[o..o + 3].iter_mut().zip(acc) {
+                    *dst = (a / n.max(1)) as u8;
                 }
             }
         }
@@ -193,12 +193,10 @@ fn clip(a: (f64, f64), b: (f64, f64), w: f64, h: f64) -> Option<((f64, f64), (f6
             }
         }
     }
-    (t0 <= t1).then(|| {
-        (
-            (a.0 + dx * t0, a.1 + dy * t0),
-            (a.0 + dx * t1, a.1 + dy * t1),
-        )
-    })
+    (t0 <= t1).then_some((
+        (a.0 + dx * t0, a.1 + dy * t0),
+        (a.0 + dx * t1, a.1 + dy * t1),
+    ))
 }
 
 #[cfg(test)]

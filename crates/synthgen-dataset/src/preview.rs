@@ -37,9 +37,10 @@ impl Default for PreviewOptions {
     }
 }
 
-/// Box colours per object, by id.
-const PALETTE: [Rgb; 8] = [
-    [255, 220, 0],
+/// Box colours per object, by id modulo 12 (the Linemod ids 1..15 get distinct colours
+/// within any 12 consecutive ids).
+const PALETTE: [Rgb; 12] = [
+    [170, 170, 170],
     [0, 230, 255],
     [255, 0, 255],
     [255, 140, 0],
@@ -47,6 +48,10 @@ const PALETTE: [Rgb; 8] = [
     [255, 255, 255],
     [120, 160, 255],
     [255, 110, 110],
+    [255, 220, 0],
+    [0, 255, 170],
+    [200, 120, 255],
+    [255, 180, 200],
 ];
 
 const AXIS_COLOURS: [Rgb; 3] = [[255, 0, 0], [0, 255, 0], [0, 90, 255]];
