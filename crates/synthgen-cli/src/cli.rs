@@ -32,6 +32,244 @@ pub enum Command {
     /// Render randomized scenes of object models and write a BOP dataset.
     #[command(after_long_help = RENDER_EXAMPLES)]
     Render(Box<RenderArgs>),
+    /// Draw a reproducible mix of a real and a synthetic dataset, with a held-out real test split.
+    #[command(after_long_help = MIX_EXAMPLES)]
+    Mix(MixArgs),
+    /// Count frames, objects and instances; show visibility, distance and elevation distributions.
+    #[command(after_long_help = STATS_EXAMPLES)]
+    Stats(StatsArgs),
+    /// Draw a contact sheet of frames with their ground-truth poses overlaid.
+    #[command(after_long_help = PREVIEW_EXAMPLES)]
+    Preview(PreviewArgs),
+    /// Write a dataset's annotations in another tool's format (COCO).
+    #[command(subcommand)]
+    Export(ExportCommand),
+    /// Compute masks and scene_gt_info.json from the GT poses of a BOP dataset (real captures).
+    #[command(after_long_help = ANNOTATE_EXAMPLES)]
+    Annotate(AnnotateArgs),
+}
+
+const ANNOTATE_EXAMPLES: &str = "Examples:
+  # Real captures with rgb/, depth/, scene_camera.json and scene_gt.json per scene folder:
+  synthgen annotate data/real
+
+  # Only the test split, a 10 mm visibility tolerance:
+  synthgen annotate data/real --split test --visib-delta-m 0.01
+
+Writes mask/ and mask_visib/ PNGs and scene_gt_info.json in each scene folder, as
+bop_toolkit's calc_gt_masks.py and calc_gt_info.py: every object is rendered alone at its
+pose with the embedded renderer (models/obj_XXXXXX.ply, millimetres); a pixel is visible
+when the object's depth is within the tolerance of the real depth PNG (bop19 rule), or of
+the rendered scene depth where the frame has no depth PNG.";
+
+#[derive(Debug, Args)]
+pub struct AnnotateArgs {
+    /// Dataset folder (BOP) with models/ and per scene scene_camera.json and scene_gt.json.
+    pub dir: PathBuf,
+
+    /// Only this split (default: all).
+    #[arg(long)]
+    pub split: Option<String>,
+
+    /// Visibility tolerance in metres (bop_toolkit's delta).
+    #[arg(long, default_value_t = 0.015)]
+    pub visib_delta_m: f64,
+
+    /// Stop at the first frame that fails instead of reporting failures at the end.
+    #[arg(long)]
+    pub fail_fast: bool,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum ExportCommand {
+    /// COCO instance annotations (scene_gt_coco.json, as bop_toolkit's calc_gt_coco.py).
+    #[command(after_long_help = COCO_EXAMPLES)]
+    Coco(CocoArgs),
+}
+
+const COCO_EXAMPLES: &str = "Examples:
+  # scene_gt_coco.json in every scene folder of train_pbr:
+  synthgen export coco data/synth
+
+  # One file for the test split, compressed RLE (pycocotools' string counts):
+  synthgen export coco data/mix --split test --rle compressed --out data/mix/test_coco.json
+
+Per visible instance: segmentation = RLE of mask_visib (column-major, as pycocotools),
+bbox = bbox_visib, area = visible pixels, iscrowd 0, ignore = visib_fract below
+--ignore-below. Categories are the object ids of models_info.json.";
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum RleArg {
+    /// Integer run lengths (bop_toolkit's default).
+    Uncompressed,
+    /// pycocotools' compressed string counts.
+    Compressed,
+}
+
+#[derive(Debug, Args)]
+pub struct CocoArgs {
+    /// Dataset folder (BOP).
+    pub dir: PathBuf,
+
+    /// Split to export.
+    #[arg(long, default_value = "train_pbr")]
+    pub split: String,
+
+    /// Write one file for the whole split here instead of scene_gt_coco.json per scene.
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+
+    /// Mark instances with visib_fract below this as "ignore".
+    #[arg(long, default_value_t = 0.1)]
+    pub ignore_below: f64,
+
+    /// RLE flavour of the masks.
+    #[arg(long, value_enum, default_value_t = RleArg::Uncompressed)]
+    pub rle: RleArg,
+}
+
+const STATS_EXAMPLES: &str = "Examples:
+  synthgen stats data/synth
+  synthgen stats data/mix --json > stats.json
+  synthgen stats data/real --plot plots/
+
+Distances are ||cam_t_m2c|| per instance. Elevations are the camera's angle above the world
+xy plane seen from the object when scene_camera.json has cam_R_w2c/cam_t_w2c (synthgen's and
+BlenderProc's data), else above the object's own xy plane.";
+
+const PREVIEW_EXAMPLES: &str = "Examples:
+  synthgen preview data/synth --out sheet.png
+  synthgen preview /data/bop/lmo --split test --count 9 --seed 3 --out lmo.png
+
+Each object gets its 3D bounding box (from models/models_info.json) in a colour of its own,
+its axes (x red, y green, z blue, half the diameter long) and its id. Works on any BOP
+dataset with models_info.json.";
+
+#[derive(Debug, Args)]
+pub struct StatsArgs {
+    /// Dataset folder (BOP).
+    pub dir: PathBuf,
+
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+
+    /// Also write PNG bar charts into this folder.
+    #[arg(long, value_name = "DIR")]
+    pub plot: Option<PathBuf>,
+}
+
+#[derive(Debug, Args)]
+pub struct PreviewArgs {
+    /// Dataset folder (BOP).
+    pub dir: PathBuf,
+
+    /// Output PNG.
+    #[arg(long, default_value = "preview.png")]
+    pub out: PathBuf,
+
+    /// Frames on the sheet.
+    #[arg(long, default_value_t = 16)]
+    pub count: usize,
+
+    /// Seed of the choice of frames.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+
+    /// Only frames of this split (default: all splits).
+    #[arg(long)]
+    pub split: Option<String>,
+
+    /// Width of one frame on the sheet, pixels.
+    #[arg(long, default_value_t = 320)]
+    pub tile_width: u32,
+}
+
+const MIX_EXAMPLES: &str = "Examples:
+  # 1000 real + 500 synthetic training frames, 150 real test frames held out:
+  synthgen mix --real data/real --synth data/synth --real-count 1000 --synth-count 500 --test-count 150 --out data/mix
+
+  # The short form: counts only, paths from synthgen.toml or SYNTHGEN_REAL / SYNTHGEN_SYNTH:
+  synthgen mix --real 1000 --synth 500
+
+  # 30% synthetic out of 1500 training frames:
+  synthgen mix --real data/real --synth data/synth --ratio 0.3 --total 1500
+
+Project config (synthgen.toml, looked up in the current folder and its parents; paths
+relative to the file):
+  [mix]
+  real = \"data/real\"
+  synth = \"data/synth\"
+  out = \"data/mix\"
+
+Output (BOP layout): OUT/train/SCENE/ (real and synthetic, new image ids), OUT/test/SCENE/
+(held-out real frames, the same for every count and ratio with the same seed and
+--test-count), OUT/camera.json, OUT/models/, OUT/provenance.json (source of every frame)
+and OUT/synthgen.json.";
+
+/// A dataset folder, or a frame count whose folder comes from the project config.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum PathOrCount {
+    Path(PathBuf),
+    Count(usize),
+}
+
+/// All digits is a count; anything else is a path (write `./1000` for a folder named 1000).
+pub fn parse_path_or_count(s: &str) -> Result<PathOrCount, String> {
+    if s.is_empty() {
+        return Err("expected a dataset folder or a frame count".into());
+    }
+    if s.bytes().all(|b| b.is_ascii_digit()) {
+        return s
+            .parse()
+            .map(PathOrCount::Count)
+            .map_err(|_| format!("{s} is too large a count"));
+    }
+    Ok(PathOrCount::Path(PathBuf::from(s)))
+}
+
+#[derive(Debug, Args)]
+pub struct MixArgs {
+    /// The real dataset (BOP), or the number of real training frames (folder from the config).
+    #[arg(long, value_name = "DIR|COUNT", value_parser = parse_path_or_count)]
+    pub real: PathOrCount,
+
+    /// The synthetic dataset (BOP), or the number of synthetic frames (folder from the config).
+    #[arg(long, value_name = "DIR|COUNT", value_parser = parse_path_or_count)]
+    pub synth: PathOrCount,
+
+    /// Real training frames (with --real DIR).
+    #[arg(long, conflicts_with_all = ["ratio", "total"])]
+    pub real_count: Option<usize>,
+
+    /// Synthetic training frames (with --synth DIR).
+    #[arg(long, conflicts_with_all = ["ratio", "total"])]
+    pub synth_count: Option<usize>,
+
+    /// Synthetic fraction of the training frames (0..1), with --total.
+    #[arg(long, requires = "total")]
+    pub ratio: Option<f64>,
+
+    /// Training frames in all, with --ratio.
+    #[arg(long, requires = "ratio")]
+    pub total: Option<usize>,
+
+    /// Real frames held out as the test split (default: 10% of the real frames). Drawn first,
+    /// from the seed alone, so it is the same for every count and ratio.
+    #[arg(long)]
+    pub test_count: Option<usize>,
+
+    /// Output dataset folder (default: `out` from synthgen.toml, else data/mix).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+
+    /// Replace a mix already in --out.
+    #[arg(long)]
+    pub force: bool,
+
+    /// Seed of the draw; the same seed and inputs give byte-identical output.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
 }
 
 const RENDER_EXAMPLES: &str = "Examples:

@@ -8,6 +8,7 @@ use synthgen_core::Progress;
 
 pub mod cli;
 pub mod commands;
+pub mod config;
 pub mod printer;
 
 pub use printer::Printer;
@@ -35,6 +36,13 @@ pub fn main() -> ExitCode {
     let printer = Printer::new(cli.quiet);
     let result = match cli.command {
         cli::Command::Render(args) => commands::render::run(*args, &printer),
+        cli::Command::Mix(args) => commands::mix::run(args, &printer),
+        cli::Command::Stats(args) => commands::stats::run(args, &printer),
+        cli::Command::Preview(args) => commands::preview::run(args, &printer),
+        cli::Command::Annotate(args) => commands::annotate::run(args, &printer),
+        cli::Command::Export(cli::ExportCommand::Coco(args)) => {
+            commands::export::run_coco(args, &printer)
+        }
     };
     match result {
         Ok(status) => status.into(),

@@ -37,6 +37,19 @@ pub enum Error {
     InvalidFrame { frame_index: u64, message: String },
     #[error("invalid writer options: {0}")]
     InvalidOptions(String),
+    /// A draw asked for more frames than a dataset has.
+    #[error("asked for {asked} {what} frames but only {available} are available{note}: {path}")]
+    NotEnoughFrames {
+        what: String,
+        asked: usize,
+        available: usize,
+        /// Extra detail such as how many frames the test split holds back.
+        note: String,
+        path: PathBuf,
+    },
+    /// Options of a command that do not fit together (counts, ratios).
+    #[error("{0}")]
+    InvalidRequest(String),
     /// A value that JSON cannot hold (NaN, infinity) in data to be written.
     #[error("cannot write non-finite number in {what}: {path}")]
     NonFinite { what: String, path: PathBuf },
@@ -105,8 +118,11 @@ impl Error {
             | Error::Malformed { path, .. }
             | Error::Encode { path, .. }
             | Error::Decode { path, .. }
-            | Error::NonFinite { path, .. } => Some(path),
-            Error::InvalidFrame { .. } | Error::InvalidOptions(_) => None,
+            | Error::NonFinite { path, .. }
+            | Error::NotEnoughFrames { path, .. } => Some(path),
+            Error::InvalidFrame { .. } | Error::InvalidOptions(_) | Error::InvalidRequest(_) => {
+                None
+            }
         }
     }
 }

@@ -28,9 +28,15 @@
 //! ```
 
 pub mod bop;
+pub mod coco;
+pub mod draw;
 mod error;
 pub mod io;
 pub mod manifest;
+pub mod mix;
+pub mod preview;
+pub mod source;
+pub mod stats;
 
 pub use error::{Error, Result};
 pub use manifest::{read_manifest, write_manifest, Manifest};

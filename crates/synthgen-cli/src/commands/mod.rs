@@ -1,6 +1,11 @@
 //! One module per command; each exposes `run(args, printer) -> anyhow::Result<ExitStatus>`.
 
+pub mod annotate;
+pub mod export;
+pub mod mix;
+pub mod preview;
 pub mod render;
+pub mod stats;
 
 use crate::ExitStatus;
 

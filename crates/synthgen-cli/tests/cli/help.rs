@@ -37,3 +37,28 @@ fn top_level_help() {
 fn render_help() {
     check_snapshot("render_help.txt", &["render", "--help"]);
 }
+
+#[test]
+fn mix_help() {
+    check_snapshot("mix_help.txt", &["mix", "--help"]);
+}
+
+#[test]
+fn stats_help() {
+    check_snapshot("stats_help.txt", &["stats", "--help"]);
+}
+
+#[test]
+fn preview_help() {
+    check_snapshot("preview_help.txt", &["preview", "--help"]);
+}
+
+#[test]
+fn export_coco_help() {
+    check_snapshot("export_coco_help.txt", &["export", "coco", "--help"]);
+}
+
+#[test]
+fn annotate_help() {
+    check_snapshot("annotate_help.txt", &["annotate", "--help"]);
+}

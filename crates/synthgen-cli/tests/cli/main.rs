@@ -1,7 +1,11 @@
 //! End-to-end tests of the `synthgen` binary: one test binary, a module per area.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
+mod annotate;
+mod coco;
 mod common;
 mod errors;
 mod help;
+mod inspect;
+mod mix;
 mod render;

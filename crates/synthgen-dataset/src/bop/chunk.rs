@@ -113,11 +113,7 @@ impl ChunkAnnotations {
 }
 
 /// Writes an image-id-keyed map in bop_toolkit's `save_json` layout.
-pub(crate) fn write_map<T: Serialize>(
-    path: &Path,
-    map: &BTreeMap<u32, T>,
-    fsync: bool,
-) -> Result<()> {
+pub fn write_map<T: Serialize>(path: &Path, map: &BTreeMap<u32, T>, fsync: bool) -> Result<()> {
     let text = bop_json_text(path, map)?;
     atomic_write_with(path, text.as_bytes(), fsync)
 }

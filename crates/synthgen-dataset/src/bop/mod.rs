@@ -8,7 +8,7 @@ pub mod reader;
 pub mod types;
 pub mod writer;
 
-pub use chunk::{ChunkAnnotations, FrameRecord, SCENE_CAMERA, SCENE_GT, SCENE_GT_INFO};
+pub use chunk::{write_map, ChunkAnnotations, FrameRecord, SCENE_CAMERA, SCENE_GT, SCENE_GT_INFO};
 pub use image::{read_depth_m, read_mask, read_rgb, Plane, PngCompression, RgbFormat, RgbImage};
 pub use reader::{BopDataset, BopScene};
 pub use types::{CameraInfo, GtEntry, ModelInfo, SceneCamera};

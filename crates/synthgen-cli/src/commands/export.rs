@@ -1,0 +1,33 @@
+//! `synthgen export coco`: COCO instance annotations from a BOP split.
+
+use anyhow::{Context, Result};
+use synthgen_dataset::bop::BopDataset;
+use synthgen_dataset::coco::{export_coco, CocoOptions, RleFormat};
+
+use crate::cli::{CocoArgs, RleArg};
+use crate::{ExitStatus, Printer};
+
+pub fn run_coco(args: CocoArgs, printer: &Printer) -> Result<ExitStatus> {
+    let ds = BopDataset::open(&args.dir)
+        .with_context(|| format!("cannot open dataset {}", args.dir.display()))?;
+    let opts = CocoOptions {
+        split: args.split.clone(),
+        ignore_below_visib_fract: args.ignore_below,
+        rle: match args.rle {
+            RleArg::Uncompressed => RleFormat::Uncompressed,
+            RleArg::Compressed => RleFormat::Compressed,
+        },
+    };
+    let s = export_coco(&ds, &opts, args.out.as_deref(), printer)?;
+    for f in &s.files {
+        printer.info(format!("wrote {}", f.display()));
+    }
+    println!(
+        "{} images, {} annotations ({} marked ignore) in {} file(s)",
+        s.images,
+        s.annotations,
+        s.ignored,
+        s.files.len()
+    );
+    Ok(ExitStatus::Success)
+}

@@ -1,0 +1,318 @@
+//! COCO instance annotations from a BOP split, as bop_toolkit's `calc_gt_coco.py` writes
+//! them (`scene_gt_coco.json` per scene folder): one image per frame, one annotation per
+//! visible object instance with its `mask_visib` as RLE, `bbox` from `bbox_visib`, `area` =
+//! visible pixels, `iscrowd` 0 and `ignore` for instances less visible than a threshold.
+
+use std::collections::BTreeMap;
+use std::path::{Component, Path, PathBuf};
+
+use serde_json::{json, Value};
+
+use crate::bop::{read_mask, BopDataset};
+use crate::error::{Error, Result};
+use crate::io::atomic_write;
+
+/// File name bop_toolkit uses in each scene folder.
+pub const SCENE_GT_COCO: &str = "scene_gt_coco.json";
+
+/// RLE flavour of the `segmentation` field.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum RleFormat {
+    /// `{"counts": [..], "size": [h, w]}` with integer run lengths (bop_toolkit's default).
+    #[default]
+    Uncompressed,
+    /// pycocotools' compressed string counts (`mask.encode`).
+    Compressed,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct CocoOptions {
+    pub split: String,
+    /// Instances with visib_fract below this get `"ignore": true`.
+    pub ignore_below_visib_fract: f64,
+    pub rle: RleFormat,
+}
+
+impl Default for CocoOptions {
+    fn default() -> Self {
+        CocoOptions {
+            split: "train_pbr".into(),
+            ignore_below_visib_fract: 0.1,
+            rle: RleFormat::Uncompressed,
+        }
+    }
+}
+
+/// Run lengths of a mask in column-major (Fortran) order, starting with a run of zeros
+/// (possibly empty), as pycocotools expects. `mask` is row-major, non-zero = set.
+pub fn rle_counts(mask: &[u8], width: usize, height: usize) -> Vec<u32> {
+    let mut counts = Vec::new();
+    let mut current = false;
+    let mut run = 0u32;
+    for x in 0..width {
+        for y in 0..height {
+            let v = mask[y * width + x] != 0;
+            if v != current {
+                counts.push(run);
+                run = 0;
+                current = v;
+            }
+            run += 1;
+        }
+    }
+    counts.push(run);
+    counts
+}
+
+/// pycocotools' `rleToString`: deltas against the count two back (from the third on), 5
+/// bits per char with a continuation bit, offset by 48.
+pub fn rle_to_string(counts: &[u32]) -> String {
+    let mut s = String::new();
+    for (i, &c) in counts.iter().enumerate() {
+        let mut x = i64::from(c);
+        if i > 2 {
+            x -= i64::from(counts[i - 2]);
+        }
+        loop {
+            let mut ch = (x & 0x1f) as u8;
+            x >>= 5;
+            let more = if ch & 0x10 != 0 { x != -1 } else { x != 0 };
+            if more {
+                ch |= 0x20;
+            }
+            s.push(char::from(ch + 48));
+            if !more {
+                break;
+            }
+        }
+    }
+    s
+}
+
+/// Decodes uncompressed counts back to a row-major 0/1 mask (for tests and checks).
+pub fn rle_decode(counts: &[u32], width: usize, height: usize) -> Vec<u8> {
+    let mut col_major = Vec::with_capacity(width * height);
+    for (i, &c) in counts.iter().enumerate() {
+        col_major.extend(std::iter::repeat((i % 2) as u8).take(c as usize));
+    }
+    let mut out = vec![0u8; width * height];
+    for (k, v) in col_major.into_iter().enumerate().take(width * height) {
+        let (x, y) = (k / height, k % height);
+        out[y * width + x] = v;
+    }
+    out
+}
+
+/// `rel` from `base` to `target` (both under one root), with `/` separators.
+fn relative(target: &Path, base: &Path) -> String {
+    let t: Vec<Component> = target.components().collect();
+    let b: Vec<Component> = base.components().collect();
+    let common = t.iter().zip(&b).take_while(|(x, y)| x == y).count();
+    let mut parts: Vec<String> = vec!["..".into(); b.len() - common];
+    parts.extend(
+        t[common..]
+            .iter()
+            .map(|c| c.as_os_str().to_string_lossy().into_owned()),
+    );
+    parts.join("/")
+}
+
+/// What [`export_coco`] wrote.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct CocoSummary {
+    pub files: Vec<PathBuf>,
+    pub images: usize,
+    pub annotations: usize,
+    pub ignored: usize,
+}
+
+/// Writes COCO annotations for one split: per scene `scene_gt_coco.json` in the scene
+/// folder, or, with `merged_out`, one file for the whole split (image and annotation ids
+/// running over the scenes, file names relative to that file's folder).
+pub fn export_coco(
+    ds: &BopDataset,
+    opts: &CocoOptions,
+    merged_out: Option<&Path>,
+    progress: &dyn synthgen_core::Progress,
+) -> Result<CocoSummary> {
+    if !ds.splits.contains(&opts.split) {
+        return Err(Error::InvalidRequest(format!(
+            "no split {:?} in {} (splits: {})",
+            opts.split,
+            ds.root.display(),
+            ds.splits.join(", ")
+        )));
+    }
+    let name = ds
+        .root
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let categories: Vec<Value> = ds
+        .models_info
+        .iter()
+        .flat_map(BTreeMap::keys)
+        .map(|id| json!({"id": id, "name": id.to_string(), "supercategory": name}))
+        .collect();
+    let info = json!({
+        "description": format!("{name}_{}", opts.split),
+        "url": "https://github.com/thodan/bop_toolkit",
+        "version": "0.1.0",
+        "contributor": "synthgen",
+    });
+    let mut summary = CocoSummary::default();
+    let scene_ids = ds.scene_ids(&opts.split)?;
+    progress.start("coco", scene_ids.len() as u64);
+    let (mut images, mut annotations) = (Vec::new(), Vec::new());
+    let (mut image_id, mut ann_id) = (0u64, 1u64);
+    for scene_id in scene_ids {
+        let scene = ds.read_scene(&opts.split, scene_id)?;
+        let base = match merged_out {
+            Some(out) => out.parent().map(Path::to_path_buf).unwrap_or_default(),
+            None => scene.dir.clone(),
+        };
+        if merged_out.is_none() {
+            image_id = 0;
+            ann_id = 1;
+        }
+        let info_path = scene.dir.join(crate::bop::SCENE_GT_INFO);
+        for (&im_id, gts) in &scene.gt {
+            let rgb = scene.rgb_path(im_id).ok_or_else(|| Error::MissingFile {
+                path: scene.dir.join("rgb").join(format!("{im_id:06}.png")),
+            })?;
+            let (w, h) = (ds.camera.width, ds.camera.height);
+            let file_name = if merged_out.is_some() {
+                relative(&abs(rgb), &abs(&base))
+            } else {
+                relative(rgb, &base)
+            };
+            images.push(json!({
+                "id": image_id, "file_name": file_name, "width": w, "height": h,
+                "license": 1, "coco_url": "", "flickr_url": "",
+            }));
+            let infos = scene.gt_info.as_ref().and_then(|m| m.get(&im_id));
+            for (gt_id, gt) in gts.iter().enumerate() {
+                let this_id = ann_id;
+                ann_id += 1;
+                let mask_path = scene.mask_visib_path(im_id, gt_id);
+                let mask = read_mask(&mask_path)?;
+                if (mask.width, mask.height) != (w, h) {
+                    return Err(Error::malformed(
+                        &mask_path,
+                        format!(
+                            "mask is {}x{}, camera.json says {w}x{h}",
+                            mask.width, mask.height
+                        ),
+                    ));
+                }
+                let area = mask.data.iter().filter(|&&v| v != 0).count();
+                if area == 0 {
+                    continue; // bop_toolkit skips instances without visible pixels
+                }
+                let info = infos.and_then(|i| i.get(gt_id)).ok_or_else(|| {
+                    Error::malformed(
+                        &info_path,
+                        format!("no entry for image {im_id}, gt {gt_id} (COCO needs bbox_visib)"),
+                    )
+                })?;
+                let counts = rle_counts(&mask.data, w as usize, h as usize);
+                let counts = match opts.rle {
+                    RleFormat::Uncompressed => json!(counts),
+                    RleFormat::Compressed => json!(rle_to_string(&counts)),
+                };
+                let ignore = info.visib_fract < opts.ignore_below_visib_fract;
+                summary.ignored += usize::from(ignore);
+                annotations.push(json!({
+                    "id": this_id, "image_id": image_id, "category_id": gt.obj_id,
+                    "iscrowd": 0, "area": area, "bbox": info.bbox_visib,
+                    "segmentation": {"counts": counts, "size": [h, w]},
+                    "width": w, "height": h, "ignore": ignore,
+                }));
+            }
+            image_id += 1;
+        }
+        if merged_out.is_none() {
+            let path = scene.dir.join(SCENE_GT_COCO);
+            summary.images += images.len();
+            summary.annotations += annotations.len();
+            write_coco(&path, &info, &categories, &mut images, &mut annotations)?;
+            summary.files.push(path);
+        }
+        progress.advance(1);
+    }
+    if let Some(out) = merged_out {
+        summary.images += images.len();
+        summary.annotations += annotations.len();
+        write_coco(out, &info, &categories, &mut images, &mut annotations)?;
+        summary.files.push(out.to_path_buf());
+    }
+    progress.finish();
+    Ok(summary)
+}
+
+fn abs(p: &Path) -> PathBuf {
+    std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf())
+}
+
+fn write_coco(
+    path: &Path,
+    info: &Value,
+    categories: &[Value],
+    images: &mut Vec<Value>,
+    annotations: &mut Vec<Value>,
+) -> Result<()> {
+    let doc = json!({
+        "info": info,
+        "licenses": [],
+        "categories": categories,
+        "images": std::mem::take(images),
+        "annotations": std::mem::take(annotations),
+    });
+    let text = serde_json::to_string(&doc).map_err(|e| Error::json(path, e))?;
+    if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        crate::io::create_dir_all(parent)?;
+    }
+    atomic_write(path, text.as_bytes())
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rle_is_column_major_and_starts_with_zeros() {
+        // 3 wide, 2 high:
+        // 1 0 1
+        // 1 0 0
+        let m = [255, 0, 255, 255, 0, 0];
+        let c = rle_counts(&m, 3, 2);
+        assert_eq!(c, vec![0, 2, 2, 1, 1]);
+        assert_eq!(rle_decode(&c, 3, 2), vec![1, 0, 1, 1, 0, 0]);
+        assert_eq!(rle_counts(&[0; 4], 2, 2), vec![4]);
+    }
+
+    #[test]
+    fn compressed_rle_matches_pycocotools() {
+        // Runs below 16 are one char each; from the fourth on, the delta to the count two
+        // back is coded: 1 - 2 = -1 → 0x1f + 48 = 'O'.
+        assert_eq!(rle_to_string(&[0, 2, 2, 1, 1]), "022OO");
+        // A 100-long run needs two chars: 100 = 0b11_00100 → (4|0x20)+48, 3+48.
+        assert_eq!(rle_to_string(&[100]), "T3");
+    }
+
+    #[test]
+    fn relative_paths() {
+        assert_eq!(
+            relative(
+                Path::new("/d/s/000000/rgb/000001.png"),
+                Path::new("/d/s/000000")
+            ),
+            "rgb/000001.png"
+        );
+        assert_eq!(
+            relative(Path::new("/d/s/000000/rgb/1.png"), Path::new("/d/out")),
+            "../s/000000/rgb/1.png"
+        );
+    }
+}

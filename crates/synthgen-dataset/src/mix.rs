@@ -1,0 +1,643 @@
+//! `synthgen mix`: a reproducible, stratified draw of real and synthetic frames into one BOP
+//! dataset, with a held-out real test split and per-frame provenance.
+//!
+//! The draw is three independent seeded draws, each stratified by a frame's object set:
+//! 1. the test split, from all real frames, with an RNG that depends only on the seed (never
+//!    on the counts or ratio), so every row of a mixing table is tested on the same frames;
+//! 2. the real training frames, from the real frames not in the test split;
+//! 3. the synthetic training frames.
+//!
+//! Inside a stratum the frames are shuffled once per seed and the first k are taken, so a
+//! larger count extends a smaller one's draw.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use rand::seq::SliceRandom;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
+use synthgen_core::rng::splitmix64;
+use synthgen_core::{GtInfo, Progress};
+
+use crate::bop::json::{save_json_dict, save_json_object};
+use crate::bop::write_map;
+use crate::bop::{GtEntry, ModelInfo, SceneCamera};
+use crate::error::{Error, Result};
+use crate::io::{atomic_write, create_dir_all};
+use crate::manifest::{write_manifest, Manifest};
+use crate::source::{FrameSource, SourceFrame};
+
+/// Output split of the training frames.
+pub const TRAIN_SPLIT: &str = "train";
+/// Output split of the held-out real frames.
+pub const TEST_SPLIT: &str = "test";
+/// Images per output scene folder.
+pub const SCENE_SIZE: usize = 1000;
+/// Per-frame provenance, at the output's root.
+pub const PROVENANCE_FILE: &str = "provenance.json";
+
+const STREAM_TEST: u64 = 0x7465_7374; // "test"
+const STREAM_REAL: u64 = 0x7265_616c; // "real"
+const STREAM_SYNTH: u64 = 0x7379_6e74; // "synt"
+const STREAM_ORDER: u64 = 0x6f72_6465; // "orde"
+
+fn rng(seed: u64, stream: u64) -> ChaCha8Rng {
+    ChaCha8Rng::seed_from_u64(splitmix64(splitmix64(seed) ^ stream))
+}
+
+/// Which source a frame comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Origin {
+    Real,
+    Synth,
+}
+
+/// How many frames to draw.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MixCounts {
+    pub real: usize,
+    pub synth: usize,
+    /// Real frames held out for testing; `None`: 10% of the real frames (rounded down).
+    pub test: Option<usize>,
+}
+
+impl MixCounts {
+    /// Counts from a synthetic fraction of a total: synth = round(ratio × total).
+    pub fn from_ratio(ratio: f64, total: usize, test: Option<usize>) -> Result<MixCounts> {
+        if !(0.0..=1.0).contains(&ratio) {
+            return Err(Error::InvalidRequest(format!(
+                "ratio must be between 0 and 1 (the synthetic fraction), got {ratio}"
+            )));
+        }
+        let synth = (ratio * total as f64).round() as usize;
+        Ok(MixCounts {
+            real: total - synth.min(total),
+            synth: synth.min(total),
+            test,
+        })
+    }
+}
+
+/// Default size of the test split: 10% of the real frames.
+pub fn default_test_count(real_frames: usize) -> usize {
+    real_frames / 10
+}
+
+/// Which frames go where: indices into the real and synthetic frame lists.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct MixPlan {
+    /// Real frames held out, sorted.
+    pub test: Vec<usize>,
+    /// Training frames in output order.
+    pub train: Vec<(Origin, usize)>,
+}
+
+/// Splits `n` over strata of the given sizes in proportion (largest remainder; ties go to
+/// the earlier stratum). Requires `n <= sum(sizes)`; each share is at most its size.
+pub fn allocate(n: usize, sizes: &[usize]) -> Vec<usize> {
+    let total: usize = sizes.iter().sum();
+    if total == 0 {
+        return vec![0; sizes.len()];
+    }
+    let n = n.min(total);
+    let mut shares: Vec<usize> = sizes.iter().map(|&s| n * s / total).collect();
+    let given: usize = shares.iter().sum();
+    let mut order: Vec<usize> = (0..sizes.len()).collect();
+    // Largest remainder first; stable sort keeps ties in stratum order.
+    order.sort_by_key(|&i| std::cmp::Reverse(n * sizes[i] % total));
+    for &i in order.iter().take(n - given) {
+        shares[i] += 1;
+    }
+    shares
+}
+
+/// Draws `n` of `pool` (indices into `keys`), stratified by key; result sorted.
+fn stratified_draw<K: Ord>(
+    keys: &[K],
+    pool: &[usize],
+    n: usize,
+    rng: &mut ChaCha8Rng,
+) -> Vec<usize> {
+    let mut strata: BTreeMap<&K, Vec<usize>> = BTreeMap::new();
+    for &i in pool {
+        strata.entry(&keys[i]).or_default().push(i);
+    }
+    let sizes: Vec<usize> = strata.values().map(Vec::len).collect();
+    let shares = allocate(n, &sizes);
+    let mut out = Vec::with_capacity(n);
+    for (members, k) in strata.into_values().zip(shares) {
+        let mut members = members;
+        // Shuffle every stratum, even when k = 0, so draws do not depend on the counts.
+        members.shuffle(rng);
+        out.extend_from_slice(&members[..k]);
+    }
+    out.sort_unstable();
+    out
+}
+
+/// Chooses the frames of a mix. `real_keys` / `synth_keys` are the frames' strata (their
+/// object sets); `real_path` / `synth_path` only name the datasets in errors.
+pub fn plan_mix<K: Ord>(
+    real_keys: &[K],
+    synth_keys: &[K],
+    counts: MixCounts,
+    seed: u64,
+    real_path: &Path,
+    synth_path: &Path,
+) -> Result<MixPlan> {
+    let test_count = counts
+        .test
+        .unwrap_or_else(|| default_test_count(real_keys.len()));
+    if test_count > real_keys.len() {
+        return Err(Error::NotEnoughFrames {
+            what: "real test".into(),
+            asked: test_count,
+            available: real_keys.len(),
+            note: String::new(),
+            path: real_path.to_path_buf(),
+        });
+    }
+    let all_real: Vec<usize> = (0..real_keys.len()).collect();
+    let test = stratified_draw(
+        real_keys,
+        &all_real,
+        test_count,
+        &mut rng(seed, STREAM_TEST),
+    );
+    let pool: Vec<usize> = all_real
+        .into_iter()
+        .filter(|i| test.binary_search(i).is_err())
+        .collect();
+    if counts.real > pool.len() {
+        return Err(Error::NotEnoughFrames {
+            what: "real training".into(),
+            asked: counts.real,
+            available: pool.len(),
+            note: format!(
+                " ({} real frames, {} held out for the test split)",
+                real_keys.len(),
+                test.len()
+            ),
+            path: real_path.to_path_buf(),
+        });
+    }
+    if counts.synth > synth_keys.len() {
+        return Err(Error::NotEnoughFrames {
+            what: "synthetic".into(),
+            asked: counts.synth,
+            available: synth_keys.len(),
+            note: String::new(),
+            path: synth_path.to_path_buf(),
+        });
+    }
+    let real = stratified_draw(real_keys, &pool, counts.real, &mut rng(seed, STREAM_REAL));
+    let all_synth: Vec<usize> = (0..synth_keys.len()).collect();
+    let synth = stratified_draw(
+        synth_keys,
+        &all_synth,
+        counts.synth,
+        &mut rng(seed, STREAM_SYNTH),
+    );
+    let mut train: Vec<(Origin, usize)> = real
+        .into_iter()
+        .map(|i| (Origin::Real, i))
+        .chain(synth.into_iter().map(|i| (Origin::Synth, i)))
+        .collect();
+    train.shuffle(&mut rng(seed, STREAM_ORDER));
+    Ok(MixPlan { test, train })
+}
+
+/// Where one output frame came from (one entry of `provenance.json`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Provenance {
+    pub split: String,
+    pub scene_id: u32,
+    pub im_id: u32,
+    pub origin: Origin,
+    /// Root of the source dataset.
+    pub source: PathBuf,
+    pub source_split: String,
+    pub source_scene_id: u32,
+    pub source_im_id: u32,
+}
+
+/// What to mix and where.
+#[derive(Debug, Clone)]
+pub struct MixOptions {
+    pub counts: MixCounts,
+    pub seed: u64,
+    /// Recorded in the manifest.
+    pub command_line: Vec<String>,
+    /// Replace an existing mix in `out` (its train/, test/, models/ and JSON files).
+    pub force: bool,
+}
+
+/// What a mix wrote.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct MixReport {
+    pub train_real: usize,
+    pub train_synth: usize,
+    pub test: usize,
+    /// Files hard-linked and copied (copies when linking fails, e.g. across filesystems).
+    pub linked: usize,
+    pub copied: usize,
+    /// Non-fatal findings (differing cameras or models).
+    pub warnings: Vec<String>,
+}
+
+/// Draws the mix and writes it as a BOP dataset at `out`: `train/` and `test/` scene
+/// folders, camera.json and models from the real set (synthetic-only objects' models from
+/// the synthetic set), `provenance.json` and `synthgen.json`. All or nothing: a missing
+/// source file stops the run, since a partial mix would break the counts.
+pub fn write_mix(
+    real: &dyn FrameSource,
+    synth: &dyn FrameSource,
+    out: &Path,
+    opts: &MixOptions,
+    progress: &dyn Progress,
+) -> Result<MixReport> {
+    let real_frames = real.frames(&[])?;
+    let synth_frames = synth.frames(&[])?;
+    let real_keys: Vec<Vec<u32>> = real_frames.iter().map(SourceFrame::object_set).collect();
+    let synth_keys: Vec<Vec<u32>> = synth_frames.iter().map(SourceFrame::object_set).collect();
+    let plan = plan_mix(
+        &real_keys,
+        &synth_keys,
+        opts.counts,
+        opts.seed,
+        real.root(),
+        synth.root(),
+    )?;
+    prepare_out(out, opts.force)?;
+
+    let mut report = MixReport {
+        test: plan.test.len(),
+        ..MixReport::default()
+    };
+    let (rc, sc) = (real.camera(), synth.camera());
+    if (rc.width, rc.height) != (sc.width, sc.height) {
+        report.warnings.push(format!(
+            "image sizes differ: real {}x{}, synthetic {}x{}; camera.json takes the real one (per-image cam_K is kept)",
+            rc.width, rc.height, sc.width, sc.height
+        ));
+    }
+    let camera_path = out.join("camera.json");
+    let camera_json = serde_json::to_value(rc).map_err(|e| Error::json(&camera_path, e))?;
+    let text = save_json_object(&camera_json).map_err(|_| Error::NonFinite {
+        what: "camera".into(),
+        path: camera_path.clone(),
+    })?;
+    atomic_write(&camera_path, text.as_bytes())?;
+    write_models(real, synth, out, &mut report)?;
+
+    let total = plan.test.len() + plan.train.len();
+    progress.start("mixing", total as u64);
+    let mut provenance = Vec::with_capacity(total);
+    let test: Vec<(Origin, usize)> = plan.test.iter().map(|&i| (Origin::Real, i)).collect();
+    for (split, list) in [(TRAIN_SPLIT, &plan.train), (TEST_SPLIT, &test)] {
+        let mut scenes: BTreeMap<u32, SceneJson> = BTreeMap::new();
+        for (n, &(origin, i)) in list.iter().enumerate() {
+            let (source, frame) = match origin {
+                Origin::Real => (real, &real_frames[i]),
+                Origin::Synth => (synth, &synth_frames[i]),
+            };
+            let scene_id = (n / SCENE_SIZE) as u32;
+            let im_id = (n % SCENE_SIZE) as u32;
+            let dir = out.join(split).join(format!("{scene_id:06}"));
+            copy_frame_files(frame, &dir, im_id, &mut report)?;
+            let scene = scenes.entry(scene_id).or_default();
+            scene.camera.insert(im_id, frame.camera);
+            scene.gt.insert(im_id, frame.gt.clone());
+            if let Some(info) = &frame.gt_info {
+                scene.gt_info.insert(im_id, info.clone());
+            }
+            match (split, origin) {
+                (TEST_SPLIT, _) => {}
+                (_, Origin::Real) => report.train_real += 1,
+                (_, Origin::Synth) => report.train_synth += 1,
+            }
+            provenance.push(Provenance {
+                split: split.to_string(),
+                scene_id,
+                im_id,
+                origin,
+                source: source.root().to_path_buf(),
+                source_split: frame.location.split.clone(),
+                source_scene_id: frame.location.scene_id,
+                source_im_id: frame.location.im_id,
+            });
+            progress.advance(1);
+        }
+        for (scene_id, scene) in scenes {
+            scene.write(&out.join(split).join(format!("{scene_id:06}")))?;
+        }
+    }
+    progress.finish();
+    if provenance.iter().any(|p| p.origin == Origin::Real)
+        && real_frames.iter().any(|f| f.gt_info.is_none())
+    {
+        report.warnings.push(
+            "some real frames have no scene_gt_info.json entries; their scene folders have none"
+                .into(),
+        );
+    }
+
+    let prov_path = out.join(PROVENANCE_FILE);
+    let mut text =
+        serde_json::to_string_pretty(&provenance).map_err(|e| Error::json(&prov_path, e))?;
+    text.push('\n');
+    atomic_write(&prov_path, text.as_bytes())?;
+
+    let mut manifest = Manifest::new(opts.command_line.clone(), opts.seed);
+    manifest.frames = total as u64;
+    manifest.extra = serde_json::json!({
+        "mix": {
+            "real": real.root(),
+            "synth": synth.root(),
+            "train_real": report.train_real,
+            "train_synth": report.train_synth,
+            "test": report.test,
+            "train_split": TRAIN_SPLIT,
+            "test_split": TEST_SPLIT,
+            "stratified_by": "object set",
+            "provenance": PROVENANCE_FILE,
+        }
+    });
+    write_manifest(out, &manifest)?;
+    Ok(report)
+}
+
+#[derive(Default)]
+struct SceneJson {
+    camera: BTreeMap<u32, SceneCamera>,
+    gt: BTreeMap<u32, Vec<GtEntry>>,
+    gt_info: BTreeMap<u32, Vec<GtInfo>>,
+}
+
+impl SceneJson {
+    fn write(&self, dir: &Path) -> Result<()> {
+        // scene_gt_info.json only when every image has its entries (readers require that).
+        if self.gt_info.len() == self.camera.len() {
+            write_map(&dir.join(crate::bop::SCENE_GT_INFO), &self.gt_info, false)?;
+        }
+        write_map(&dir.join(crate::bop::SCENE_GT), &self.gt, false)?;
+        write_map(&dir.join(crate::bop::SCENE_CAMERA), &self.camera, false)
+    }
+}
+
+/// Creates `out`; refuses a non-empty folder unless `force`, which removes what a mix writes.
+fn prepare_out(out: &Path, force: bool) -> Result<()> {
+    if out.exists() {
+        let non_empty = std::fs::read_dir(out)
+            .map_err(|e| Error::io("read", out, e))?
+            .next()
+            .is_some();
+        if non_empty && !force {
+            return Err(Error::InvalidRequest(format!(
+                "output folder is not empty (use --force to replace a mix there): {}",
+                out.display()
+            )));
+        }
+        for dir in [TRAIN_SPLIT, TEST_SPLIT, "models"] {
+            let p = out.join(dir);
+            if p.is_dir() {
+                std::fs::remove_dir_all(&p).map_err(|e| Error::io("remove", &p, e))?;
+            }
+        }
+    }
+    create_dir_all(out)
+}
+
+/// Hard-links `src` to `dst`, copying when linking fails (other filesystem, no support).
+fn link_or_copy(src: &Path, dst: &Path, report: &mut MixReport) -> Result<()> {
+    if let Some(parent) = dst.parent() {
+        create_dir_all(parent)?;
+    }
+    if std::fs::hard_link(src, dst).is_ok() {
+        report.linked += 1;
+        return Ok(());
+    }
+    if !src.is_file() {
+        return Err(Error::MissingFile {
+            path: src.to_path_buf(),
+        });
+    }
+    std::fs::copy(src, dst).map_err(|e| Error::io("copy to", dst, e))?;
+    report.copied += 1;
+    Ok(())
+}
+
+fn copy_frame_files(
+    frame: &SourceFrame,
+    dir: &Path,
+    im_id: u32,
+    report: &mut MixReport,
+) -> Result<()> {
+    let ext = frame
+        .rgb
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_else(|| "png".into());
+    let rgb_dir = frame
+        .rgb
+        .parent()
+        .and_then(Path::file_name)
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "rgb".into());
+    link_or_copy(
+        &frame.rgb,
+        &dir.join(rgb_dir).join(format!("{im_id:06}.{ext}")),
+        report,
+    )?;
+    if let Some(depth) = &frame.depth {
+        link_or_copy(
+            depth,
+            &dir.join("depth").join(format!("{im_id:06}.png")),
+            report,
+        )?;
+    }
+    for (folder, masks) in [("mask", &frame.masks), ("mask_visib", &frame.masks_visib)] {
+        for (gt_id, mask) in masks.iter().enumerate() {
+            if let Some(m) = mask {
+                let name = format!("{im_id:06}_{gt_id:06}.png");
+                link_or_copy(m, &dir.join(folder).join(name), report)?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Models and models_info.json: the real set's, plus the synthetic set's objects the real
+/// set lacks.
+fn write_models(
+    real: &dyn FrameSource,
+    synth: &dyn FrameSource,
+    out: &Path,
+    report: &mut MixReport,
+) -> Result<()> {
+    let mut info: BTreeMap<u32, ModelInfo> = BTreeMap::new();
+    let mut files: BTreeMap<u32, PathBuf> = BTreeMap::new();
+    for (name, src) in [("real", real), ("synthetic", synth)] {
+        for (&id, mi) in src.models_info().into_iter().flatten() {
+            match info.get(&id) {
+                Some(existing) => {
+                    let rel = (existing.diameter - mi.diameter).abs() / existing.diameter;
+                    if rel > 0.01 {
+                        report.warnings.push(format!(
+                            "object {id}: the {name} model's diameter ({:.1} mm) differs from the real one ({:.1} mm); keeping the real model",
+                            mi.diameter, existing.diameter
+                        ));
+                    }
+                }
+                None => {
+                    info.insert(id, mi.clone());
+                    if let Some(p) = src.model_path(id) {
+                        files.insert(id, p);
+                    }
+                }
+            }
+        }
+    }
+    if info.is_empty() {
+        return Ok(());
+    }
+    let models = out.join("models");
+    create_dir_all(&models)?;
+    for (id, src) in &files {
+        link_or_copy(src, &models.join(format!("obj_{id:06}.ply")), report)?;
+    }
+    let path = models.join("models_info.json");
+    let mut entries = Vec::with_capacity(info.len());
+    for (id, mi) in &info {
+        entries.push((
+            id,
+            serde_json::to_value(mi).map_err(|e| Error::json(&path, e))?,
+        ));
+    }
+    let text =
+        save_json_dict(entries.iter().map(|(k, v)| (k, v))).map_err(|_| Error::NonFinite {
+            what: "models_info".into(),
+            path: path.clone(),
+        })?;
+    atomic_write(&path, text.as_bytes())
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+    use std::collections::BTreeSet;
+
+    fn p() -> &'static Path {
+        Path::new("/data/x")
+    }
+
+    #[test]
+    fn allocate_is_proportional_and_exact() {
+        assert_eq!(allocate(10, &[50, 30, 20]), vec![5, 3, 2]);
+        assert_eq!(allocate(3, &[1, 1, 1, 1]), vec![1, 1, 1, 0]);
+        assert_eq!(allocate(5, &[5]), vec![5]);
+        assert_eq!(allocate(0, &[3, 4]), vec![0, 0]);
+        assert_eq!(allocate(2, &[]), Vec::<usize>::new());
+    }
+
+    #[test]
+    fn too_many_frames_says_how_many_there_are() {
+        let real = vec![1u32; 20];
+        let synth = vec![1u32; 5];
+        let c = MixCounts {
+            real: 19,
+            synth: 0,
+            test: Some(2),
+        };
+        let e = plan_mix(&real, &synth, c, 0, p(), Path::new("/s")).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "asked for 19 real training frames but only 18 are available (20 real frames, 2 held out for the test split): /data/x"
+        );
+        let c = MixCounts {
+            real: 1,
+            synth: 6,
+            test: Some(2),
+        };
+        let e = plan_mix(&real, &synth, c, 0, p(), Path::new("/s")).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "asked for 6 synthetic frames but only 5 are available: /s"
+        );
+    }
+
+    #[test]
+    fn ratio_gives_counts() {
+        let c = MixCounts::from_ratio(0.3, 1500, None).unwrap();
+        assert_eq!((c.real, c.synth), (1050, 450));
+        assert!(MixCounts::from_ratio(1.5, 10, None).is_err());
+    }
+
+    #[test]
+    fn strata_keep_their_share() {
+        // 60 frames of object 1, 30 of object 2, 10 of both.
+        let mut keys = vec![vec![1u32]; 60];
+        keys.extend(vec![vec![2u32]; 30]);
+        keys.extend(vec![vec![1u32, 2]; 10]);
+        let c = MixCounts {
+            real: 45,
+            synth: 0,
+            test: Some(10),
+        };
+        let plan = plan_mix(&keys, &keys, c, 3, p(), p()).unwrap();
+        let count = |ids: &[usize], k: &[u32]| ids.iter().filter(|&&i| keys[i] == k).count();
+        assert_eq!(count(&plan.test, &[1]), 6);
+        assert_eq!(count(&plan.test, &[2]), 3);
+        assert_eq!(count(&plan.test, &[1, 2]), 1);
+        let train: Vec<usize> = plan.train.iter().map(|t| t.1).collect();
+        assert_eq!(count(&train, &[1]), 27);
+        assert_eq!(count(&train, &[2]), 13);
+        assert_eq!(count(&train, &[1, 2]), 5);
+    }
+
+    fn keys_strategy() -> impl Strategy<Value = Vec<u8>> {
+        prop::collection::vec(0u8..4, 0..120)
+    }
+
+    proptest! {
+        #[test]
+        fn plan_properties(
+            real in keys_strategy(),
+            synth in keys_strategy(),
+            a in 0.0f64..1.0,
+            b in 0.0f64..1.0,
+            t in 0.0f64..0.5,
+            seed in any::<u64>(),
+        ) {
+            let test = (t * real.len() as f64) as usize;
+            let pool = real.len() - test;
+            let counts = |f: f64| MixCounts {
+                real: (f * pool as f64) as usize,
+                synth: ((1.0 - f) * synth.len() as f64) as usize,
+                test: Some(test),
+            };
+            let pa = plan_mix(&real, &synth, counts(a), seed, p(), p()).unwrap();
+            let pb = plan_mix(&real, &synth, counts(b), seed, p(), p()).unwrap();
+            // Counts exact.
+            prop_assert_eq!(pa.test.len(), test);
+            let nr = pa.train.iter().filter(|x| x.0 == Origin::Real).count();
+            prop_assert_eq!(nr, counts(a).real);
+            prop_assert_eq!(pa.train.len() - nr, counts(a).synth);
+            // No duplicates.
+            let set: BTreeSet<_> = pa.train.iter().collect();
+            prop_assert_eq!(set.len(), pa.train.len());
+            // Test split disjoint from training and the same for every ratio.
+            for &(o, i) in &pa.train {
+                prop_assert!(o == Origin::Synth || pa.test.binary_search(&i).is_err());
+            }
+            prop_assert_eq!(&pa.test, &pb.test);
+            // Same seed, same plan.
+            let again = plan_mix(&real, &synth, counts(a), seed, p(), p()).unwrap();
+            prop_assert_eq!(pa, again);
+        }
+    }
+}

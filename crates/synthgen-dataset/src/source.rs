@@ -1,0 +1,127 @@
+//! Frames of a dataset on disk, independent of its layout: what `mix`, `stats` and `preview`
+//! read. BOP is implemented here; another layout (Linemod) plugs in by implementing
+//! [`FrameSource`].
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use synthgen_core::GtInfo;
+
+use crate::bop::{BopDataset, CameraInfo, GtEntry, ModelInfo, SceneCamera};
+use crate::error::Result;
+
+/// Where a frame lives in its dataset.
+#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize)]
+pub struct FrameLocation {
+    pub split: String,
+    pub scene_id: u32,
+    pub im_id: u32,
+}
+
+/// One annotated image: its annotations and the paths of its files.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SourceFrame {
+    pub location: FrameLocation,
+    pub camera: SceneCamera,
+    /// List index = gt id.
+    pub gt: Vec<GtEntry>,
+    /// `scene_gt_info` entries, when the dataset has them.
+    pub gt_info: Option<Vec<GtInfo>>,
+    pub rgb: PathBuf,
+    /// Depth PNG, when present.
+    pub depth: Option<PathBuf>,
+    /// Per gt id: `mask/` and `mask_visib/` PNGs, each when present.
+    pub masks: Vec<Option<PathBuf>>,
+    pub masks_visib: Vec<Option<PathBuf>>,
+}
+
+impl SourceFrame {
+    /// Sorted, distinct object ids in the frame.
+    pub fn object_set(&self) -> Vec<u32> {
+        let mut ids: Vec<u32> = self.gt.iter().map(|g| g.obj_id).collect();
+        ids.sort_unstable();
+        ids.dedup();
+        ids
+    }
+}
+
+/// A dataset as a list of frames plus its camera and models.
+pub trait FrameSource {
+    fn root(&self) -> &Path;
+    /// `camera.json`-level camera (image size, default intrinsics).
+    fn camera(&self) -> CameraInfo;
+    /// Model info by object id, when the dataset has it.
+    fn models_info(&self) -> Option<&BTreeMap<u32, ModelInfo>>;
+    /// The model file of an object (millimetres), when present.
+    fn model_path(&self, obj_id: u32) -> Option<PathBuf>;
+    /// Every frame, sorted by location. `splits` limits the splits read (all when empty).
+    fn frames(&self, splits: &[String]) -> Result<Vec<SourceFrame>>;
+}
+
+impl FrameSource for BopDataset {
+    fn root(&self) -> &Path {
+        &self.root
+    }
+
+    fn camera(&self) -> CameraInfo {
+        self.camera
+    }
+
+    fn models_info(&self) -> Option<&BTreeMap<u32, ModelInfo>> {
+        self.models_info.as_ref()
+    }
+
+    fn model_path(&self, obj_id: u32) -> Option<PathBuf> {
+        let p = self.model_ply_path(obj_id);
+        p.is_file().then_some(p)
+    }
+
+    fn frames(&self, splits: &[String]) -> Result<Vec<SourceFrame>> {
+        let mut out = Vec::new();
+        for split in &self.splits {
+            if !splits.is_empty() && !splits.contains(split) {
+                continue;
+            }
+            for scene_id in self.scene_ids(split)? {
+                let scene = self.read_scene(split, scene_id)?;
+                for im_id in scene.im_ids() {
+                    let (Some(camera), Some(rgb)) =
+                        (scene.camera.get(&im_id), scene.rgb_path(im_id))
+                    else {
+                        continue;
+                    };
+                    let gt = scene.gt.get(&im_id).cloned().unwrap_or_default();
+                    let gt_info = scene.gt_info.as_ref().and_then(|m| m.get(&im_id).cloned());
+                    let depth = Some(scene.depth_path(im_id)).filter(|p| p.is_file());
+                    let existing = |p: PathBuf| p.is_file().then_some(p);
+                    let masks = (0..gt.len())
+                        .map(|g| existing(scene.mask_path(im_id, g)))
+                        .collect();
+                    let masks_visib = (0..gt.len())
+                        .map(|g| existing(scene.mask_visib_path(im_id, g)))
+                        .collect();
+                    out.push(SourceFrame {
+                        location: FrameLocation {
+                            split: split.clone(),
+                            scene_id,
+                            im_id,
+                        },
+                        camera: *camera,
+                        gt,
+                        gt_info,
+                        rgb: rgb.to_path_buf(),
+                        depth,
+                        masks,
+                        masks_visib,
+                    });
+                }
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// Opens a dataset folder in whichever layout it has (BOP for now).
+pub fn open_source(root: &Path) -> Result<Box<dyn FrameSource>> {
+    Ok(Box::new(BopDataset::open(root)?))
+}
