@@ -6,13 +6,13 @@ use serde_json::Value;
 use synthgen_dataset::bop::BopDataset;
 
 use crate::common::{run, stderr, synthgen};
-use crate::render::box_ply;
+use crate::render::write_box_ply;
 
 /// Renders `frames` frames of the box into `out` (80x60, fast).
 pub fn render_tiny(dir: &Path, out: &str, frames: u32, seed: u32) {
     let mesh = dir.join("box.ply");
     if !mesh.exists() {
-        std::fs::write(&mesh, box_ply()).unwrap();
+        write_box_ply(&mesh);
     }
     let o = run(synthgen()
         .current_dir(dir)
