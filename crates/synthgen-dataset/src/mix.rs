@@ -270,6 +270,16 @@ pub fn write_mix(
         real.root(),
         synth.root(),
     )?;
+    let same = |a: &Path| match (a.canonicalize(), out.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    };
+    if same(real.root()) || same(synth.root()) {
+        return Err(Error::InvalidRequest(format!(
+            "the output folder is one of the sources: {}",
+            out.display()
+        )));
+    }
     prepare_out(out, opts.force)?;
 
     let mut report = MixReport {
@@ -597,6 +607,94 @@ mod tests {
         assert_eq!(count(&train, &[1]), 27);
         assert_eq!(count(&train, &[2]), 13);
         assert_eq!(count(&train, &[1, 2]), 5);
+    }
+
+    /// An in-memory source whose frames all point at one tiny file.
+    struct FakeSource {
+        root: PathBuf,
+        frames: Vec<SourceFrame>,
+    }
+
+    impl FakeSource {
+        fn new(root: &Path, objects: &[u32]) -> FakeSource {
+            std::fs::create_dir_all(root).unwrap();
+            let rgb = root.join("000000.png");
+            std::fs::write(&rgb, b"png").unwrap();
+            let frames = objects
+                .iter()
+                .enumerate()
+                .map(|(i, &obj_id)| SourceFrame {
+                    location: crate::source::FrameLocation {
+                        split: "train_pbr".into(),
+                        scene_id: 0,
+                        im_id: i as u32,
+                    },
+                    camera: SceneCamera {
+                        cam_k: [500.0, 0.0, 320.0, 0.0, 500.0, 240.0, 0.0, 0.0, 1.0],
+                        cam_r_w2c: None,
+                        cam_t_w2c: None,
+                        depth_scale: 1.0,
+                    },
+                    gt: vec![GtEntry::new(obj_id, &synthgen_core::Pose::IDENTITY)],
+                    gt_info: None,
+                    rgb: rgb.clone(),
+                    depth: None,
+                    masks: vec![None],
+                    masks_visib: vec![None],
+                })
+                .collect();
+            FakeSource {
+                root: root.to_path_buf(),
+                frames,
+            }
+        }
+    }
+
+    impl FrameSource for FakeSource {
+        fn root(&self) -> &Path {
+            &self.root
+        }
+        fn camera(&self) -> crate::bop::CameraInfo {
+            crate::bop::CameraInfo::new(&synthgen_core::Intrinsics::LINEMOD, 1.0)
+        }
+        fn models_info(&self) -> Option<&BTreeMap<u32, ModelInfo>> {
+            None
+        }
+        fn model_path(&self, _: u32) -> Option<PathBuf> {
+            None
+        }
+        fn frames(&self, _: &[String]) -> Result<Vec<SourceFrame>> {
+            Ok(self.frames.clone())
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(8))]
+        #[test]
+        fn same_seed_byte_identical_manifest(seed in any::<u64>(), real_count in 0usize..20) {
+            let dir = tempfile::tempdir().unwrap();
+            let objects: Vec<u32> = (0..30).map(|i| 1 + i % 3).collect();
+            let real = FakeSource::new(&dir.path().join("real"), &objects);
+            let synth = FakeSource::new(&dir.path().join("synth"), &objects[..12]);
+            let opts = MixOptions {
+                counts: MixCounts { real: real_count, synth: 5, test: None },
+                seed,
+                command_line: vec!["synthgen".into(), "mix".into()],
+                force: false,
+            };
+            let mut texts = Vec::new();
+            for out in ["a", "b"] {
+                let out = dir.path().join(out);
+                let r = write_mix(&real, &synth, &out, &opts, &synthgen_core::NoProgress).unwrap();
+                prop_assert_eq!((r.train_real, r.train_synth, r.test), (real_count, 5, 3));
+                texts.push((
+                    std::fs::read(out.join("synthgen.json")).unwrap(),
+                    std::fs::read(out.join(PROVENANCE_FILE)).unwrap(),
+                    std::fs::read(out.join("train/000000/scene_gt.json")).unwrap(),
+                ));
+            }
+            prop_assert_eq!(&texts[0], &texts[1]);
+        }
     }
 
     fn keys_strategy() -> impl Strategy<Value = Vec<u8>> {
