@@ -294,8 +294,9 @@ mod tests {
 
     #[test]
     fn compressed_rle_matches_pycocotools() {
-        // Runs below 16 are one char each; from the fourth on, the delta to the count two
-        // back is coded: 1 - 2 = -1 → 0x1f + 48 = 'O'.
+        // Both checked against pycocotools 2.0 `mask.encode`: [[1,0,1],[1,0,0]] gives
+        // b'022OO' (from the fourth run on, the delta to the count two back is coded:
+        // 1 - 2 = -1 → 0x1f + 48 = 'O'), a 10x10 empty mask gives b'T3'.
         assert_eq!(rle_to_string(&[0, 2, 2, 1, 1]), "022OO");
         // A 100-long run needs two chars: 100 = 0b11_00100 → (4|0x20)+48, 3+48.
         assert_eq!(rle_to_string(&[100]), "T3");

@@ -205,9 +205,16 @@ fn bar(count: u64, max: u64, width: usize) -> String {
     "#".repeat(n)
 }
 
+/// One line per bin; empty bins before the first and after the last non-empty one are left
+/// out (the JSON keeps them all).
 fn write_histogram(out: &mut String, h: &Histogram, decimals: usize) {
     let max = h.counts.iter().copied().max().unwrap_or(0);
+    let first = h.counts.iter().position(|&c| c > 0).unwrap_or(0);
+    let last = h.counts.iter().rposition(|&c| c > 0).unwrap_or(0);
     for (i, &c) in h.counts.iter().enumerate() {
+        if i < first || i > last {
+            continue;
+        }
         let _ = writeln!(
             out,
             "  {:>8.d$} .. {:>8.d$}  {:>7}  {}",

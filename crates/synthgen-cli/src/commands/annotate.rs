@@ -65,6 +65,7 @@ pub fn run(args: AnnotateArgs, printer: &Printer) -> Result<ExitStatus> {
     let (mut frames, mut real_depth) = (0usize, 0usize);
     for scene in &scenes {
         let mut infos: BTreeMap<u32, Vec<GtInfo>> = BTreeMap::new();
+        let failed_before = failures.len();
         for im_id in scene.im_ids() {
             match annotate_frame(&ds, scene, im_id, &renderer, &model_index, delta_m) {
                 Ok((info, used_real_depth)) => {
@@ -84,7 +85,16 @@ pub fn run(args: AnnotateArgs, printer: &Printer) -> Result<ExitStatus> {
             }
             printer.advance(1);
         }
-        write_map(&scene.dir.join(SCENE_GT_INFO), &infos, true)?;
+        if failures.len() == failed_before {
+            write_map(&scene.dir.join(SCENE_GT_INFO), &infos, true)?;
+        } else {
+            // A partial scene_gt_info.json would make the scene unreadable (every image of
+            // scene_gt.json needs its entries); the masks of the good frames are written.
+            printer.warning(format!(
+                "{} not written: some frames of this scene failed",
+                scene.dir.join(SCENE_GT_INFO).display()
+            ));
+        }
     }
     printer.finish();
     println!(

@@ -138,6 +138,31 @@ fn mix_long_and_short_forms() {
         );
     }
 
+    // The same command twice: byte-identical manifest.
+    let args = [
+        "mix",
+        "--real",
+        "real",
+        "--synth",
+        "synth",
+        "--real-count",
+        "7",
+        "--synth-count",
+        "3",
+        "--seed",
+        "9",
+        "--force",
+        "--out",
+        "mix_e",
+    ];
+    let mut manifests = Vec::new();
+    for _ in 0..2 {
+        let o = run(synthgen().current_dir(d).args(args));
+        assert!(o.status.success(), "{}", stderr(&o));
+        manifests.push(std::fs::read(d.join("mix_e/synthgen.json")).unwrap());
+    }
+    assert_eq!(manifests[0], manifests[1]);
+
     // Ratio form.
     let o = run(synthgen().current_dir(d).args([
         "mix", "--real", "real", "--synth", "synth", "--ratio", "0.5", "--total", "20", "--out",
@@ -199,22 +224,35 @@ fn mix_errors() {
         "{e}"
     );
 
-    // Non-empty output without --force.
-    let o = run(synthgen().current_dir(d).args([
-        "mix",
-        "--real",
-        "real",
-        "--synth",
-        "synth",
-        "--real-count",
-        "1",
-        "--synth-count",
-        "1",
-        "--out",
-        "real",
-    ]));
-    assert_eq!(o.status.code(), Some(1));
-    assert!(stderr(&o).contains("--force"), "{}", stderr(&o));
+    // Non-empty output without --force; a source as output even with --force.
+    std::fs::create_dir_all(d.join("busy")).unwrap();
+    std::fs::write(d.join("busy/notes.txt"), "mine").unwrap();
+    for (out, force, want) in [
+        ("busy", false, "--force"),
+        ("real", true, "the output folder is one of the sources"),
+    ] {
+        let mut cmd = synthgen();
+        cmd.current_dir(d).args([
+            "mix",
+            "--real",
+            "real",
+            "--synth",
+            "synth",
+            "--real-count",
+            "1",
+            "--synth-count",
+            "1",
+            "--out",
+            out,
+        ]);
+        if force {
+            cmd.arg("--force");
+        }
+        let o = run(&mut cmd);
+        assert_eq!(o.status.code(), Some(1));
+        assert!(stderr(&o).contains(want), "{}", stderr(&o));
+    }
+    assert!(d.join("real/train_pbr/000000/scene_gt.json").is_file());
 
     // Malformed JSON in a source names the file.
     let gt = d.join("synth/train_pbr/000000/scene_gt.json");

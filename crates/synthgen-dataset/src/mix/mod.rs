@@ -270,6 +270,16 @@ pub fn write_mix(
         real.root(),
         synth.root(),
     )?;
+    let same = |a: &Path| match (a.canonicalize(), out.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    };
+    if same(real.root()) || same(synth.root()) {
+        return Err(Error::InvalidRequest(format!(
+            "the output folder is one of the sources: {}",
+            out.display()
+        )));
+    }
     prepare_out(out, opts.force)?;
 
     let mut report = MixReport {
@@ -526,118 +536,4 @@ fn write_models(
 
 #[cfg(test)]
 #[allow(clippy::unwrap_used, clippy::expect_used)]
-mod tests {
-    use super::*;
-    use proptest::prelude::*;
-    use std::collections::BTreeSet;
-
-    fn p() -> &'static Path {
-        Path::new("/data/x")
-    }
-
-    #[test]
-    fn allocate_is_proportional_and_exact() {
-        assert_eq!(allocate(10, &[50, 30, 20]), vec![5, 3, 2]);
-        assert_eq!(allocate(3, &[1, 1, 1, 1]), vec![1, 1, 1, 0]);
-        assert_eq!(allocate(5, &[5]), vec![5]);
-        assert_eq!(allocate(0, &[3, 4]), vec![0, 0]);
-        assert_eq!(allocate(2, &[]), Vec::<usize>::new());
-    }
-
-    #[test]
-    fn too_many_frames_says_how_many_there_are() {
-        let real = vec![1u32; 20];
-        let synth = vec![1u32; 5];
-        let c = MixCounts {
-            real: 19,
-            synth: 0,
-            test: Some(2),
-        };
-        let e = plan_mix(&real, &synth, c, 0, p(), Path::new("/s")).unwrap_err();
-        assert_eq!(
-            e.to_string(),
-            "asked for 19 real training frames but only 18 are available (20 real frames, 2 held out for the test split): /data/x"
-        );
-        let c = MixCounts {
-            real: 1,
-            synth: 6,
-            test: Some(2),
-        };
-        let e = plan_mix(&real, &synth, c, 0, p(), Path::new("/s")).unwrap_err();
-        assert_eq!(
-            e.to_string(),
-            "asked for 6 synthetic frames but only 5 are available: /s"
-        );
-    }
-
-    #[test]
-    fn ratio_gives_counts() {
-        let c = MixCounts::from_ratio(0.3, 1500, None).unwrap();
-        assert_eq!((c.real, c.synth), (1050, 450));
-        assert!(MixCounts::from_ratio(1.5, 10, None).is_err());
-    }
-
-    #[test]
-    fn strata_keep_their_share() {
-        // 60 frames of object 1, 30 of object 2, 10 of both.
-        let mut keys = vec![vec![1u32]; 60];
-        keys.extend(vec![vec![2u32]; 30]);
-        keys.extend(vec![vec![1u32, 2]; 10]);
-        let c = MixCounts {
-            real: 45,
-            synth: 0,
-            test: Some(10),
-        };
-        let plan = plan_mix(&keys, &keys, c, 3, p(), p()).unwrap();
-        let count = |ids: &[usize], k: &[u32]| ids.iter().filter(|&&i| keys[i] == k).count();
-        assert_eq!(count(&plan.test, &[1]), 6);
-        assert_eq!(count(&plan.test, &[2]), 3);
-        assert_eq!(count(&plan.test, &[1, 2]), 1);
-        let train: Vec<usize> = plan.train.iter().map(|t| t.1).collect();
-        assert_eq!(count(&train, &[1]), 27);
-        assert_eq!(count(&train, &[2]), 13);
-        assert_eq!(count(&train, &[1, 2]), 5);
-    }
-
-    fn keys_strategy() -> impl Strategy<Value = Vec<u8>> {
-        prop::collection::vec(0u8..4, 0..120)
-    }
-
-    proptest! {
-        #[test]
-        fn plan_properties(
-            real in keys_strategy(),
-            synth in keys_strategy(),
-            a in 0.0f64..1.0,
-            b in 0.0f64..1.0,
-            t in 0.0f64..0.5,
-            seed in any::<u64>(),
-        ) {
-            let test = (t * real.len() as f64) as usize;
-            let pool = real.len() - test;
-            let counts = |f: f64| MixCounts {
-                real: (f * pool as f64) as usize,
-                synth: ((1.0 - f) * synth.len() as f64) as usize,
-                test: Some(test),
-            };
-            let pa = plan_mix(&real, &synth, counts(a), seed, p(), p()).unwrap();
-            let pb = plan_mix(&real, &synth, counts(b), seed, p(), p()).unwrap();
-            // Counts exact.
-            prop_assert_eq!(pa.test.len(), test);
-            let nr = pa.train.iter().filter(|x| x.0 == Origin::Real).count();
-            prop_assert_eq!(nr, counts(a).real);
-            prop_assert_eq!(pa.train.len() - nr, counts(a).synth);
-            // No duplicates.
-            let set: BTreeSet<_> = pa.train.iter().collect();
-            prop_assert_eq!(set.len(), pa.train.len());
-            // Test split disjoint from training and the same for every ratio.
-            for &(o, i) in &pa.train {
-                prop_assert!(o == Origin::Synth || pa.test.binary_search(&i).is_err());
-            }
-            prop_assert_eq!(&pa.test, &pb.test);
-            // Same seed, same plan.
-            let again = plan_mix(&real, &synth, counts(a), seed, p(), p()).unwrap();
-            prop_assert_eq!(pa, again);
-        }
-    }
-}
+mod tests;
