@@ -1,6 +1,9 @@
 //! One module per command; each exposes `run(args, printer) -> anyhow::Result<ExitStatus>`.
 
+pub mod convert;
 pub mod render;
+mod render_sink;
+pub mod validate;
 
 use crate::ExitStatus;
 
