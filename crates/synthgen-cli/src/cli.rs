@@ -29,7 +29,7 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Render randomized scenes of object models and write a BOP dataset.
+    /// Render randomized scenes of object models and write a BOP (or Linemod) dataset.
     #[command(after_long_help = RENDER_EXAMPLES)]
     Render(Box<RenderArgs>),
     /// Convert a dataset between the BOP and Linemod layouts.

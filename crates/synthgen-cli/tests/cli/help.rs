@@ -37,3 +37,13 @@ fn top_level_help() {
 fn render_help() {
     check_snapshot("render_help.txt", &["render", "--help"]);
 }
+
+#[test]
+fn convert_help() {
+    check_snapshot("convert_help.txt", &["convert", "--help"]);
+}
+
+#[test]
+fn validate_help() {
+    check_snapshot("validate_help.txt", &["validate", "--help"]);
+}

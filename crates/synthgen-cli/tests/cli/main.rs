@@ -4,4 +4,5 @@
 mod common;
 mod errors;
 mod help;
+mod linemod;
 mod render;
