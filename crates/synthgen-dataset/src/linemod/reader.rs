@@ -206,3 +206,48 @@ impl LinemodDataset {
         })
     }
 }
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_missing_key_names_the_key_line_and_file() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("gt.yml");
+        std::fs::write(
+            &p,
+            "0:\n- cam_R_m2c: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]\n  cam_t_m2c: [0.0, 0.0, 500.0]\n  obj_id: 1\n",
+        )
+        .unwrap();
+        let e = read_gt_yml(&p).unwrap_err().to_string();
+        assert!(e.starts_with("malformed gt.yml: "), "{e}");
+        assert!(e.contains("missing field `obj_bb`"), "{e}");
+        assert!(e.contains("line 2"), "{e}");
+        assert!(e.ends_with(&p.display().to_string()), "{e}");
+    }
+
+    #[test]
+    fn real_shape_and_empty_files_read() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("gt.yml");
+        // As in Linemod_preprocessed: 8-decimal fixed floats, integer boxes.
+        std::fs::write(
+            &p,
+            "0:\n- cam_R_m2c: [0.09630630, 0.99404401, 0.05100790, 0.57332098, -0.01350810, -0.81922001, -0.81365103, 0.10814000, -0.57120699]\n  cam_t_m2c: [-105.35775150, -117.52119142, 1014.87701320]\n  obj_bb: [244, 150, 44, 58]\n  obj_id: 1\n",
+        )
+        .unwrap();
+        let gt = read_gt_yml(&p).unwrap();
+        assert_eq!(gt[&0][0].obj_bb, [244, 150, 44, 58]);
+        assert_eq!(gt[&0][0].cam_t_m2c[2], 1014.8770132);
+        std::fs::write(&p, "").unwrap();
+        assert!(read_gt_yml(&p).unwrap().is_empty());
+        let l = d.path().join("train.txt");
+        std::fs::write(&l, "0000\n0012\n\n").unwrap();
+        assert_eq!(read_id_list(&l).unwrap(), [0, 12]);
+        std::fs::write(&l, "0000\nabc\n").unwrap();
+        let e = read_id_list(&l).unwrap_err().to_string();
+        assert!(e.contains("line 2: \"abc\" is not a frame id"), "{e}");
+    }
+}

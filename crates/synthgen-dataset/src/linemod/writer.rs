@@ -370,3 +370,65 @@ impl LinemodWriter {
         })
     }
 }
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+
+    fn obj(obj_id: u32, visib_fract: f64) -> LinemodObject {
+        LinemodObject {
+            gt: LinemodGt {
+                cam_r_m2c: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+                cam_t_m2c: [0.0, 0.0, 500.0 + visib_fract],
+                obj_bb: [0, 0, 1, 1],
+                obj_id,
+            },
+            visib_fract,
+            mask_visib: Some(vec![255; 4]),
+        }
+    }
+
+    #[test]
+    fn the_most_visible_instance_of_each_id_gets_the_folder() {
+        let objects = [
+            obj(5, 0.3),
+            obj(2, 0.05),
+            obj(5, 0.8),
+            obj(7, 0.1),
+            obj(9, 0.0),
+        ];
+        assert_eq!(folder_instances(&objects, 0.1), [(5, 2), (7, 3)]);
+        assert_eq!(folder_instances(&objects, 0.0), [(2, 1), (5, 2), (7, 3)]);
+    }
+
+    #[test]
+    fn frames_go_to_visible_objects_folders_with_their_object_first() {
+        let d = tempfile::tempdir().unwrap();
+        let w = LinemodWriter::create(d.path(), LinemodWriterOptions::default()).unwrap();
+        let frame = LinemodFrame {
+            frame_id: 12,
+            width: 2,
+            height: 2,
+            cam_k: [100.0, 0.0, 1.0, 0.0, 100.0, 1.0, 0.0, 0.0, 1.0],
+            rgb: vec![7; 12],
+            depth: vec![500; 4],
+            objects: vec![obj(1, 0.5), obj(2, 0.9), obj(3, 0.01)],
+        };
+        let rec = w.write_frame(&frame, ListFile::Test).unwrap();
+        w.add_record(rec);
+        let s = w.finish().unwrap();
+        assert_eq!(s.folders, [1, 2]);
+        let gt = crate::linemod::read_gt_yml(&d.path().join("data/02/gt.yml")).unwrap();
+        let ids: Vec<u32> = gt[&12].iter().map(|g| g.obj_id).collect();
+        assert_eq!(ids, [2, 1, 3]);
+        assert!(d.path().join("data/01/mask/0012.png").exists());
+        assert!(!d.path().join("data/03").exists());
+        let test = std::fs::read_to_string(d.path().join("data/01/test.txt")).unwrap();
+        assert_eq!(test, "0012\n");
+        assert_eq!(
+            std::fs::read_to_string(d.path().join("data/01/train.txt")).unwrap(),
+            ""
+        );
+    }
+}
