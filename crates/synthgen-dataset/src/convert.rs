@@ -495,4 +495,85 @@ mod tests {
         assert_eq!(mask_bbox(&m, 3), [1, 1, 1, 1]);
         assert_eq!(mask_bbox(&[0; 4], 2), [-1; 4]);
     }
+
+    /// Two folders that reuse frame id 0 for different images, as in the real
+    /// Linemod_preprocessed: each becomes its own BOP scene.
+    #[test]
+    fn separate_sequences_become_one_scene_per_folder() {
+        use crate::bop::image::encode_rgb_png;
+        use crate::linemod::{gt_yml_text, info_yml_text, LinemodInfo};
+        let d = tempfile::tempdir().unwrap();
+        let src = d.path().join("lm");
+        let (w, h) = (4u32, 3u32);
+        let n = (w * h) as usize;
+        for (obj, z) in [(1u32, 500.0), (2, 700.0)] {
+            let dir = src.join("data").join(format!("{obj:02}"));
+            for sub in ["rgb", "depth", "mask"] {
+                std::fs::create_dir_all(dir.join(sub)).unwrap();
+            }
+            let p = dir.join("rgb/0000.png");
+            let rgb = vec![obj as u8; n * 3];
+            std::fs::write(
+                &p,
+                encode_rgb_png(&rgb, w, h, PngCompression::Fast, &p).unwrap(),
+            )
+            .unwrap();
+            let p = dir.join("depth/0000.png");
+            let depth = vec![z as u16; n];
+            std::fs::write(
+                &p,
+                encode_gray16_png(&depth, w, h, PngCompression::Fast, &p).unwrap(),
+            )
+            .unwrap();
+            let p = dir.join("mask/0000.png");
+            let mask: Vec<u8> = (0..n).map(|i| if i % 2 == 0 { 255 } else { 0 }).collect();
+            std::fs::write(
+                &p,
+                encode_gray8_png(&mask, w, h, PngCompression::Fast, &p).unwrap(),
+            )
+            .unwrap();
+            let gt = LinemodGt {
+                cam_r_m2c: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+                cam_t_m2c: [0.0, 0.0, z],
+                obj_bb: [0, 0, 3, 2],
+                obj_id: obj,
+            };
+            let info = LinemodInfo {
+                cam_k: [
+                    572.4114, 0.0, 325.2611, 0.0, 573.57043, 242.04899, 0.0, 0.0, 1.0,
+                ],
+                depth_scale: 1.0,
+            };
+            std::fs::write(
+                dir.join("gt.yml"),
+                gt_yml_text(&BTreeMap::from([(0, vec![gt])])).unwrap(),
+            )
+            .unwrap();
+            std::fs::write(
+                dir.join("info.yml"),
+                info_yml_text(&BTreeMap::from([(0, info)])).unwrap(),
+            )
+            .unwrap();
+            std::fs::write(dir.join("test.txt"), "0000\n").unwrap();
+        }
+        let dst = d.path().join("bop");
+        let s = linemod_to_bop(
+            &src,
+            &dst,
+            &ConvertOptions::default(),
+            &synthgen_core::NoProgress,
+        )
+        .unwrap();
+        assert_eq!((s.frames, s.instances, s.instances_without_mask), (2, 2, 0));
+        let ds = BopDataset::open(&dst).unwrap();
+        assert_eq!(ds.splits, ["test"]);
+        assert_eq!(ds.scene_ids("test").unwrap(), [1, 2]);
+        let scene = ds.read_scene("test", 2).unwrap();
+        assert_eq!(scene.gt[&0][0].cam_t_m2c, [0.0, 0.0, 700.0]);
+        assert_eq!(
+            read_depth_raw(&scene.depth_path(0)).unwrap().data,
+            vec![700u16; n]
+        );
+        assert_eq!(ds.camera.width, 4);
+    }
 }
