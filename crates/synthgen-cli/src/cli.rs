@@ -29,7 +29,7 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Render randomized scenes of object models and write a BOP dataset.
+    /// Render randomized scenes of object models and write a BOP (or Linemod) dataset.
     #[command(after_long_help = RENDER_EXAMPLES)]
     Render(Box<RenderArgs>),
     /// Draw a reproducible mix of a real and a synthetic dataset, with a held-out real test split.
@@ -47,6 +47,12 @@ pub enum Command {
     /// Compute masks and scene_gt_info.json from the GT poses of a BOP dataset (real captures).
     #[command(after_long_help = ANNOTATE_EXAMPLES)]
     Annotate(AnnotateArgs),
+    /// Convert a dataset between the BOP and Linemod layouts.
+    #[command(after_long_help = CONVERT_EXAMPLES)]
+    Convert(ConvertArgs),
+    /// Check a BOP or Linemod dataset: files, image sizes, poses, masks, depth, ids.
+    #[command(after_long_help = VALIDATE_EXAMPLES)]
+    Validate(ValidateArgs),
 }
 
 const ANNOTATE_EXAMPLES: &str = "Examples:
@@ -272,6 +278,91 @@ pub struct MixArgs {
     pub seed: u64,
 }
 
+const CONVERT_EXAMPLES: &str = "Examples:
+  # A BOP dataset (e.g. from `synthgen render`) for DenseFusion:
+  synthgen convert --to linemod data/synth data/synth_linemod
+
+  # DenseFusion's Linemod_preprocessed into BOP (for bop_toolkit):
+  synthgen convert --from linemod --to bop Linemod_preprocessed data/lm_bop
+
+What maps to what (docs/formats.md has the details):
+  cam_R_m2c, cam_t_m2c (mm), obj_id, cam_K   both ways, exactly
+  rgb, depth                                 both ways; depth values copied when the depth
+                                             scales agree, else rescaled (BOP 0.1 mm -> Linemod
+                                             1 mm loses the sub-millimetre digit)
+  BOP mask_visib  <->  Linemod mask          for objects with visib_fract >= --min-visib-fract
+  BOP bbox_obj     ->  Linemod obj_bb
+  BOP mask, scene_gt_info.json, symmetries   not in Linemod: lost on the way there";
+
+const VALIDATE_EXAMPLES: &str = "Examples:
+  synthgen validate data/synth
+  synthgen validate Linemod_preprocessed --format linemod --max-problems 20
+  synthgen validate data/synth --json > problems.json
+
+Each problem is printed as `FILE: message` on stdout. Exit status: 0 when the dataset has no
+problems, 1 when it has some (or cannot be read), 2 on an internal error.";
+
+/// Dataset layouts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum FormatArg {
+    /// bop_toolkit / BlenderProc: camera.json, SPLIT/SCENE/{rgb,depth,mask,mask_visib}, scene_*.json.
+    Bop,
+    /// DenseFusion's Linemod_preprocessed: data/NN/{rgb,depth,mask}, gt.yml, info.yml.
+    Linemod,
+}
+
+#[derive(Debug, Args)]
+pub struct ConvertArgs {
+    /// Layout of IN (default: detected from its files).
+    #[arg(long, value_enum)]
+    pub from: Option<FormatArg>,
+
+    /// Layout to write.
+    #[arg(long, value_enum)]
+    pub to: FormatArg,
+
+    /// Dataset to read.
+    #[arg(value_name = "IN")]
+    pub input: PathBuf,
+
+    /// Folder to write (must be empty or absent unless --force).
+    #[arg(value_name = "OUT")]
+    pub output: PathBuf,
+
+    /// Depth PNG unit of the output in millimetres (default: 1.0 for Linemod, as DenseFusion
+    /// assumes; the source's for BOP).
+    #[arg(long)]
+    pub depth_scale: Option<f64>,
+
+    /// To Linemod: an object gets a folder entry (rgb, depth, mask) for a frame when its
+    /// visib_fract is at least this.
+    #[arg(long, default_value_t = 0.1)]
+    pub min_visib_fract: f64,
+
+    /// Write into a non-empty OUT folder.
+    #[arg(long)]
+    pub force: bool,
+}
+
+#[derive(Debug, Args)]
+pub struct ValidateArgs {
+    /// Dataset folder.
+    #[arg(value_name = "DIR")]
+    pub dir: PathBuf,
+
+    /// Layout of DIR (default: camera.json means BOP, data/NN/gt.yml means Linemod).
+    #[arg(long, value_enum)]
+    pub format: Option<FormatArg>,
+
+    /// Print at most this many problems (all are counted; 0 prints all).
+    #[arg(long, default_value_t = 50, value_name = "N")]
+    pub max_problems: usize,
+
+    /// Print the report as JSON on stdout (all problems), for scripts.
+    #[arg(long)]
+    pub json: bool,
+}
+
 const RENDER_EXAMPLES: &str = "Examples:
   # A YCB drill in metres, 100 frames into data/synth (the defaults):
   synthgen render --objects drill.obj
@@ -282,10 +373,15 @@ const RENDER_EXAMPLES: &str = "Examples:
   # Scene settings from a TOML file, some overridden by flags:
   synthgen render --scene scenes/tabletop.toml --objects drill.obj --distance-m 0.4..0.8
 
+  # DenseFusion's Linemod layout instead of BOP:
+  synthgen render --objects obj_000008.ply --format linemod --out out/lm_linemod
+
 Output (BOP layout, loadable by bop_toolkit):
   OUT/camera.json, OUT/models/obj_XXXXXX.ply (mm), OUT/models/models_info.json,
   OUT/train_pbr/SCENE/{rgb,depth,mask,mask_visib}/, scene_camera.json, scene_gt.json,
-  scene_gt_info.json, and OUT/synthgen.json (how to make the dataset again).";
+  scene_gt_info.json, and OUT/synthgen.json (how to make the dataset again).
+With --format linemod: OUT/data/NN/{rgb,depth,mask}/IIII.png, gt.yml, info.yml, train.txt,
+  test.txt per object id NN, OUT/models/obj_NN.ply and models_info.yml (docs/formats.md).";
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum Backend {
@@ -417,9 +513,19 @@ pub struct RenderArgs {
     pub jpg_quality: u8,
 
     /// Depth PNG unit in millimetres: stored value = depth_mm / depth_scale. 0.1 (BlenderProc's
-    /// PBR sets) reaches 6.5 m; 1.0 (Linemod) reaches 65 m.
+    /// PBR sets; the default for --format bop) reaches 6.5 m; 1.0 (the default for --format
+    /// linemod) reaches 65 m.
+    #[arg(long)]
+    pub depth_scale: Option<f64>,
+
+    /// Dataset layout to write.
+    #[arg(long, value_enum, default_value_t = FormatArg::Bop)]
+    pub format: FormatArg,
+
+    /// --format linemod: an object gets a folder entry for a frame when its visib_fract is at
+    /// least this.
     #[arg(long, default_value_t = 0.1)]
-    pub depth_scale: f64,
+    pub min_visib_fract: f64,
 
     /// Visibility tolerance in metres for mask_visib (bop_toolkit's delta).
     #[arg(long, default_value_t = 0.015)]

@@ -43,6 +43,8 @@ pub fn main() -> ExitCode {
         cli::Command::Export(cli::ExportCommand::Coco(args)) => {
             commands::export::run_coco(args, &printer)
         }
+        cli::Command::Convert(args) => commands::convert::run(args, &printer),
+        cli::Command::Validate(args) => commands::validate::run(args, &printer),
     };
     match result {
         Ok(status) => status.into(),

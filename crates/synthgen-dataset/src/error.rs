@@ -20,6 +20,14 @@ pub enum Error {
         source: serde_json::Error,
         path: PathBuf,
     },
+    /// YAML syntax or type error (a missing key, a wrong type); the message carries the
+    /// line and column.
+    #[error("malformed {file}: {message}: {path}")]
+    Yaml {
+        file: String,
+        message: String,
+        path: PathBuf,
+    },
     /// Well-formed JSON with wrong content (NaN pose, non-orthonormal rotation, mismatched
     /// counts...).
     #[error("malformed {file}: {message}: {path}")]
@@ -100,6 +108,14 @@ impl Error {
         }
     }
 
+    pub(crate) fn yaml(path: &Path, source: serde_yaml_ng::Error) -> Error {
+        Error::Yaml {
+            file: file_name(path),
+            message: source.to_string(),
+            path: path.to_path_buf(),
+        }
+    }
+
     pub(crate) fn malformed(path: &Path, message: impl Into<String>) -> Error {
         Error::Malformed {
             file: file_name(path),
@@ -116,6 +132,7 @@ impl Error {
             | Error::MissingFile { path }
             | Error::Json { path, .. }
             | Error::Malformed { path, .. }
+            | Error::Yaml { path, .. }
             | Error::Encode { path, .. }
             | Error::Decode { path, .. }
             | Error::NonFinite { path, .. }

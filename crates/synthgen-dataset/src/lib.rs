@@ -1,5 +1,6 @@
 //! Dataset formats of synthgen: the BOP reader and writer (byte-compatible with bop_toolkit
-//! and BlenderProc), the `synthgen.json` manifest and atomic file output.
+//! and BlenderProc), the Linemod (DenseFusion's Linemod_preprocessed) reader and writer,
+//! conversion between them, validation, the `synthgen.json` manifest and atomic file output.
 //!
 //! ```no_run
 //! use std::path::Path;
@@ -29,14 +30,17 @@
 
 pub mod bop;
 pub mod coco;
+pub mod convert;
 pub mod draw;
 mod error;
 pub mod io;
+pub mod linemod;
 pub mod manifest;
 pub mod mix;
 pub mod preview;
 pub mod source;
 pub mod stats;
+pub mod validate;
 
 pub use error::{Error, Result};
 pub use manifest::{read_manifest, write_manifest, Manifest};

@@ -1,11 +1,14 @@
 //! One module per command; each exposes `run(args, printer) -> anyhow::Result<ExitStatus>`.
 
 pub mod annotate;
+pub mod convert;
 pub mod export;
 pub mod mix;
 pub mod preview;
 pub mod render;
+mod render_sink;
 pub mod stats;
+pub mod validate;
 
 use crate::ExitStatus;
 

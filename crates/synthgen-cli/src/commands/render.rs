@@ -1,4 +1,4 @@
-//! `synthgen render`: sample scenes, render them, write a BOP dataset.
+//! `synthgen render`: sample scenes, render them, write a BOP (or Linemod) dataset.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -11,13 +11,11 @@ use synthgen_assets::Units;
 use synthgen_core::sample::SceneObject;
 use synthgen_core::scene::{BackgroundKind, Orientation};
 use synthgen_core::{Model, Progress, SceneSampler, SceneSpec, Texture};
-use synthgen_dataset::bop::{BopWriter, BopWriterOptions, ModelInfo, RgbFormat};
 use synthgen_dataset::manifest::{write_manifest, Manifest};
 use synthgen_render::{CpuRenderer, Renderer};
 
-use crate::cli::{
-    Backend, BackgroundArg, OrientationArg, RenderArgs, RgbFormat as RgbArg, UnitsArg,
-};
+use crate::cli::{Backend, BackgroundArg, FormatArg, OrientationArg, RenderArgs, UnitsArg};
+use crate::commands::render_sink::{self, Sink};
 use crate::commands::user_error;
 use crate::{ExitStatus, Printer};
 
@@ -57,24 +55,8 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
 
     let intrinsics = spec.camera.intrinsics()?;
     let frame_range = args.first_frame..args.first_frame + args.frames;
-    let writer = BopWriter::create(
-        &args.out,
-        BopWriterOptions {
-            split: args.split.clone(),
-            chunk_size: args.chunk_size,
-            rgb_format: match args.rgb_format {
-                RgbArg::Png => RgbFormat::Png,
-                RgbArg::Jpg => RgbFormat::Jpg {
-                    quality: args.jpg_quality,
-                },
-            },
-            depth_scale: args.depth_scale,
-            frame_range: Some(frame_range.clone()),
-            ..BopWriterOptions::new(intrinsics)
-        },
-    )?;
-    writer.write_camera_json()?;
-    write_models(&writer, &models, &ids)?;
+    let writer = Sink::create(&args, intrinsics, frame_range.clone())?;
+    writer.write_models(&models, &ids)?;
 
     let sampler = SceneSampler::new(spec.clone(), scene_objects, args.seed)?;
     let renderer = CpuRenderer::new(models.clone(), backgrounds)?;
@@ -126,12 +108,13 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
             }
         }
     }
-    let summary = writer.finish()?;
+    let summary = writer.finish(&args.out)?;
     printer.finish();
     if summary.depth_out_of_range_px > 0 {
         printer.warning(format!(
             "{} depth pixels were beyond what a 16-bit PNG holds at depth_scale {} and were written as 0 (invalid)",
-            summary.depth_out_of_range_px, args.depth_scale
+            summary.depth_out_of_range_px,
+            render_sink::depth_scale(&args)
         ));
         printer.hint("pass --depth-scale 1.0 for 1 mm steps up to 65 m");
     }
@@ -152,7 +135,15 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     });
     write_manifest(&args.out, &manifest)?;
 
-    summarize(printer, &args, &models, written, &failures, elapsed);
+    summarize(
+        printer,
+        &args,
+        &models,
+        written,
+        &failures,
+        elapsed,
+        &summary.description,
+    );
     Ok(if failures.is_empty() {
         ExitStatus::Success
     } else {
@@ -413,23 +404,6 @@ fn load_backgrounds(spec: &SceneSpec, printer: &Printer) -> Result<Vec<Arc<Textu
     Ok(images)
 }
 
-/// models/obj_XXXXXX.ply in millimetres and models_info.json, once per object id.
-fn write_models(writer: &BopWriter, models: &[Model], ids: &[u32]) -> Result<()> {
-    let mut infos: BTreeMap<u32, ModelInfo> = BTreeMap::new();
-    for (m, &id) in models.iter().zip(ids) {
-        if infos.contains_key(&id) {
-            continue;
-        }
-        let path = writer.model_ply_path(id)?;
-        synthgen_assets::write_ply(&path, m, 1000.0)
-            .with_context(|| format!("cannot write model {}", path.display()))?;
-        infos.insert(id, ModelInfo::from_model(m));
-    }
-    let entries: Vec<(u32, ModelInfo)> = infos.into_iter().collect();
-    writer.write_models_info(&entries)?;
-    Ok(())
-}
-
 fn summarize(
     printer: &Printer,
     args: &RenderArgs,
@@ -437,6 +411,7 @@ fn summarize(
     written: u64,
     failures: &[(u64, String)],
     elapsed_s: f64,
+    wrote: &str,
 ) {
     let names: Vec<&str> = models.iter().map(|m| m.name.as_str()).collect();
     let fps = if elapsed_s > 0.0 {
@@ -444,24 +419,13 @@ fn summarize(
     } else {
         0.0
     };
-    let scenes = if written == 0 {
-        0
-    } else {
-        (args.first_frame + args.frames - 1) / u64::from(args.chunk_size.max(1))
-            - args.first_frame / u64::from(args.chunk_size.max(1))
-            + 1
-    };
     printer.info(format!(
         "Rendered {written} frames of {} object{} ({}) in {elapsed_s:.1} s ({fps:.1} frames/s) \
-         with the embedded CPU renderer, seed {}; wrote a BOP dataset to {} (split {}, {scenes} \
-         scene folder{}).{}",
+         with the embedded CPU renderer, seed {}; wrote {wrote}.{}",
         models.len(),
         if models.len() == 1 { "" } else { "s" },
         names.join(", "),
         args.seed,
-        args.out.display(),
-        args.split,
-        if scenes == 1 { "" } else { "s" },
         if failures.is_empty() {
             String::new()
         } else {
@@ -474,7 +438,9 @@ fn summarize(
             )
         }
     ));
-    if written > 0 {
+    if written > 0 && args.format == FormatArg::Linemod {
+        printer.hint(format!("look at {}", args.out.join("data").display()));
+    } else if written > 0 {
         printer.hint(format!(
             "look at {}",
             args.out

@@ -62,3 +62,13 @@ fn export_coco_help() {
 fn annotate_help() {
     check_snapshot("annotate_help.txt", &["annotate", "--help"]);
 }
+
+#[test]
+fn convert_help() {
+    check_snapshot("convert_help.txt", &["convert", "--help"]);
+}
+
+#[test]
+fn validate_help() {
+    check_snapshot("validate_help.txt", &["validate", "--help"]);
+}

@@ -7,5 +7,6 @@ mod common;
 mod errors;
 mod help;
 mod inspect;
+mod linemod;
 mod mix;
 mod render;

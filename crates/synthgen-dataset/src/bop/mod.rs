@@ -1,7 +1,7 @@
 //! The BOP dataset format (bop_toolkit, BlenderProc): reader, writer and the exact JSON
 //! text layout.
 
-mod chunk;
+pub(crate) mod chunk;
 pub mod image;
 pub mod json;
 pub mod reader;

@@ -1,0 +1,53 @@
+//! `synthgen validate`: every problem of a dataset, each with its file.
+
+use anyhow::{Context, Result};
+use synthgen_core::Progress;
+use synthgen_dataset::validate::{validate, Checks};
+
+use crate::cli::ValidateArgs;
+use crate::commands::convert::layout_of;
+use crate::{ExitStatus, Printer};
+
+pub fn run(args: ValidateArgs, printer: &Printer) -> Result<ExitStatus> {
+    let layout = layout_of(&args.dir, args.format, "--format")?;
+    let checks = Checks::default();
+    let report = validate(&args.dir, layout, &checks, printer);
+    printer.finish();
+    if args.json {
+        let text = serde_json::to_string_pretty(&report).context("cannot write the report")?;
+        println!("{text}");
+    } else {
+        let cap = if args.max_problems == 0 {
+            usize::MAX
+        } else {
+            args.max_problems
+        };
+        for p in report.problems.iter().take(cap) {
+            println!("{}: {}", p.path.display(), p.message);
+        }
+        if report.problems.len() > cap {
+            println!(
+                "... and {} more (--max-problems 0 prints all)",
+                report.problems.len() - cap
+            );
+        }
+    }
+    let what = format!(
+        "{layout} dataset {}: {} frames, {} object instances, {} images decoded",
+        args.dir.display(),
+        report.frames,
+        report.instances,
+        report.images_checked
+    );
+    if report.problems.is_empty() {
+        printer.info(format!("OK: {what}, no problems"));
+        Ok(ExitStatus::Success)
+    } else {
+        let n = report.problems.len();
+        eprintln!(
+            "error: {n} problem{} in {what}",
+            if n == 1 { "" } else { "s" }
+        );
+        Ok(ExitStatus::Failure)
+    }
+}

@@ -1,0 +1,230 @@
+//! `synthgen validate`: checks a BOP or Linemod dataset against its format and collects every
+//! problem found (one bad file does not stop the run), each naming its file.
+//!
+//! Checks: every referenced file present and decodable, image sizes equal to the camera's,
+//! rotations orthonormal with determinant 1 (within [`Checks::rotation_tolerance`]), masks
+//! non-empty where the object is visible, BOP pixel counts equal to the masks', depth under
+//! the visible masks within the object's depth range, object ids known to `models_info` and
+//! present as model files.
+
+mod bop;
+mod linemod;
+
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+use synthgen_core::{Pose, Progress};
+
+use crate::bop::ModelInfo;
+use crate::error::Error;
+
+/// One problem found, with the file it is about.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct Problem {
+    pub path: PathBuf,
+    pub message: String,
+}
+
+/// The dataset layouts `validate` knows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Layout {
+    Bop,
+    Linemod,
+}
+
+impl std::fmt::Display for Layout {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Layout::Bop => "BOP",
+            Layout::Linemod => "Linemod",
+        })
+    }
+}
+
+/// `camera.json` → BOP; `data/NN/gt.yml` → Linemod; else `None`.
+pub fn detect_layout(root: &Path) -> Option<Layout> {
+    if root.join("camera.json").is_file() {
+        return Some(Layout::Bop);
+    }
+    let entries = std::fs::read_dir(root.join("data")).ok()?;
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        if name.bytes().all(|b| b.is_ascii_digit()) && e.path().join("gt.yml").is_file() {
+            return Some(Layout::Linemod);
+        }
+    }
+    None
+}
+
+/// Tolerances of the checks.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Checks {
+    /// Largest |det R − 1| and |R Rᵀ − I| entry accepted (files store 6–17 digits).
+    pub rotation_tolerance: f64,
+    /// Depth under a visible mask must lie within t_z ± (model radius + this), in mm. The
+    /// radius is the farthest corner of the model's box from its origin (models_info); 15 mm is
+    /// bop_toolkit's visibility delta.
+    pub depth_tolerance_mm: f64,
+    /// A mask's depth is reported when more than this fraction of its pixels with depth is out
+    /// of range (sensor noise in real data leaves a few stray pixels).
+    pub depth_outlier_fraction: f64,
+}
+
+impl Default for Checks {
+    fn default() -> Self {
+        Checks {
+            rotation_tolerance: 1e-3,
+            depth_tolerance_mm: 15.0,
+            depth_outlier_fraction: 0.05,
+        }
+    }
+}
+
+/// What [`validate`] found.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Report {
+    pub layout: Layout,
+    pub frames: u64,
+    pub instances: u64,
+    pub images_checked: u64,
+    pub problems: Vec<Problem>,
+}
+
+/// Checks the dataset at `root`, collecting every problem.
+pub fn validate(root: &Path, layout: Layout, checks: &Checks, progress: &dyn Progress) -> Report {
+    let mut ctx = Ctx {
+        root: root.to_path_buf(),
+        checks: *checks,
+        report: Report {
+            layout,
+            frames: 0,
+            instances: 0,
+            images_checked: 0,
+            problems: Vec::new(),
+        },
+    };
+    match layout {
+        Layout::Bop => bop::validate(&mut ctx, progress),
+        Layout::Linemod => linemod::validate(&mut ctx, progress),
+    }
+    ctx.report
+}
+
+pub(crate) struct Ctx {
+    pub root: PathBuf,
+    pub checks: Checks,
+    pub report: Report,
+}
+
+impl Ctx {
+    pub fn problem(&mut self, path: &Path, message: impl Into<String>) {
+        self.report.problems.push(Problem {
+            path: path.to_path_buf(),
+            message: message.into(),
+        });
+    }
+
+    /// A library error as a problem: its file, and its message without the trailing path.
+    pub fn error(&mut self, fallback: &Path, e: &Error) {
+        let path = e.path().unwrap_or(fallback).to_path_buf();
+        let text = e.to_string();
+        let suffix = format!(": {}", path.display());
+        let message = text.strip_suffix(&suffix).unwrap_or(&text).to_string();
+        self.report.problems.push(Problem { path, message });
+    }
+
+    /// Reports a rotation that is not orthonormal with determinant 1.
+    pub fn check_rotation(&mut self, path: &Path, what: &str, r: &[f64; 9], t: &[f64; 3]) {
+        let pose = Pose::from_bop(r, t);
+        if let Err(e) = pose.validate(self.checks.rotation_tolerance) {
+            let tol = self.checks.rotation_tolerance;
+            self.problem(path, format!("{what}: {e} (tolerance {tol})"));
+        }
+    }
+
+    /// Reports depth under `mask` outside `t_z ± (radius + tolerance)`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn check_depth(
+        &mut self,
+        depth_path: &Path,
+        mask_name: &str,
+        depth: &[u16],
+        depth_scale: f64,
+        mask: &[u8],
+        t_z_mm: f64,
+        model: &ModelInfo,
+    ) {
+        let range = model_radius_mm(model) + self.checks.depth_tolerance_mm;
+        let (mut n, mut bad) = (0u64, 0u64);
+        for (&d, &m) in depth.iter().zip(mask) {
+            if m == 0 || d == 0 {
+                continue;
+            }
+            n += 1;
+            if (d as f64 * depth_scale - t_z_mm).abs() > range {
+                bad += 1;
+            }
+        }
+        if n > 0 && bad as f64 > self.checks.depth_outlier_fraction * n as f64 {
+            self.problem(
+                depth_path,
+                format!(
+                    "{bad} of {n} depth values under {mask_name} are outside the object's depth \
+                     range {:.1}..{:.1} mm (t_z ± model radius + {} mm)",
+                    t_z_mm - range,
+                    t_z_mm + range,
+                    self.checks.depth_tolerance_mm
+                ),
+            );
+        }
+    }
+}
+
+/// Distance from the model origin to the farthest corner of its bounding box, mm.
+pub fn model_radius_mm(m: &ModelInfo) -> f64 {
+    let far = |min: f64, size: f64| min.abs().max((min + size).abs());
+    let (x, y, z) = (
+        far(m.min_x, m.size_x),
+        far(m.min_y, m.size_y),
+        far(m.min_z, m.size_z),
+    );
+    (x * x + y * y + z * z).sqrt()
+}
+
+/// Number of non-zero pixels.
+pub(crate) fn count_nonzero(mask: &[u8]) -> u64 {
+    mask.iter().filter(|&&v| v > 0).count() as u64
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn radius_is_the_farthest_corner() {
+        let m = ModelInfo {
+            diameter: 1.0,
+            min_x: -3.0,
+            min_y: 0.0,
+            min_z: -1.0,
+            size_x: 4.0,
+            size_y: 4.0,
+            size_z: 1.0,
+            symmetries: Default::default(),
+        };
+        assert!((model_radius_mm(&m) - (9.0f64 + 16.0 + 1.0).sqrt()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn detects_nothing_in_an_empty_folder() {
+        let d = tempfile::tempdir().unwrap();
+        assert_eq!(detect_layout(d.path()), None);
+        std::fs::create_dir_all(d.path().join("data/01")).unwrap();
+        std::fs::write(d.path().join("data/01/gt.yml"), "").unwrap();
+        assert_eq!(detect_layout(d.path()), Some(Layout::Linemod));
+        std::fs::write(d.path().join("camera.json"), "{}").unwrap();
+        assert_eq!(detect_layout(d.path()), Some(Layout::Bop));
+    }
+}
