@@ -4,6 +4,9 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
+mod train;
+pub use train::{DeviceArg, EvalArgs, ModelArg, ScheduleArg, TrainArgs};
+
 #[derive(Debug, Parser)]
 #[command(
     name = "synthgen",
@@ -32,6 +35,12 @@ pub enum Command {
     /// Render randomized scenes of object models and write a BOP dataset.
     #[command(after_long_help = RENDER_EXAMPLES)]
     Render(Box<RenderArgs>),
+    /// Train a pose model (TNet) on a BOP dataset; checkpoints, metrics and a curve.
+    #[command(after_long_help = train::TRAIN_EXAMPLES)]
+    Train(Box<TrainArgs>),
+    /// Score pose estimates (a BOP results CSV or a checkpoint) against a dataset's GT.
+    #[command(after_long_help = train::EVAL_EXAMPLES)]
+    Eval(Box<EvalArgs>),
 }
 
 const RENDER_EXAMPLES: &str = "Examples:

@@ -35,6 +35,8 @@ pub fn main() -> ExitCode {
     let printer = Printer::new(cli.quiet);
     let result = match cli.command {
         cli::Command::Render(args) => commands::render::run(*args, &printer),
+        cli::Command::Train(args) => commands::train::run(*args, &printer),
+        cli::Command::Eval(args) => commands::eval::run(*args, &printer),
     };
     match result {
         Ok(status) => status.into(),

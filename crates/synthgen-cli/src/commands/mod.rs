@@ -1,6 +1,8 @@
 //! One module per command; each exposes `run(args, printer) -> anyhow::Result<ExitStatus>`.
 
+pub mod eval;
 pub mod render;
+pub mod train;
 
 use crate::ExitStatus;
 
@@ -11,6 +13,7 @@ pub fn exit_status_for(err: &anyhow::Error) -> ExitStatus {
         c.is::<synthgen_core::Error>()
             || c.is::<synthgen_assets::Error>()
             || c.is::<synthgen_dataset::Error>()
+            || is_train_user_error(c)
             || c.is::<std::io::Error>()
             || c.is::<UserError>()
     });
@@ -19,6 +22,12 @@ pub fn exit_status_for(err: &anyhow::Error) -> ExitStatus {
     } else {
         ExitStatus::Error
     }
+}
+
+/// Errors of the trainer that come from the input (files, options), not from a bug.
+fn is_train_user_error(c: &(dyn std::error::Error + 'static)) -> bool {
+    c.downcast_ref::<synthgen_train::Error>()
+        .is_some_and(|e| !matches!(e, synthgen_train::Error::Candle(_)))
 }
 
 /// A problem with what the user asked for, with a hint on what to do instead.

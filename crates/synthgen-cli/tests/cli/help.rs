@@ -37,3 +37,13 @@ fn top_level_help() {
 fn render_help() {
     check_snapshot("render_help.txt", &["render", "--help"]);
 }
+
+#[test]
+fn train_help() {
+    check_snapshot("train_help.txt", &["train", "--help"]);
+}
+
+#[test]
+fn eval_help() {
+    check_snapshot("eval_help.txt", &["eval", "--help"]);
+}

@@ -5,3 +5,4 @@ mod common;
 mod errors;
 mod help;
 mod render;
+mod train;
