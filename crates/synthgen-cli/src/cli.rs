@@ -4,6 +4,9 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
+mod train;
+pub use train::{DeviceArg, EvalArgs, ModelArg, ScheduleArg, TrainArgs};
+
 #[derive(Debug, Parser)]
 #[command(
     name = "synthgen",
@@ -53,6 +56,12 @@ pub enum Command {
     /// Check a BOP or Linemod dataset: files, image sizes, poses, masks, depth, ids.
     #[command(after_long_help = VALIDATE_EXAMPLES)]
     Validate(ValidateArgs),
+    /// Train a pose model (TNet) on a BOP dataset; checkpoints, metrics and a curve.
+    #[command(after_long_help = train::TRAIN_EXAMPLES)]
+    Train(Box<TrainArgs>),
+    /// Score pose estimates (a BOP results CSV or a checkpoint) against a dataset's GT.
+    #[command(after_long_help = train::EVAL_EXAMPLES)]
+    Eval(Box<EvalArgs>),
 }
 
 const ANNOTATE_EXAMPLES: &str = "Examples:

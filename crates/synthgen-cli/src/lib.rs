@@ -45,6 +45,8 @@ pub fn main() -> ExitCode {
         }
         cli::Command::Convert(args) => commands::convert::run(args, &printer),
         cli::Command::Validate(args) => commands::validate::run(args, &printer),
+        cli::Command::Train(args) => commands::train::run(*args, &printer),
+        cli::Command::Eval(args) => commands::eval::run(*args, &printer),
     };
     match result {
         Ok(status) => status.into(),

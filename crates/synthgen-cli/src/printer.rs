@@ -49,6 +49,15 @@ impl Printer {
         self.warnings.lock().map(|w| w.len()).unwrap_or(0)
     }
 
+    /// Replaces the progress bar's label, e.g. with a running loss.
+    pub fn set_message(&self, msg: impl Into<String>) {
+        if let Ok(b) = self.bar.lock() {
+            if let Some(bar) = b.as_ref() {
+                bar.set_message(msg.into());
+            }
+        }
+    }
+
     fn println(&self, line: &str) {
         match self.bar.lock().ok().and_then(|b| b.clone()) {
             Some(bar) if !bar.is_hidden() => bar.println(line),

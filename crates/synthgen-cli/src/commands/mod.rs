@@ -2,12 +2,14 @@
 
 pub mod annotate;
 pub mod convert;
+pub mod eval;
 pub mod export;
 pub mod mix;
 pub mod preview;
 pub mod render;
 mod render_sink;
 pub mod stats;
+pub mod train;
 pub mod validate;
 
 use crate::ExitStatus;
@@ -19,6 +21,7 @@ pub fn exit_status_for(err: &anyhow::Error) -> ExitStatus {
         c.is::<synthgen_core::Error>()
             || c.is::<synthgen_assets::Error>()
             || c.is::<synthgen_dataset::Error>()
+            || is_train_user_error(c)
             || c.is::<std::io::Error>()
             || c.is::<UserError>()
     });
@@ -27,6 +30,12 @@ pub fn exit_status_for(err: &anyhow::Error) -> ExitStatus {
     } else {
         ExitStatus::Error
     }
+}
+
+/// Errors of the trainer that come from the input (files, options), not from a bug.
+fn is_train_user_error(c: &(dyn std::error::Error + 'static)) -> bool {
+    c.downcast_ref::<synthgen_train::Error>()
+        .is_some_and(|e| !matches!(e, synthgen_train::Error::Candle(_)))
 }
 
 /// A problem with what the user asked for, with a hint on what to do instead.

@@ -72,3 +72,13 @@ fn convert_help() {
 fn validate_help() {
     check_snapshot("validate_help.txt", &["validate", "--help"]);
 }
+
+#[test]
+fn train_help() {
+    check_snapshot("train_help.txt", &["train", "--help"]);
+}
+
+#[test]
+fn eval_help() {
+    check_snapshot("eval_help.txt", &["eval", "--help"]);
+}

@@ -10,3 +10,4 @@ mod inspect;
 mod linemod;
 mod mix;
 mod render;
+mod train;

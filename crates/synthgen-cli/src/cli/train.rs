@@ -1,0 +1,169 @@
+//! Arguments of `synthgen train` and `synthgen eval`.
+
+use std::path::PathBuf;
+
+use clap::{Args, ValueEnum};
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ModelArg {
+    /// Object centre from the masked depth points (PointNet offsets).
+    Tnet,
+    /// Rotation from colour + points (not implemented yet).
+    Rnet,
+    /// Both heads with the per-point ADD loss (not implemented yet).
+    Full,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ScheduleArg {
+    /// Cosine decay from --lr to --lr/100 over all steps.
+    Cosine,
+    /// --lr, then --lr/10 for the last third of the epochs.
+    Step,
+    Constant,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum DeviceArg {
+    Cpu,
+    /// The first CUDA GPU; needs the `cuda` cargo feature.
+    Cuda,
+}
+
+pub const TRAIN_EXAMPLES: &str = "Examples:
+  # Render 2000 driller frames, train TNet on them (10% of the frames held out):
+  synthgen render --objects obj_000008.ply --frames 2000 --seed 1 --out data/drill
+  synthgen train --data data/drill --model tnet --epochs 30 --out runs/tnet
+
+  # Go on from the last checkpoint up to 50 epochs:
+  synthgen train --data data/drill --out runs/tnet --epochs 50 --resume
+
+Output (in --out):
+  model.safetensors   the weights after the last finished epoch
+  config.json         model, width, points, normalization, data, seed, ...
+  state.json          epochs and steps done (for --resume)
+  metrics.jsonl       one JSON line per epoch: epoch, train_loss, val_loss,
+                      val_centre_error_m, lr, seconds
+  curve.png           losses (top) and validation centre error (bottom), log scales";
+
+#[derive(Debug, Args)]
+pub struct TrainArgs {
+    /// The BOP dataset to train on.
+    #[arg(long, value_name = "DIR")]
+    pub data: PathBuf,
+
+    /// The split folder to read (default: `test` if present, else the only split).
+    #[arg(long)]
+    pub split: Option<String>,
+
+    #[arg(long, value_enum, default_value_t = ModelArg::Tnet)]
+    pub model: ModelArg,
+
+    #[arg(long, default_value_t = 30)]
+    pub epochs: usize,
+
+    /// Instances per step.
+    #[arg(long, default_value_t = 32)]
+    pub batch: usize,
+
+    /// Peak learning rate (AdamW).
+    #[arg(long, default_value_t = 1e-3)]
+    pub lr: f64,
+
+    #[arg(long, default_value_t = 1e-4)]
+    pub weight_decay: f64,
+
+    #[arg(long, value_enum, default_value_t = ScheduleArg::Cosine)]
+    pub schedule: ScheduleArg,
+
+    /// Seeds point sampling, the train/val split, initialization order and shuffling.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+
+    /// Points sampled per object instance.
+    #[arg(long, default_value_t = 500)]
+    pub points: usize,
+
+    /// Width of the global feature.
+    #[arg(long, default_value_t = 128)]
+    pub width: usize,
+
+    /// Fraction of frames held out for validation.
+    #[arg(long, default_value_t = 0.1)]
+    pub val_fraction: f64,
+
+    /// Leave out instances less visible than this.
+    #[arg(long, default_value_t = 0.1)]
+    pub min_visib_fract: f64,
+
+    /// The run folder.
+    #[arg(long, default_value = "runs/tnet")]
+    pub out: PathBuf,
+
+    /// Continue the run in --out from its last checkpoint (AdamW's moments restart).
+    #[arg(long)]
+    pub resume: bool,
+
+    /// Overwrite a run folder that already has a checkpoint.
+    #[arg(long)]
+    pub force: bool,
+
+    #[arg(long, value_enum, default_value_t = DeviceArg::Cpu)]
+    pub device: DeviceArg,
+
+    /// Worker threads (default: all cores).
+    #[arg(long, short = 'j')]
+    pub jobs: Option<usize>,
+}
+
+pub const EVAL_EXAMPLES: &str = "Examples:
+  # Score a BOP results CSV against a dataset's ground truth:
+  synthgen eval --results results.csv --data data/lmo --split test --json scores.json
+
+  # Centre error of a trained TNet on a dataset:
+  synthgen eval --checkpoint runs/tnet/model.safetensors --data data/drill_test
+
+Results CSV (bop_toolkit): scene_id,im_id,obj_id,score,R,t,time with R 9 values
+row-major and t in millimetres, space-separated. Accuracy is over all GT instances
+(an instance without an estimate counts as wrong); the highest-scoring estimate
+per (image, object) counts; ADD-S is used for objects with symmetries in
+models_info.json. See docs/metrics.md.";
+
+#[derive(Debug, Args)]
+pub struct EvalArgs {
+    /// The BOP dataset with the ground truth (and models/ for ADD).
+    #[arg(long, value_name = "DIR")]
+    pub data: PathBuf,
+
+    /// A BOP results CSV to score.
+    #[arg(
+        long,
+        value_name = "CSV",
+        conflicts_with = "checkpoint",
+        required_unless_present = "checkpoint"
+    )]
+    pub results: Option<PathBuf>,
+
+    /// A trained model (its config.json beside it) to run on --data.
+    #[arg(long, value_name = "FILE")]
+    pub checkpoint: Option<PathBuf>,
+
+    /// The split folder (default: `test` if present, else the only split).
+    #[arg(long)]
+    pub split: Option<String>,
+
+    /// GT instances less visible than this are not scored (BOP uses 0.1).
+    #[arg(long, default_value_t = 0.1)]
+    pub min_visib_fract: f64,
+
+    /// Also write the scores as JSON.
+    #[arg(long, value_name = "PATH")]
+    pub json: Option<PathBuf>,
+
+    /// Seed for point sampling with --checkpoint.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+
+    #[arg(long, value_enum, default_value_t = DeviceArg::Cpu)]
+    pub device: DeviceArg,
+}

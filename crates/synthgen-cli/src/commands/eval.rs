@@ -1,0 +1,160 @@
+//! `synthgen eval`: score a BOP results CSV, or a trained checkpoint, against a dataset.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use synthgen_dataset::bop::BopDataset;
+use synthgen_train::data::{load_instances, DataOptions};
+use synthgen_train::eval::{evaluate, load_eval_objects, pick_split, read_gt};
+use synthgen_train::results::read_results_csv;
+use synthgen_train::train::{self, centre_error_m, read_config, TNetModel, CONFIG_FILE};
+
+use crate::cli::{DeviceArg, EvalArgs};
+use crate::commands::user_error;
+use crate::{ExitStatus, Printer};
+
+pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
+    match (&args.results, &args.checkpoint) {
+        (Some(csv), None) => run_results(&args, csv, printer),
+        (None, Some(ckpt)) => run_checkpoint(&args, ckpt, printer),
+        _ => Err(user_error(
+            "give one of --results and --checkpoint",
+            "synthgen eval --results results.csv --data DIR",
+        )),
+    }
+}
+
+fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
+    let text = serde_json::to_string_pretty(value)?;
+    std::fs::write(path, text + "\n").with_context(|| format!("cannot write {}", path.display()))
+}
+
+fn run_results(args: &EvalArgs, csv: &Path, printer: &Printer) -> Result<ExitStatus> {
+    let ds = BopDataset::open(&args.data)?;
+    let split = pick_split(&ds, args.split.as_deref())?;
+    let gts = read_gt(&ds, &split, args.min_visib_fract)?;
+    let estimates = read_results_csv(csv)?;
+    let objects = load_eval_objects(&ds, gts.iter().map(|g| g.obj_id))?;
+    let report = evaluate(&gts, &estimates, &objects)?;
+    printer.info(format!(
+        "{} estimates from {} against {} GT instances of {}/{}",
+        estimates.len(),
+        csv.display(),
+        gts.len(),
+        args.data.display(),
+        split
+    ));
+    if report.unmatched_estimates > 0 {
+        printer.warning(format!(
+            "{} estimates not scored (no GT of that object in that image, or more estimates than GT instances)",
+            report.unmatched_estimates
+        ));
+    }
+    print!("{}", report.to_markdown(&objects));
+    if let Some(path) = &args.json {
+        write_json(path, &report.to_json())?;
+        printer.info(format!("wrote {}", path.display()));
+    }
+    Ok(ExitStatus::Success)
+}
+
+#[derive(Default)]
+struct CentreAcc {
+    errors_m: Vec<f64>,
+}
+
+impl CentreAcc {
+    fn json(&self) -> serde_json::Value {
+        let mut e = self.errors_m.clone();
+        e.sort_by(f64::total_cmp);
+        let n = e.len();
+        let mean = e.iter().sum::<f64>() / n.max(1) as f64;
+        let q = |p: f64| {
+            e.get(((n as f64 - 1.0) * p).round() as usize)
+                .copied()
+                .unwrap_or(f64::NAN)
+        };
+        let frac = |t: f64| e.iter().filter(|&&v| v < t).count() as f64 / n.max(1) as f64;
+        serde_json::json!({
+            "n": n,
+            "mean_centre_error_cm": mean * 100.0,
+            "median_centre_error_cm": q(0.5) * 100.0,
+            "p90_centre_error_cm": q(0.9) * 100.0,
+            "acc_1cm": frac(0.01),
+            "acc_2cm": frac(0.02),
+        })
+    }
+}
+
+fn run_checkpoint(args: &EvalArgs, ckpt: &Path, printer: &Printer) -> Result<ExitStatus> {
+    let config_path = ckpt.with_file_name(CONFIG_FILE);
+    if !config_path.exists() {
+        return Err(user_error(
+            format!("no {CONFIG_FILE} beside {}", ckpt.display()),
+            "pass the model.safetensors of a folder written by `synthgen train`",
+        ));
+    }
+    let cfg = read_config(&config_path)?;
+    let device = train::device(args.device == DeviceArg::Cuda)?;
+    let model = TNetModel::load(ckpt, &cfg, &device)?;
+    let opts = DataOptions {
+        n_points: cfg.n_points,
+        min_visib_fract: args.min_visib_fract,
+        seed: args.seed,
+        split: args.split.clone(),
+        ..DataOptions::default()
+    };
+    let set = load_instances(&args.data, &opts, printer)
+        .with_context(|| format!("cannot load {}", args.data.display()))?;
+    if set.instances.is_empty() {
+        return Err(user_error(
+            format!("no usable object instances in {}", args.data.display()),
+            "check that the dataset has depth/ and mask_visib/ images",
+        ));
+    }
+    let refs: Vec<_> = set.instances.iter().collect();
+    let centres = model.predict_centres(&refs, 64)?;
+    let mut per_obj: BTreeMap<u32, CentreAcc> = BTreeMap::new();
+    let mut all = CentreAcc::default();
+    for (c, inst) in centres.iter().zip(&set.instances) {
+        let e = centre_error_m(*c, inst);
+        per_obj.entry(inst.obj_id).or_default().errors_m.push(e);
+        all.errors_m.push(e);
+    }
+    printer.info(format!(
+        "{} on {} instances of {}/{} ({} skipped: too few valid pixels)",
+        cfg.model.name(),
+        set.instances.len(),
+        args.data.display(),
+        set.split,
+        set.skipped_few_pixels
+    ));
+    let mut json = serde_json::Map::new();
+    let mut md = String::from(
+        "| object | n | mean centre error cm | median cm | p90 cm | < 1 cm | < 2 cm |\n|---|---:|---:|---:|---:|---:|---:|\n",
+    );
+    let rows = per_obj
+        .iter()
+        .map(|(id, a)| (id.to_string(), a))
+        .chain(std::iter::once(("all".to_string(), &all)));
+    for (name, a) in rows {
+        let j = a.json();
+        md += &format!(
+            "| {name} | {} | {:.2} | {:.2} | {:.2} | {:.1}% | {:.1}% |\n",
+            j["n"],
+            j["mean_centre_error_cm"].as_f64().unwrap_or(f64::NAN),
+            j["median_centre_error_cm"].as_f64().unwrap_or(f64::NAN),
+            j["p90_centre_error_cm"].as_f64().unwrap_or(f64::NAN),
+            100.0 * j["acc_1cm"].as_f64().unwrap_or(0.0),
+            100.0 * j["acc_2cm"].as_f64().unwrap_or(0.0),
+        );
+        json.insert(name, j);
+    }
+    print!("{md}");
+    if let Some(path) = &args.json {
+        write_json(path, &serde_json::Value::Object(json))?;
+        printer.info(format!("wrote {}", path.display()));
+    }
+    Ok(ExitStatus::Success)
+}

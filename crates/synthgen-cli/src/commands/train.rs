@@ -1,0 +1,192 @@
+//! `synthgen train`: load a BOP dataset's instances, train a pose model, write the run.
+
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use synthgen_core::Progress;
+use synthgen_train::data::{load_instances, DataOptions};
+use synthgen_train::models::tnet::DEFAULT_SCALE;
+use synthgen_train::models::ModelKind;
+use synthgen_train::train::{
+    self, read_config, EpochMetrics, Schedule, TrainConfig, TrainObserver, CONFIG_FILE, CURVE_FILE,
+    METRICS_FILE, MODEL_FILE,
+};
+
+use crate::cli::{DeviceArg, ModelArg, ScheduleArg, TrainArgs};
+use crate::commands::user_error;
+use crate::{ExitStatus, Printer};
+
+/// Shows each epoch as a progress bar labelled with the running loss.
+struct BarObserver<'a> {
+    printer: &'a Printer,
+    epoch: std::cell::Cell<(usize, usize)>,
+}
+
+impl TrainObserver for BarObserver<'_> {
+    fn epoch_start(&self, epoch: usize, epochs: usize, steps: usize) {
+        self.epoch.set((epoch, epochs));
+        self.printer
+            .start(&format!("epoch {epoch}/{epochs}"), steps as u64);
+    }
+
+    fn step(&self, running_loss: f64) {
+        let (e, n) = self.epoch.get();
+        self.printer
+            .set_message(format!("epoch {e}/{n} loss {running_loss:.4}"));
+        self.printer.advance(1);
+    }
+
+    fn epoch_end(&self, m: &EpochMetrics) {
+        self.printer.finish();
+        self.printer.info(format!(
+            "epoch {:>3}: train loss {:.4}, val loss {:.4}, val centre error {:.2} cm, lr {:.2e}, {:.1} s",
+            m.epoch,
+            m.train_loss,
+            m.val_loss,
+            m.val_centre_error_m * 100.0,
+            m.lr,
+            m.seconds
+        ));
+    }
+}
+
+pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
+    let started = Instant::now();
+    let model = match args.model {
+        ModelArg::Tnet => ModelKind::Tnet,
+        ModelArg::Rnet | ModelArg::Full => {
+            return Err(user_error(
+                format!("--model {:?} is not implemented yet", args.model).to_lowercase(),
+                "only --model tnet trains today; see docs/training.md for the plan",
+            ))
+        }
+    };
+    if let Some(j) = args.jobs {
+        // Ignored when a pool already exists (only in tests that call run twice).
+        let _ = rayon::ThreadPoolBuilder::new()
+            .num_threads(j)
+            .build_global();
+    }
+    let checkpoint = args.out.join(MODEL_FILE);
+    let cfg = if args.resume {
+        if !checkpoint.exists() {
+            return Err(user_error(
+                format!("nothing to resume: {} does not exist", checkpoint.display()),
+                "start the run without --resume",
+            ));
+        }
+        let saved = read_config(&args.out.join(CONFIG_FILE))?;
+        TrainConfig {
+            epochs: args.epochs,
+            data: args.data.clone(),
+            ..saved
+        }
+    } else {
+        if checkpoint.exists() && !args.force {
+            return Err(user_error(
+                format!("{} already holds a run", args.out.display()),
+                "continue it with --resume, overwrite it with --force, or choose another --out",
+            ));
+        }
+        TrainConfig {
+            model,
+            width: args.width,
+            n_points: args.points,
+            normalization_scale: DEFAULT_SCALE,
+            epochs: args.epochs,
+            batch: args.batch,
+            lr: args.lr,
+            weight_decay: args.weight_decay,
+            schedule: match args.schedule {
+                ScheduleArg::Cosine => Schedule::Cosine,
+                ScheduleArg::Step => Schedule::Step,
+                ScheduleArg::Constant => Schedule::Constant,
+            },
+            seed: args.seed,
+            val_fraction: args.val_fraction,
+            min_visib_fract: args.min_visib_fract,
+            data: args.data.clone(),
+            split: args.split.clone().unwrap_or_default(),
+        }
+    };
+    if cfg.n_points == 0 || cfg.width == 0 || cfg.batch == 0 || cfg.epochs == 0 {
+        return Err(user_error(
+            "--points, --width, --batch and --epochs must be positive",
+            "e.g. --points 500 --width 128 --batch 32 --epochs 30",
+        ));
+    }
+    if !(0.0..1.0).contains(&cfg.val_fraction) {
+        return Err(user_error(
+            format!("--val-fraction {} is outside 0..1", cfg.val_fraction),
+            "e.g. --val-fraction 0.1 holds out 10% of the frames",
+        ));
+    }
+    let device = train::device(args.device == DeviceArg::Cuda)?;
+
+    let opts = DataOptions {
+        n_points: cfg.n_points,
+        min_visib_fract: cfg.min_visib_fract,
+        seed: cfg.seed,
+        split: (!cfg.split.is_empty()).then(|| cfg.split.clone()),
+        ..DataOptions::default()
+    };
+    let t_load = Instant::now();
+    let set = load_instances(&args.data, &opts, printer)
+        .with_context(|| format!("cannot load training data from {}", args.data.display()))?;
+    printer.info(format!(
+        "loaded {} instances from {} frames of {}/{} in {:.1} s ({} too little visible, {} with too few valid pixels)",
+        set.instances.len(),
+        set.frames,
+        args.data.display(),
+        set.split,
+        t_load.elapsed().as_secs_f64(),
+        set.skipped_low_visib,
+        set.skipped_few_pixels
+    ));
+    if set.instances.is_empty() {
+        return Err(user_error(
+            format!("no usable object instances in {}", args.data.display()),
+            "check that the dataset has depth/ and mask_visib/ images, or lower --min-visib-fract",
+        ));
+    }
+    let cfg = TrainConfig {
+        split: set.split.clone(),
+        ..cfg
+    };
+    let observer = BarObserver {
+        printer,
+        epoch: std::cell::Cell::new((0, cfg.epochs)),
+    };
+    let outcome = train::train(&cfg, &set, &args.out, args.resume, &device, &observer)?;
+    printer.finish();
+    if args.resume {
+        printer.info(format!(
+            "resumed after epoch {} (AdamW moments restarted)",
+            outcome.resumed_from_epoch
+        ));
+    }
+    if let Some(last) = outcome.history.last() {
+        println!(
+            "{} after {} epochs: val centre error {:.2} cm over {} held-out instances ({} trained on), val loss {:.4}",
+            cfg.model.name(),
+            last.epoch,
+            last.val_centre_error_m * 100.0,
+            outcome.n_val,
+            outcome.n_train,
+            last.val_loss
+        );
+    }
+    printer.info(format!(
+        "wrote {} ({}, {}, {}) in {:.1} s",
+        args.out.display(),
+        MODEL_FILE,
+        METRICS_FILE,
+        CURVE_FILE,
+        started.elapsed().as_secs_f64()
+    ));
+    printer.hint(format!(
+        "synthgen eval --checkpoint {} --data DIR",
+        checkpoint.display()
+    ));
+    Ok(ExitStatus::Success)
+}

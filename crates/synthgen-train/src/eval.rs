@@ -1,0 +1,405 @@
+//! Scoring pose estimates against a BOP dataset's ground truth: matching, per-object
+//! accuracies and mean errors (conventions in docs/metrics.md).
+
+use std::collections::BTreeMap;
+
+use rayon::prelude::*;
+use serde::Serialize;
+use synthgen_assets::Units;
+use synthgen_core::{NoProgress, Pose};
+use synthgen_dataset::bop::BopDataset;
+
+use crate::error::{Error, Result};
+use crate::metrics::{is_5cm5deg, subsample_vertices, EvalObject, PoseErrors};
+use crate::results::Estimate;
+
+/// Model points used for ADD / ADD-S (evenly strided vertices).
+pub const EVAL_MODEL_POINTS: usize = 1000;
+
+/// One annotated object instance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GtInstance {
+    pub scene_id: u32,
+    pub im_id: u32,
+    pub gt_id: usize,
+    pub obj_id: u32,
+    pub pose: Pose,
+    pub visib_fract: f64,
+}
+
+/// The split to evaluate: `wanted`, else `test` when present, else the only split.
+pub fn pick_split(ds: &BopDataset, wanted: Option<&str>) -> Result<String> {
+    if let Some(w) = wanted {
+        if ds.splits.iter().any(|s| s == w) {
+            return Ok(w.to_string());
+        }
+        return Err(Error::InvalidOption(format!(
+            "split {w:?} not found in {} (splits: {})",
+            ds.root.display(),
+            ds.splits.join(", ")
+        )));
+    }
+    if ds.splits.iter().any(|s| s == "test") {
+        return Ok("test".into());
+    }
+    match ds.splits.as_slice() {
+        [only] => Ok(only.clone()),
+        [] => Err(Error::NoInstances {
+            reason: "no split folder with scenes".into(),
+            path: ds.root.clone(),
+        }),
+        many => Err(Error::InvalidOption(format!(
+            "dataset has several splits ({}); choose one with --split",
+            many.join(", ")
+        ))),
+    }
+}
+
+/// All GT instances of a split with `visib_fract >= min_visib_fract` (all of them when the
+/// scene has no `scene_gt_info.json`).
+pub fn read_gt(ds: &BopDataset, split: &str, min_visib_fract: f64) -> Result<Vec<GtInstance>> {
+    let mut out = Vec::new();
+    for scene_id in ds.scene_ids(split)? {
+        let scene = ds.read_scene(split, scene_id)?;
+        for (&im_id, gts) in &scene.gt {
+            for (gt_id, g) in gts.iter().enumerate() {
+                let visib_fract = scene
+                    .gt_info
+                    .as_ref()
+                    .and_then(|i| i.get(&im_id))
+                    .and_then(|v| v.get(gt_id))
+                    .map_or(1.0, |i| i.visib_fract);
+                if visib_fract < min_visib_fract {
+                    continue;
+                }
+                out.push(GtInstance {
+                    scene_id,
+                    im_id,
+                    gt_id,
+                    obj_id: g.obj_id,
+                    pose: g.cam_from_obj(),
+                    visib_fract,
+                });
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Loads the evaluation model (points, diameter, symmetric) of each object id.
+pub fn load_eval_objects(
+    ds: &BopDataset,
+    obj_ids: impl IntoIterator<Item = u32>,
+) -> Result<BTreeMap<u32, EvalObject>> {
+    let info_path = ds.root.join("models").join("models_info.json");
+    let infos = ds.models_info.as_ref().ok_or_else(|| Error::NoModelsInfo {
+        path: info_path.clone(),
+    })?;
+    let mut out = BTreeMap::new();
+    for obj_id in obj_ids {
+        if out.contains_key(&obj_id) {
+            continue;
+        }
+        let info = infos.get(&obj_id).ok_or_else(|| Error::UnknownObject {
+            obj_id,
+            path: info_path.clone(),
+        })?;
+        let loaded =
+            synthgen_assets::load_model(&ds.model_ply_path(obj_id), Units::Mm, &NoProgress)
+                .map_err(|source| Error::Model { obj_id, source })?;
+        out.insert(
+            obj_id,
+            EvalObject {
+                points_m: subsample_vertices(&loaded.model, EVAL_MODEL_POINTS),
+                diameter_m: info.diameter / 1000.0,
+                symmetric: !info.symmetries.is_empty(),
+            },
+        );
+    }
+    Ok(out)
+}
+
+/// Scores of one object (or of all objects pooled).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ObjectScores {
+    /// GT instances.
+    pub n_gt: usize,
+    /// Estimates matched to a GT instance (the ones the mean errors average over).
+    pub n_est: usize,
+    /// Fraction of GT instances with an ADD(-S) error below 10% of the diameter.
+    pub add_s_acc: f64,
+    /// Mean ADD(-S) error of the estimates, millimetres (ADD-S for symmetric objects).
+    pub mean_add_mm: Option<f64>,
+    /// Fraction of GT instances within 5 cm and 5°.
+    pub acc_5cm5deg: f64,
+    pub mean_te_cm: Option<f64>,
+    pub mean_re_deg: Option<f64>,
+}
+
+#[derive(Default)]
+struct Acc {
+    n_gt: usize,
+    n_est: usize,
+    n_add_ok: usize,
+    n_5cm5deg: usize,
+    sum_add_m: f64,
+    sum_te_m: f64,
+    sum_re_deg: f64,
+}
+
+impl Acc {
+    fn scores(&self) -> ObjectScores {
+        let mean = |s: f64| (self.n_est > 0).then(|| s / self.n_est as f64);
+        let frac = |n: usize| {
+            if self.n_gt == 0 {
+                0.0
+            } else {
+                n as f64 / self.n_gt as f64
+            }
+        };
+        ObjectScores {
+            n_gt: self.n_gt,
+            n_est: self.n_est,
+            add_s_acc: frac(self.n_add_ok),
+            mean_add_mm: mean(self.sum_add_m * 1000.0),
+            acc_5cm5deg: frac(self.n_5cm5deg),
+            mean_te_cm: mean(self.sum_te_m * 100.0),
+            mean_re_deg: mean(self.sum_re_deg),
+        }
+    }
+}
+
+/// A GT instance's matched estimate and its errors.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Match {
+    pub gt: GtInstance,
+    pub estimate: Option<(Estimate, PoseErrors)>,
+}
+
+/// The outcome of an evaluation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EvalReport {
+    pub per_object: BTreeMap<u32, ObjectScores>,
+    pub all: ObjectScores,
+    pub matches: Vec<Match>,
+    /// Estimates not used: for an (image, object) with no GT, or beyond its GT count.
+    pub unmatched_estimates: usize,
+}
+
+/// Matches estimates to GT per (scene, image, object) and scores them. For an (image,
+/// object) with k GT instances the k highest-scoring estimates are used; in descending
+/// score order each takes the free GT instance it fits best (lowest ADD(-S)). GT instances
+/// left without an estimate count as wrong.
+pub fn evaluate(
+    gts: &[GtInstance],
+    estimates: &[Estimate],
+    objects: &BTreeMap<u32, EvalObject>,
+) -> Result<EvalReport> {
+    type Key = (u32, u32, u32);
+    let mut groups: BTreeMap<Key, (Vec<GtInstance>, Vec<Estimate>)> = BTreeMap::new();
+    for g in gts {
+        groups
+            .entry((g.scene_id, g.im_id, g.obj_id))
+            .or_default()
+            .0
+            .push(*g);
+    }
+    let mut unmatched = 0;
+    for e in estimates {
+        match groups.get_mut(&(e.scene_id, e.im_id, e.obj_id)) {
+            Some(g) => g.1.push(*e),
+            None => unmatched += 1,
+        }
+    }
+    for obj_id in groups.keys().map(|k| k.2) {
+        if !objects.contains_key(&obj_id) {
+            return Err(Error::InvalidOption(format!(
+                "no evaluation model for object {obj_id}"
+            )));
+        }
+    }
+    let per_group: Vec<(Vec<Match>, usize)> = groups
+        .into_par_iter()
+        .map(|((_, _, obj_id), (gts, mut ests))| {
+            let obj = &objects[&obj_id];
+            ests.sort_by(|a, b| b.score.total_cmp(&a.score));
+            let extra = ests.len().saturating_sub(gts.len());
+            ests.truncate(gts.len());
+            let mut matches: Vec<Match> =
+                gts.iter().map(|&gt| Match { gt, estimate: None }).collect();
+            for e in ests {
+                let best = matches
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, m)| m.estimate.is_none())
+                    .map(|(i, m)| (i, obj.errors(&m.gt.pose, &e.pose)))
+                    .min_by(|a, b| a.1.add_s_m.total_cmp(&b.1.add_s_m));
+                if let Some((i, err)) = best {
+                    matches[i].estimate = Some((e, err));
+                }
+            }
+            (matches, extra)
+        })
+        .collect();
+
+    let mut acc: BTreeMap<u32, Acc> = BTreeMap::new();
+    let mut all = Acc::default();
+    let mut matches = Vec::new();
+    for (ms, extra) in per_group {
+        unmatched += extra;
+        for m in ms {
+            let obj = &objects[&m.gt.obj_id];
+            let a = acc.entry(m.gt.obj_id).or_default();
+            for a in [a, &mut all] {
+                a.n_gt += 1;
+                if let Some((e, err)) = &m.estimate {
+                    a.n_est += 1;
+                    a.sum_add_m += err.add_s_m;
+                    a.sum_te_m += err.te_m;
+                    a.sum_re_deg += err.re_deg;
+                    a.n_add_ok += usize::from(obj.add_s_correct(err));
+                    a.n_5cm5deg += usize::from(is_5cm5deg(&m.gt.pose, &e.pose));
+                }
+            }
+            matches.push(m);
+        }
+    }
+    Ok(EvalReport {
+        per_object: acc.iter().map(|(&k, a)| (k, a.scores())).collect(),
+        all: all.scores(),
+        matches,
+        unmatched_estimates: unmatched,
+    })
+}
+
+fn opt(v: Option<f64>, digits: usize) -> String {
+    v.map_or("–".to_string(), |v| format!("{v:.digits$}"))
+}
+
+impl EvalReport {
+    /// The per-object table in markdown, with an `all` row.
+    pub fn to_markdown(&self, objects: &BTreeMap<u32, EvalObject>) -> String {
+        let mut s = String::from(
+            "| object | metric | n_gt | n_est | ADD(-S) acc | mean ADD(-S) mm | 5cm5° acc | mean te cm | mean re ° |\n\
+             |---|---|---:|---:|---:|---:|---:|---:|---:|\n",
+        );
+        let row = |name: String, metric: &str, r: &ObjectScores| {
+            format!(
+                "| {name} | {metric} | {} | {} | {:.1}% | {} | {:.1}% | {} | {} |\n",
+                r.n_gt,
+                r.n_est,
+                100.0 * r.add_s_acc,
+                opt(r.mean_add_mm, 1),
+                100.0 * r.acc_5cm5deg,
+                opt(r.mean_te_cm, 2),
+                opt(r.mean_re_deg, 2)
+            )
+        };
+        for (id, r) in &self.per_object {
+            let metric = if objects.get(id).is_some_and(|o| o.symmetric) {
+                "ADD-S"
+            } else {
+                "ADD"
+            };
+            s += &row(format!("{id}"), metric, r);
+        }
+        s += &row("all".into(), "", &self.all);
+        s
+    }
+
+    /// `{"<obj_id>": scores, ..., "all": scores}`; means with no estimate are `null`.
+    pub fn to_json(&self) -> serde_json::Value {
+        let mut m = serde_json::Map::new();
+        for (id, r) in &self.per_object {
+            m.insert(id.to_string(), serde_json::json!(r));
+        }
+        m.insert("all".into(), serde_json::json!(self.all));
+        serde_json::Value::Object(m)
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+    use synthgen_core::glam::{DMat3, DVec3};
+
+    fn gt(im_id: u32, obj_id: u32, t: [f64; 3]) -> GtInstance {
+        GtInstance {
+            scene_id: 0,
+            im_id,
+            gt_id: 0,
+            obj_id,
+            pose: Pose::new(DMat3::IDENTITY, DVec3::from_array(t)),
+            visib_fract: 1.0,
+        }
+    }
+
+    fn est(im_id: u32, obj_id: u32, score: f64, t: [f64; 3]) -> Estimate {
+        Estimate {
+            scene_id: 0,
+            im_id,
+            obj_id,
+            score,
+            pose: Pose::new(DMat3::IDENTITY, DVec3::from_array(t)),
+            time_s: -1.0,
+        }
+    }
+
+    fn objects() -> BTreeMap<u32, EvalObject> {
+        let pts = vec![DVec3::new(0.05, 0.0, 0.0), DVec3::new(-0.05, 0.0, 0.0)];
+        BTreeMap::from([(
+            1,
+            EvalObject {
+                points_m: pts,
+                diameter_m: 0.1,
+                symmetric: false,
+            },
+        )])
+    }
+
+    #[test]
+    fn missing_estimate_counts_as_wrong_and_highest_score_counts() {
+        let gts = [gt(0, 1, [0.0, 0.0, 1.0]), gt(1, 1, [0.0, 0.0, 1.0])];
+        let ests = [
+            // Image 0: the better estimate has the lower score, so the worse one counts.
+            est(0, 1, 0.9, [0.02, 0.0, 1.0]),
+            est(0, 1, 0.1, [0.0, 0.0, 1.0]),
+            // An estimate for an image without GT is ignored.
+            est(5, 1, 1.0, [0.0, 0.0, 1.0]),
+        ];
+        let r = evaluate(&gts, &ests, &objects()).unwrap();
+        let s = r.per_object[&1];
+        assert_eq!((s.n_gt, s.n_est), (2, 1));
+        // 2 cm > 10% of 10 cm: wrong; image 1 has no estimate: wrong.
+        assert_eq!(s.add_s_acc, 0.0);
+        assert!((s.mean_add_mm.unwrap() - 20.0).abs() < 1e-9);
+        assert!((s.mean_te_cm.unwrap() - 2.0).abs() < 1e-9);
+        // 2 cm < 5 cm, 0°: 1 of 2 GT instances.
+        assert_eq!(s.acc_5cm5deg, 0.5);
+        assert_eq!(r.unmatched_estimates, 2);
+        assert_eq!(r.all, s);
+        let md = r.to_markdown(&objects());
+        assert!(
+            md.contains("| 1 | ADD | 2 | 1 | 0.0% | 20.0 | 50.0% | 2.00 | 0.00 |"),
+            "{md}"
+        );
+        let j = r.to_json();
+        assert_eq!(j["all"]["n_gt"], 2);
+        assert_eq!(j["1"]["acc_5cm5deg"], 0.5);
+    }
+
+    #[test]
+    fn two_instances_match_their_nearest_estimates() {
+        let mut g2 = gt(0, 1, [0.3, 0.0, 1.0]);
+        g2.gt_id = 1;
+        let gts = [gt(0, 1, [0.0, 0.0, 1.0]), g2];
+        let ests = [
+            est(0, 1, 0.5, [0.301, 0.0, 1.0]),
+            est(0, 1, 0.4, [0.001, 0.0, 1.0]),
+        ];
+        let r = evaluate(&gts, &ests, &objects()).unwrap();
+        assert_eq!(r.all.add_s_acc, 1.0);
+        assert!((r.all.mean_add_mm.unwrap() - 1.0).abs() < 1e-9);
+    }
+}

@@ -1,0 +1,23 @@
+//! Pose models and their evaluation for synthgen: BOP data loading, TNet (candle), the
+//! training loop, and the pose metrics (ADD, ADD-S, 5cm5°) with BOP results CSV scoring.
+//!
+//! ```no_run
+//! use std::path::Path;
+//! use synthgen_core::NoProgress;
+//! use synthgen_train::data::{load_instances, DataOptions};
+//!
+//! let set = load_instances(Path::new("out/drill"), &DataOptions::default(), &NoProgress)?;
+//! println!("{} instances, {} skipped (too few pixels)", set.instances.len(), set.skipped_few_pixels);
+//! # Ok::<(), synthgen_train::Error>(())
+//! ```
+
+pub mod data;
+mod error;
+pub mod eval;
+pub mod metrics;
+pub mod models;
+pub mod plot;
+pub mod results;
+pub mod train;
+
+pub use error::{Error, Result};

@@ -1,0 +1,250 @@
+//! Pose error metrics as bop_toolkit (`pose_error.py`) and DenseFusion define them. All
+//! inputs and outputs are in metres and radians; BOP files' millimetres are converted by the
+//! readers before anything reaches this module. See docs/metrics.md.
+
+use synthgen_core::glam::{DMat3, DVec3};
+use synthgen_core::mesh::Model;
+use synthgen_core::pose::rotation_angle_rad;
+use synthgen_core::Pose;
+
+/// An estimate is correct under ADD(-S) when its error is below this fraction of the
+/// object's diameter.
+pub const ADD_THRESHOLD_FRACTION: f64 = 0.1;
+/// 5cm5°: translation error below 5 cm ...
+pub const TE_THRESHOLD_M: f64 = 0.05;
+/// ... and rotation error below 5°.
+pub const RE_THRESHOLD_DEG: f64 = 5.0;
+
+/// ADD: mean over the model points of ‖(R p + t) − (R̂ p + t̂)‖ (metres).
+pub fn add(points_m: &[DVec3], gt: &Pose, est: &Pose) -> f64 {
+    if points_m.is_empty() {
+        return 0.0;
+    }
+    let sum: f64 = points_m
+        .iter()
+        .map(|&p| (gt.transform_point(p) - est.transform_point(p)).length())
+        .sum();
+    sum / points_m.len() as f64
+}
+
+/// ADD-S (bop_toolkit's ADI): mean over the GT-posed points of the distance to the nearest
+/// estimate-posed point (metres). O(M²): keep M in the low thousands.
+pub fn adi(points_m: &[DVec3], gt: &Pose, est: &Pose) -> f64 {
+    if points_m.is_empty() {
+        return 0.0;
+    }
+    let est_pts: Vec<DVec3> = points_m.iter().map(|&p| est.transform_point(p)).collect();
+    let sum: f64 = points_m
+        .iter()
+        .map(|&p| {
+            let g = gt.transform_point(p);
+            est_pts
+                .iter()
+                .map(|&e| (g - e).length_squared())
+                .fold(f64::INFINITY, f64::min)
+                .sqrt()
+        })
+        .sum();
+    sum / points_m.len() as f64
+}
+
+/// Translation error ‖t − t̂‖ (metres).
+pub fn te_m(gt: &Pose, est: &Pose) -> f64 {
+    (gt.translation_m - est.translation_m).length()
+}
+
+/// Rotation error arccos((tr(R̂ Rᵀ) − 1) / 2) in degrees (0..180).
+pub fn re_deg(gt: &DMat3, est: &DMat3) -> f64 {
+    rotation_angle_rad(est, gt).to_degrees()
+}
+
+/// 5cm5°: translation error < 5 cm and rotation error < 5°.
+pub fn is_5cm5deg(gt: &Pose, est: &Pose) -> bool {
+    te_m(gt, est) < TE_THRESHOLD_M && re_deg(&gt.rotation, &est.rotation) < RE_THRESHOLD_DEG
+}
+
+/// The errors of one estimate against its GT.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoseErrors {
+    pub add_m: f64,
+    /// ADD-S (ADI).
+    pub adi_m: f64,
+    /// The error that decides correctness: ADD-S for symmetric objects, ADD otherwise.
+    pub add_s_m: f64,
+    pub te_m: f64,
+    pub re_deg: f64,
+}
+
+/// An object's evaluation model: subsampled points (metres), diameter, symmetric or not.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EvalObject {
+    pub points_m: Vec<DVec3>,
+    pub diameter_m: f64,
+    /// Objects with symmetries in models_info are scored with ADD-S.
+    pub symmetric: bool,
+}
+
+impl EvalObject {
+    pub fn errors(&self, gt: &Pose, est: &Pose) -> PoseErrors {
+        let add_m = add(&self.points_m, gt, est);
+        let adi_m = if self.symmetric {
+            adi(&self.points_m, gt, est)
+        } else {
+            // ADI ≤ ADD always; computing it for asymmetric objects is only for reporting.
+            adi(&self.points_m, gt, est).min(add_m)
+        };
+        PoseErrors {
+            add_m,
+            adi_m,
+            add_s_m: if self.symmetric { adi_m } else { add_m },
+            te_m: te_m(gt, est),
+            re_deg: re_deg(&gt.rotation, &est.rotation),
+        }
+    }
+
+    pub fn add_s_correct(&self, e: &PoseErrors) -> bool {
+        e.add_s_m < ADD_THRESHOLD_FRACTION * self.diameter_m
+    }
+}
+
+/// Up to `max` of the model's vertices, evenly strided over the vertex list (deterministic:
+/// the same model always gives the same points).
+pub fn subsample_vertices(model: &Model, max: usize) -> Vec<DVec3> {
+    let all: Vec<DVec3> = model.positions().map(|p| p.as_dvec3()).collect();
+    if all.len() <= max || max == 0 {
+        return all;
+    }
+    (0..max).map(|i| all[i * all.len() / max]).collect()
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI;
+
+    /// A thin rod along z: 21 points from −5 cm to 5 cm, symmetric under 180° about x.
+    fn rod() -> Vec<DVec3> {
+        (0..=20)
+            .map(|i| DVec3::new(0.0, 0.0, -0.05 + 0.005 * i as f64))
+            .collect()
+    }
+
+    /// An asymmetric "L": points along x and along y of different lengths.
+    fn ell() -> Vec<DVec3> {
+        let mut p: Vec<DVec3> = (0..10)
+            .map(|i| DVec3::new(0.01 * i as f64, 0.0, 0.0))
+            .collect();
+        p.extend((1..5).map(|i| DVec3::new(0.0, 0.01 * i as f64, 0.0)));
+        p
+    }
+
+    fn pose(r: DMat3, t: [f64; 3]) -> Pose {
+        Pose::new(r, DVec3::from_array(t))
+    }
+
+    #[test]
+    fn identity_estimate_has_zero_errors() {
+        let gt = pose(DMat3::from_rotation_y(0.3), [0.1, -0.2, 0.8]);
+        let obj = EvalObject {
+            points_m: ell(),
+            diameter_m: 0.1,
+            symmetric: false,
+        };
+        let e = obj.errors(&gt, &gt);
+        assert_eq!(e.add_m, 0.0);
+        assert_eq!(e.adi_m, 0.0);
+        assert_eq!(e.te_m, 0.0);
+        assert!(e.re_deg < 1e-6, "{}", e.re_deg);
+        assert!(obj.add_s_correct(&e));
+        assert!(is_5cm5deg(&gt, &gt));
+    }
+
+    #[test]
+    fn pure_translation_offset_is_the_add() {
+        let gt = pose(DMat3::IDENTITY, [0.0, 0.0, 1.0]);
+        let est = pose(DMat3::IDENTITY, [0.03, 0.04, 1.0]);
+        // Every point moves by (3, 4, 0) cm: ADD = 5 cm exactly, re = 0.
+        assert!((add(&ell(), &gt, &est) - 0.05).abs() < 1e-12);
+        assert!((te_m(&gt, &est) - 0.05).abs() < 1e-12);
+        assert!(re_deg(&gt.rotation, &est.rotation) < 1e-9);
+    }
+
+    #[test]
+    fn rotation_about_origin_hand_computed() {
+        // 90° about z moves (x, 0, 0) to (0, x, 0): distance x·√2.
+        let pts = vec![DVec3::new(0.1, 0.0, 0.0), DVec3::new(0.2, 0.0, 0.0)];
+        let gt = Pose::IDENTITY;
+        let est = pose(DMat3::from_rotation_z(PI / 2.0), [0.0; 3]);
+        let want = (0.1 + 0.2) / 2.0 * 2f64.sqrt();
+        assert!((add(&pts, &gt, &est) - want).abs() < 1e-12);
+        assert!((re_deg(&gt.rotation, &est.rotation) - 90.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn symmetric_object_rotated_by_its_symmetry() {
+        // The rod turned 180° about x is the same set of points: ADD-S 0, ADD large.
+        let gt = pose(DMat3::IDENTITY, [0.0, 0.0, 0.7]);
+        let est = pose(DMat3::from_rotation_x(PI), [0.0, 0.0, 0.7]);
+        let obj = EvalObject {
+            points_m: rod(),
+            diameter_m: 0.1,
+            symmetric: true,
+        };
+        let e = obj.errors(&gt, &est);
+        assert!(e.adi_m < 1e-12, "{}", e.adi_m);
+        assert!(e.add_m > 0.02, "{}", e.add_m);
+        assert_eq!(e.add_s_m, e.adi_m);
+        assert!(obj.add_s_correct(&e));
+        // The same estimate for an object scored with ADD is wrong.
+        let asym = EvalObject {
+            symmetric: false,
+            ..obj
+        };
+        assert!(!asym.add_s_correct(&asym.errors(&gt, &est)));
+        assert!((e.re_deg - 180.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn five_cm_threshold_is_five_cm_in_metres() {
+        let gt = Pose::IDENTITY;
+        let just_in = pose(DMat3::IDENTITY, [0.0499, 0.0, 0.0]);
+        let just_out = pose(DMat3::IDENTITY, [0.0501, 0.0, 0.0]);
+        assert!(is_5cm5deg(&gt, &just_in));
+        assert!(!is_5cm5deg(&gt, &just_out));
+        let rot_in = pose(DMat3::from_rotation_y(4.9f64.to_radians()), [0.0; 3]);
+        let rot_out = pose(DMat3::from_rotation_y(5.1f64.to_radians()), [0.0; 3]);
+        assert!(is_5cm5deg(&gt, &rot_in));
+        assert!(!is_5cm5deg(&gt, &rot_out));
+    }
+
+    #[test]
+    fn add_threshold_is_ten_percent_of_diameter() {
+        let obj = EvalObject {
+            points_m: ell(),
+            diameter_m: 0.2,
+            symmetric: false,
+        };
+        let gt = Pose::IDENTITY;
+        let e_in = obj.errors(&gt, &pose(DMat3::IDENTITY, [0.0199, 0.0, 0.0]));
+        let e_out = obj.errors(&gt, &pose(DMat3::IDENTITY, [0.0201, 0.0, 0.0]));
+        assert!(obj.add_s_correct(&e_in));
+        assert!(!obj.add_s_correct(&e_out));
+    }
+
+    #[test]
+    fn adi_never_exceeds_add() {
+        let gt = pose(DMat3::from_rotation_x(0.4), [0.0, 0.1, 0.6]);
+        let est = pose(DMat3::from_rotation_z(1.1), [0.02, 0.1, 0.65]);
+        assert!(adi(&ell(), &gt, &est) <= add(&ell(), &gt, &est) + 1e-12);
+    }
+
+    #[test]
+    fn subsample_is_deterministic_and_bounded() {
+        let m = Model::cuboid("box", synthgen_core::glam::Vec3::new(0.1, 0.2, 0.3));
+        let a = subsample_vertices(&m, 3);
+        assert_eq!(a.len(), 3.min(m.vertex_count()));
+        assert_eq!(a, subsample_vertices(&m, 3));
+        assert_eq!(subsample_vertices(&m, 10_000).len(), m.vertex_count());
+    }
+}

@@ -1,0 +1,460 @@
+//! The training loop: AdamW with a learning-rate schedule, a train/val split by frame,
+//! per-epoch metrics as JSON lines, safetensors checkpoints, resume, and the curve PNG.
+
+use std::collections::BTreeSet;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use candle_core::{DType, Device};
+use candle_nn::{AdamW, Optimizer, ParamsAdamW, VarBuilder, VarMap};
+use rand::seq::SliceRandom;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+use synthgen_core::rng::splitmix64;
+
+use crate::data::{Instance, InstanceSet};
+use crate::error::{Error, Result};
+use crate::models::tnet::{centres_from_offsets, make_batch, offset_l1_loss, TNet};
+use crate::models::ModelKind;
+
+pub const MODEL_FILE: &str = "model.safetensors";
+pub const CONFIG_FILE: &str = "config.json";
+pub const STATE_FILE: &str = "state.json";
+pub const METRICS_FILE: &str = "metrics.jsonl";
+pub const CURVE_FILE: &str = "curve.png";
+
+/// Learning-rate schedule over the whole run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Schedule {
+    /// Cosine from `lr` down to `lr / 100`, per step.
+    Cosine,
+    /// `lr`, then `lr / 10` from 2/3 of the epochs on.
+    Step,
+    Constant,
+}
+
+/// Everything that defines a run; written to `config.json` beside the checkpoint.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TrainConfig {
+    pub model: ModelKind,
+    pub width: usize,
+    pub n_points: usize,
+    /// Points are centred on their mean and multiplied by this (1/m).
+    pub normalization_scale: f32,
+    pub epochs: usize,
+    pub batch: usize,
+    pub lr: f64,
+    pub weight_decay: f64,
+    pub schedule: Schedule,
+    pub seed: u64,
+    /// Fraction of frames held out for validation.
+    pub val_fraction: f64,
+    pub min_visib_fract: f64,
+    pub data: PathBuf,
+    pub split: String,
+}
+
+impl TrainConfig {
+    pub fn lr_at(&self, step: usize, total_steps: usize, epoch: usize) -> f64 {
+        match self.schedule {
+            Schedule::Constant => self.lr,
+            Schedule::Step => {
+                if 3 * epoch >= 2 * self.epochs {
+                    self.lr / 10.0
+                } else {
+                    self.lr
+                }
+            }
+            Schedule::Cosine => {
+                let t = step as f64 / total_steps.max(1) as f64;
+                let min = self.lr / 100.0;
+                min + (self.lr - min) * 0.5 * (1.0 + (std::f64::consts::PI * t).cos())
+            }
+        }
+    }
+}
+
+/// One line of `metrics.jsonl`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EpochMetrics {
+    pub epoch: usize,
+    pub train_loss: f64,
+    pub val_loss: f64,
+    /// Mean ‖centre − ĉ‖ over the validation instances, metres.
+    pub val_centre_error_m: f64,
+    /// Learning rate at the epoch's last step.
+    pub lr: f64,
+    pub seconds: f64,
+}
+
+/// `state.json`: where a run stands, for `--resume`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TrainState {
+    pub epochs_done: usize,
+    pub steps_done: usize,
+}
+
+/// Callbacks for progress display; all optional.
+pub trait TrainObserver {
+    fn epoch_start(&self, _epoch: usize, _epochs: usize, _steps: usize) {}
+    /// After each step, with the epoch's running mean loss.
+    fn step(&self, _running_loss: f64) {}
+    fn epoch_end(&self, _m: &EpochMetrics) {}
+}
+
+pub struct NoObserver;
+impl TrainObserver for NoObserver {}
+
+/// Frames held out for validation: a seeded shuffle of the sorted frame list, the first
+/// `ceil(val_fraction × frames)` of it (at least one frame when there are two or more).
+pub fn val_frames(instances: &[Instance], val_fraction: f64, seed: u64) -> BTreeSet<(u32, u32)> {
+    let mut frames: Vec<(u32, u32)> = instances
+        .iter()
+        .map(Instance::frame)
+        .collect::<BTreeSet<_>>()
+        .into_iter()
+        .collect();
+    let mut rng = ChaCha8Rng::seed_from_u64(splitmix64(seed ^ 0x5eed_5b17));
+    frames.shuffle(&mut rng);
+    let mut n = (val_fraction * frames.len() as f64).ceil() as usize;
+    if frames.len() >= 2 {
+        n = n.clamp(1, frames.len() - 1);
+    } else {
+        n = 0;
+    }
+    frames.into_iter().take(n).collect()
+}
+
+/// The device: CPU, or the first CUDA GPU (needs the `cuda` feature).
+pub fn device(cuda: bool) -> Result<Device> {
+    if cuda {
+        Ok(Device::new_cuda(0)?)
+    } else {
+        Ok(Device::Cpu)
+    }
+}
+
+/// A TNet with its variables, fresh or from a checkpoint.
+pub struct TNetModel {
+    pub varmap: VarMap,
+    pub net: TNet,
+    pub scale: f32,
+    pub device: Device,
+}
+
+impl TNetModel {
+    pub fn new(width: usize, scale: f32, device: &Device) -> Result<TNetModel> {
+        let varmap = VarMap::new();
+        let vb = VarBuilder::from_varmap(&varmap, DType::F32, device);
+        let net = TNet::new(width, vb)?;
+        Ok(TNetModel {
+            varmap,
+            net,
+            scale,
+            device: device.clone(),
+        })
+    }
+
+    pub fn load(checkpoint: &Path, cfg: &TrainConfig, device: &Device) -> Result<TNetModel> {
+        let mut m = TNetModel::new(cfg.width, cfg.normalization_scale, device)?;
+        m.varmap.load(checkpoint).map_err(|e| Error::Malformed {
+            what: "checkpoint",
+            message: e.to_string(),
+            path: checkpoint.to_path_buf(),
+        })?;
+        Ok(m)
+    }
+
+    /// Loss (optional) and predicted centres (metres) of a batch of instances.
+    pub fn run(&self, batch: &[&Instance]) -> Result<(candle_core::Tensor, Vec<[f32; 3]>)> {
+        let clouds: Vec<&[[f32; 3]]> = batch.iter().map(|i| i.points_m.as_slice()).collect();
+        let centres: Vec<[f32; 3]> = batch
+            .iter()
+            .map(|i| i.pose.translation_m.as_vec3().to_array())
+            .collect();
+        let b = make_batch(&clouds, Some(&centres), self.scale, &self.device)?;
+        let pred = self.net.forward(&b.points)?;
+        let loss = offset_l1_loss(&pred, &b.offsets)?;
+        let got = centres_from_offsets(&b, &pred, self.scale)?;
+        Ok((loss, got))
+    }
+
+    /// Predicted centres (metres) of instances, in batches.
+    pub fn predict_centres(&self, instances: &[&Instance], batch: usize) -> Result<Vec<[f32; 3]>> {
+        let mut out = Vec::with_capacity(instances.len());
+        for chunk in instances.chunks(batch.max(1)) {
+            out.extend(self.run(chunk)?.1);
+        }
+        Ok(out)
+    }
+}
+
+pub fn centre_error_m(pred: [f32; 3], inst: &Instance) -> f64 {
+    let t = inst.pose.translation_m;
+    let d = [
+        f64::from(pred[0]) - t.x,
+        f64::from(pred[1]) - t.y,
+        f64::from(pred[2]) - t.z,
+    ];
+    (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+}
+
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let tmp = path.with_extension("tmp");
+    std::fs::write(&tmp, bytes).map_err(|e| Error::io("write", &tmp, e))?;
+    std::fs::rename(&tmp, path).map_err(|e| Error::io("rename", path, e))
+}
+
+fn read_json<T: serde::de::DeserializeOwned>(path: &Path, what: &'static str) -> Result<T> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io("read", path, e))?;
+    serde_json::from_str(&text).map_err(|e| Error::Malformed {
+        what,
+        message: e.to_string(),
+        path: path.to_path_buf(),
+    })
+}
+
+pub fn read_config(path: &Path) -> Result<TrainConfig> {
+    read_json(path, "config.json")
+}
+
+/// The metrics lines of a run folder, at most `keep` of them.
+pub fn read_metrics(out: &Path, keep: usize) -> Result<Vec<EpochMetrics>> {
+    let path = out.join(METRICS_FILE);
+    if !path.exists() {
+        return Ok(Vec::new());
+    }
+    let text = std::fs::read_to_string(&path).map_err(|e| Error::io("read", &path, e))?;
+    text.lines()
+        .filter(|l| !l.trim().is_empty())
+        .take(keep)
+        .map(|l| {
+            serde_json::from_str(l).map_err(|e| Error::Malformed {
+                what: "metrics.jsonl",
+                message: e.to_string(),
+                path: path.clone(),
+            })
+        })
+        .collect()
+}
+
+/// What a finished (or resumed and finished) run reports.
+#[derive(Debug, Clone)]
+pub struct TrainOutcome {
+    pub history: Vec<EpochMetrics>,
+    pub n_train: usize,
+    pub n_val: usize,
+    pub resumed_from_epoch: usize,
+}
+
+/// Trains `cfg.model` on `data`, writing into `out`. With `resume`, continues from the
+/// checkpoint in `out` (weights and epoch count; AdamW's moments restart from zero).
+pub fn train(
+    cfg: &TrainConfig,
+    data: &InstanceSet,
+    out: &Path,
+    resume: bool,
+    device: &Device,
+    observer: &dyn TrainObserver,
+) -> Result<TrainOutcome> {
+    if cfg.model != ModelKind::Tnet {
+        return Err(Error::InvalidOption(format!(
+            "model {} is not implemented yet (only tnet); see docs/training.md",
+            cfg.model.name()
+        )));
+    }
+    if cfg.batch == 0 || cfg.epochs == 0 {
+        return Err(Error::InvalidOption(
+            "--batch and --epochs must be positive".into(),
+        ));
+    }
+    std::fs::create_dir_all(out).map_err(|e| Error::io("create directory", out, e))?;
+    let val = val_frames(&data.instances, cfg.val_fraction, cfg.seed);
+    let (val_set, train_set): (Vec<&Instance>, Vec<&Instance>) = data
+        .instances
+        .iter()
+        .partition(|i| val.contains(&i.frame()));
+    if train_set.is_empty() {
+        return Err(Error::NoInstances {
+            reason: "no training instances after the validation split".into(),
+            path: cfg.data.clone(),
+        });
+    }
+
+    let model_path = out.join(MODEL_FILE);
+    let (model, state, mut history) = if resume {
+        let state: TrainState = read_json(&out.join(STATE_FILE), "state.json")?;
+        let model = TNetModel::load(&model_path, cfg, device)?;
+        let history = read_metrics(out, state.epochs_done)?;
+        (model, state, history)
+    } else {
+        let model = TNetModel::new(cfg.width, cfg.normalization_scale, device)?;
+        let state = TrainState {
+            epochs_done: 0,
+            steps_done: 0,
+        };
+        (model, state, Vec::new())
+    };
+    let config_json =
+        serde_json::to_vec_pretty(cfg).map_err(|e| Error::InvalidOption(e.to_string()))?;
+    write_atomic(&out.join(CONFIG_FILE), &config_json)?;
+    // metrics.jsonl holds exactly the finished epochs.
+    let mut lines = String::new();
+    for m in &history {
+        lines += &serde_json::to_string(m).map_err(|e| Error::InvalidOption(e.to_string()))?;
+        lines.push('\n');
+    }
+    write_atomic(&out.join(METRICS_FILE), lines.as_bytes())?;
+
+    let mut opt = AdamW::new(
+        model.varmap.all_vars(),
+        ParamsAdamW {
+            lr: cfg.lr,
+            weight_decay: cfg.weight_decay,
+            ..Default::default()
+        },
+    )?;
+    let steps_per_epoch = train_set.len().div_ceil(cfg.batch);
+    let total_steps = steps_per_epoch * cfg.epochs;
+    let mut step = state.steps_done;
+    let resumed_from_epoch = state.epochs_done;
+    for epoch in state.epochs_done..cfg.epochs {
+        let started = Instant::now();
+        observer.epoch_start(epoch + 1, cfg.epochs, steps_per_epoch);
+        let mut order = train_set.clone();
+        let mut rng = ChaCha8Rng::seed_from_u64(splitmix64(cfg.seed ^ (epoch as u64 + 1)));
+        order.shuffle(&mut rng);
+        let (mut sum, mut count) = (0.0f64, 0usize);
+        let mut lr = cfg.lr;
+        for batch in order.chunks(cfg.batch) {
+            lr = cfg.lr_at(step, total_steps, epoch);
+            opt.set_learning_rate(lr);
+            let (loss, _) = model.run(batch)?;
+            opt.backward_step(&loss)?;
+            sum += f64::from(loss.to_scalar::<f32>()?) * batch.len() as f64;
+            count += batch.len();
+            step += 1;
+            observer.step(sum / count as f64);
+        }
+        let (val_loss, val_err) = validate(&model, &val_set, cfg.batch)?;
+        let m = EpochMetrics {
+            epoch: epoch + 1,
+            train_loss: sum / count.max(1) as f64,
+            val_loss,
+            val_centre_error_m: val_err,
+            lr,
+            seconds: started.elapsed().as_secs_f64(),
+        };
+        save_checkpoint(&model, out, epoch + 1, step)?;
+        let path = out.join(METRICS_FILE);
+        let mut f = std::fs::OpenOptions::new()
+            .append(true)
+            .open(&path)
+            .map_err(|e| Error::io("open", &path, e))?;
+        let line = serde_json::to_string(&m).map_err(|e| Error::InvalidOption(e.to_string()))?;
+        writeln!(f, "{line}").map_err(|e| Error::io("write", &path, e))?;
+        observer.epoch_end(&m);
+        history.push(m);
+    }
+    crate::plot::write_curve(&out.join(CURVE_FILE), &history)?;
+    Ok(TrainOutcome {
+        history,
+        n_train: train_set.len(),
+        n_val: val_set.len(),
+        resumed_from_epoch,
+    })
+}
+
+/// Mean loss and mean centre error (metres) over `set`; NaN when it is empty.
+pub fn validate(model: &TNetModel, set: &[&Instance], batch: usize) -> Result<(f64, f64)> {
+    let (mut loss_sum, mut err_sum) = (0.0, 0.0);
+    for chunk in set.chunks(batch.max(1)) {
+        let (loss, got) = model.run(chunk)?;
+        loss_sum += f64::from(loss.to_scalar::<f32>()?) * chunk.len() as f64;
+        err_sum += got
+            .iter()
+            .zip(chunk)
+            .map(|(g, i)| centre_error_m(*g, i))
+            .sum::<f64>();
+    }
+    let n = set.len() as f64;
+    Ok((loss_sum / n, err_sum / n))
+}
+
+fn save_checkpoint(
+    model: &TNetModel,
+    out: &Path,
+    epochs_done: usize,
+    steps_done: usize,
+) -> Result<()> {
+    let path = out.join(MODEL_FILE);
+    let tmp = out.join("model.safetensors.tmp");
+    model.varmap.save(&tmp).map_err(|e| Error::Malformed {
+        what: "checkpoint",
+        message: e.to_string(),
+        path: tmp.clone(),
+    })?;
+    std::fs::rename(&tmp, &path).map_err(|e| Error::io("rename", &path, e))?;
+    let state = serde_json::to_vec_pretty(&TrainState {
+        epochs_done,
+        steps_done,
+    })
+    .map_err(|e| Error::InvalidOption(e.to_string()))?;
+    write_atomic(&out.join(STATE_FILE), &state)
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+    use synthgen_core::glam::{DMat3, DVec3};
+    use synthgen_core::Pose;
+
+    fn inst(im_id: u32) -> Instance {
+        Instance {
+            scene_id: 0,
+            im_id,
+            gt_id: 0,
+            obj_id: 1,
+            points_m: vec![],
+            crop_xy: vec![],
+            crop_rgb: vec![],
+            pose: Pose::new(DMat3::IDENTITY, DVec3::ZERO),
+        }
+    }
+
+    #[test]
+    fn val_split_is_by_frame_and_seeded() {
+        let insts: Vec<Instance> = (0..40).flat_map(|i| [inst(i), inst(i)]).collect();
+        let a = val_frames(&insts, 0.1, 3);
+        assert_eq!(a.len(), 4);
+        assert_eq!(a, val_frames(&insts, 0.1, 3));
+        assert_ne!(a, val_frames(&insts, 0.1, 4));
+    }
+
+    #[test]
+    fn cosine_schedule_ends_at_a_hundredth() {
+        let cfg = TrainConfig {
+            model: ModelKind::Tnet,
+            width: 8,
+            n_points: 4,
+            normalization_scale: 10.0,
+            epochs: 10,
+            batch: 2,
+            lr: 1e-3,
+            weight_decay: 0.0,
+            schedule: Schedule::Cosine,
+            seed: 0,
+            val_fraction: 0.1,
+            min_visib_fract: 0.1,
+            data: PathBuf::new(),
+            split: String::new(),
+        };
+        assert!((cfg.lr_at(0, 100, 0) - 1e-3).abs() < 1e-12);
+        assert!((cfg.lr_at(100, 100, 9) - 1e-5).abs() < 1e-12);
+        assert!(cfg.lr_at(50, 100, 5) < 1e-3);
+    }
+}
