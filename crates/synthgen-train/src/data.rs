@@ -144,9 +144,13 @@ fn load_frame(scene: &BopScene, im_id: u32, opts: &DataOptions) -> Result<Vec<Ou
     let [fx, _, cx, _, fy, cy, ..] = cam.cam_k;
     let infos: Option<&Vec<GtInfo>> = scene.gt_info.as_ref().and_then(|i| i.get(&im_id));
     let wanted: Vec<usize> = (0..gts.len())
-        .filter(|&g| infos.and_then(|i| i.get(g)).map_or(1.0, |i| i.visib_fract) >= opts.min_visib_fract)
+        .filter(|&g| {
+            infos.and_then(|i| i.get(g)).map_or(1.0, |i| i.visib_fract) >= opts.min_visib_fract
+        })
         .collect();
-    let mut out: Vec<Outcome> = (0..gts.len() - wanted.len()).map(|_| Outcome::LowVisib).collect();
+    let mut out: Vec<Outcome> = (0..gts.len() - wanted.len())
+        .map(|_| Outcome::LowVisib)
+        .collect();
     if wanted.is_empty() {
         return Ok(out);
     }
@@ -194,7 +198,11 @@ fn load_frame(scene: &BopScene, im_id: u32, opts: &DataOptions) -> Result<Vec<Ou
             .iter()
             .map(|&(u, v, i)| {
                 let z = f64::from(depth.data[i]);
-                [((u - cx) * z / fx) as f32, ((v - cy) * z / fy) as f32, z as f32]
+                [
+                    ((u - cx) * z / fx) as f32,
+                    ((v - cy) * z / fy) as f32,
+                    z as f32,
+                ]
             })
             .collect();
         let (crop_xy, crop_rgb) = match &rgb {
@@ -223,7 +231,10 @@ fn load_frame(scene: &BopScene, im_id: u32, opts: &DataOptions) -> Result<Vec<Ou
                         ]
                     })
                     .collect();
-                (xy, crop_resize(&img.rgb, img.width, img.height, bbox, opts.crop_size))
+                (
+                    xy,
+                    crop_resize(&img.rgb, img.width, img.height, bbox, opts.crop_size),
+                )
             }
             None => (Vec::new(), Vec::new()),
         };
@@ -248,7 +259,9 @@ pub fn load_instances(
     progress: &dyn Progress,
 ) -> Result<InstanceSet> {
     if opts.n_points == 0 {
-        return Err(Error::InvalidOption("the number of points must be positive".into()));
+        return Err(Error::InvalidOption(
+            "the number of points must be positive".into(),
+        ));
     }
     let ds = BopDataset::open(root)?;
     let split = pick_split(&ds, opts.split.as_deref())?;
@@ -295,7 +308,10 @@ mod tests {
     fn sampling_is_deterministic_and_fills_up() {
         let mut a = instance_rng(1, 0, 5, 0);
         let mut b = instance_rng(1, 0, 5, 0);
-        assert_eq!(sample_indices(&mut a, 1000, 10), sample_indices(&mut b, 1000, 10));
+        assert_eq!(
+            sample_indices(&mut a, 1000, 10),
+            sample_indices(&mut b, 1000, 10)
+        );
         let mut c = instance_rng(1, 0, 5, 1);
         let few = sample_indices(&mut c, 3, 10);
         assert_eq!(few.len(), 10);

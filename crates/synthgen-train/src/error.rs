@@ -28,7 +28,9 @@ pub enum Error {
         message: String,
         path: PathBuf,
     },
-    #[error("dataset has no models/models_info.json (diameters and symmetries are needed): {path}")]
+    #[error(
+        "dataset has no models/models_info.json (diameters and symmetries are needed): {path}"
+    )]
     NoModelsInfo { path: PathBuf },
     #[error("object {obj_id} is not in models_info.json: {path}")]
     UnknownObject { obj_id: u32, path: PathBuf },

@@ -104,8 +104,9 @@ pub fn load_eval_objects(
             obj_id,
             path: info_path.clone(),
         })?;
-        let loaded = synthgen_assets::load_model(&ds.model_ply_path(obj_id), Units::Mm, &NoProgress)
-            .map_err(|source| Error::Model { obj_id, source })?;
+        let loaded =
+            synthgen_assets::load_model(&ds.model_ply_path(obj_id), Units::Mm, &NoProgress)
+                .map_err(|source| Error::Model { obj_id, source })?;
         out.insert(
             obj_id,
             EvalObject {
@@ -224,10 +225,8 @@ pub fn evaluate(
             ests.sort_by(|a, b| b.score.total_cmp(&a.score));
             let extra = ests.len().saturating_sub(gts.len());
             ests.truncate(gts.len());
-            let mut matches: Vec<Match> = gts
-                .iter()
-                .map(|&gt| Match { gt, estimate: None })
-                .collect();
+            let mut matches: Vec<Match> =
+                gts.iter().map(|&gt| Match { gt, estimate: None }).collect();
             for e in ests {
                 let best = matches
                     .iter()
@@ -381,7 +380,10 @@ mod tests {
         assert_eq!(r.unmatched_estimates, 2);
         assert_eq!(r.all, s);
         let md = r.to_markdown(&objects());
-        assert!(md.contains("| 1 | ADD | 2 | 1 | 0.0% | 20.0 | 50.0% | 2.00 | 0.00 |"), "{md}");
+        assert!(
+            md.contains("| 1 | ADD | 2 | 1 | 0.0% | 20.0 | 50.0% | 2.00 | 0.00 |"),
+            "{md}"
+        );
         let j = r.to_json();
         assert_eq!(j["all"]["n_gt"], 2);
         assert_eq!(j["1"]["acc_5cm5deg"], 0.5);

@@ -132,7 +132,9 @@ mod tests {
 
     /// An asymmetric "L": points along x and along y of different lengths.
     fn ell() -> Vec<DVec3> {
-        let mut p: Vec<DVec3> = (0..10).map(|i| DVec3::new(0.01 * i as f64, 0.0, 0.0)).collect();
+        let mut p: Vec<DVec3> = (0..10)
+            .map(|i| DVec3::new(0.01 * i as f64, 0.0, 0.0))
+            .collect();
         p.extend((1..5).map(|i| DVec3::new(0.0, 0.01 * i as f64, 0.0)));
         p
     }

@@ -53,11 +53,27 @@ struct Panel {
 
 impl Panel {
     fn new(top: f64, bottom: f64, values: &[f64], n: usize) -> Panel {
-        let logs: Vec<f64> = values.iter().filter(|v| **v > 0.0 && v.is_finite()).map(|v| v.log10()).collect();
+        let logs: Vec<f64> = values
+            .iter()
+            .filter(|v| **v > 0.0 && v.is_finite())
+            .map(|v| v.log10())
+            .collect();
         let lo = logs.iter().copied().fold(f64::INFINITY, f64::min);
         let hi = logs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        let (lo, hi) = if lo.is_finite() { (lo.floor(), hi.ceil().max(lo.floor() + 1.0)) } else { (0.0, 1.0) };
-        Panel { x0: 50.0, x1: f64::from(W) - 20.0, y0: top, y1: bottom, lo, hi, n }
+        let (lo, hi) = if lo.is_finite() {
+            (lo.floor(), hi.ceil().max(lo.floor() + 1.0))
+        } else {
+            (0.0, 1.0)
+        };
+        Panel {
+            x0: 50.0,
+            x1: f64::from(W) - 20.0,
+            y0: top,
+            y1: bottom,
+            lo,
+            hi,
+            n,
+        }
     }
 
     fn x(&self, i: usize) -> f64 {
@@ -91,17 +107,27 @@ impl Panel {
 
     fn series(&self, c: &mut Canvas, v: &[f64], colour: [u8; 3]) {
         for (i, w) in v.windows(2).enumerate() {
-            c.line((self.x(i), self.y(w[0])), (self.x(i + 1), self.y(w[1])), colour);
+            c.line(
+                (self.x(i), self.y(w[0])),
+                (self.x(i + 1), self.y(w[1])),
+                colour,
+            );
         }
         if v.len() == 1 {
-            c.line((self.x(0) - 3.0, self.y(v[0])), (self.x(0) + 3.0, self.y(v[0])), colour);
+            c.line(
+                (self.x(0) - 3.0, self.y(v[0])),
+                (self.x(0) + 3.0, self.y(v[0])),
+                colour,
+            );
         }
     }
 }
 
 /// Draws the curve of `epochs` and writes it as a PNG.
 pub fn write_curve(path: &Path, epochs: &[EpochMetrics]) -> Result<()> {
-    let mut c = Canvas { px: vec![255; (W * H * 3) as usize] };
+    let mut c = Canvas {
+        px: vec![255; (W * H * 3) as usize],
+    };
     let n = epochs.len();
     let train: Vec<f64> = epochs.iter().map(|e| e.train_loss).collect();
     let val: Vec<f64> = epochs.iter().map(|e| e.val_loss).collect();
@@ -118,7 +144,11 @@ pub fn write_curve(path: &Path, epochs: &[EpochMetrics]) -> Result<()> {
     let one_cm = bottom.y(0.01);
     let mut x = bottom.x0;
     while x < bottom.x1 {
-        c.line((x, one_cm), ((x + 6.0).min(bottom.x1), one_cm), [150, 150, 150]);
+        c.line(
+            (x, one_cm),
+            ((x + 6.0).min(bottom.x1), one_cm),
+            [150, 150, 150],
+        );
         x += 12.0;
     }
     bottom.series(&mut c, &err, GREEN);
@@ -127,5 +157,8 @@ pub fn write_curve(path: &Path, epochs: &[EpochMetrics]) -> Result<()> {
         path: path.to_path_buf(),
     })?;
     img.save_with_format(path, image::ImageFormat::Png)
-        .map_err(|e| Error::Encode { message: e.to_string(), path: path.to_path_buf() })
+        .map_err(|e| Error::Encode {
+            message: e.to_string(),
+            path: path.to_path_buf(),
+        })
 }

@@ -24,7 +24,10 @@ pub const HEADER: &str = "scene_id,im_id,obj_id,score,R,t,time";
 fn floats<const N: usize>(field: &str, what: &str) -> std::result::Result<[f64; N], String> {
     let vals: Vec<f64> = field
         .split_whitespace()
-        .map(|v| v.parse::<f64>().map_err(|_| format!("{what}: not a number: {v:?}")))
+        .map(|v| {
+            v.parse::<f64>()
+                .map_err(|_| format!("{what}: not a number: {v:?}"))
+        })
         .collect::<std::result::Result<_, _>>()?;
     if vals.iter().any(|v| !v.is_finite()) {
         return Err(format!("{what}: non-finite value"));
@@ -124,7 +127,8 @@ mod tests {
 
     #[test]
     fn errors_name_file_and_line() {
-        let text = format!("{HEADER}\n1,2,3,1.0,1 0 0 0 1 0 0 0 1,0 0 500,-1\n1,2,3,1.0,1 0 0,0 0 1,-1\n");
+        let text =
+            format!("{HEADER}\n1,2,3,1.0,1 0 0 0 1 0 0 0 1,0 0 500,-1\n1,2,3,1.0,1 0 0,0 0 1,-1\n");
         let err = parse_results_csv(&text, Path::new("res.csv")).unwrap_err();
         let msg = err.to_string();
         assert!(msg.starts_with("res.csv:3: R: expected 9 values"), "{msg}");
@@ -133,6 +137,9 @@ mod tests {
         assert!(err.to_string().starts_with("a.csv:1: obj_id"), "{err}");
         let err = parse_results_csv("1,2,3,1,2 0 0 0 1 0 0 0 1,0 0 1,-1", Path::new("a.csv"))
             .unwrap_err();
-        assert!(err.to_string().starts_with("a.csv:1: R: invalid pose"), "{err}");
+        assert!(
+            err.to_string().starts_with("a.csv:1: R: invalid pose"),
+            "{err}"
+        );
     }
 }

@@ -267,12 +267,16 @@ pub fn train(
         )));
     }
     if cfg.batch == 0 || cfg.epochs == 0 {
-        return Err(Error::InvalidOption("--batch and --epochs must be positive".into()));
+        return Err(Error::InvalidOption(
+            "--batch and --epochs must be positive".into(),
+        ));
     }
     std::fs::create_dir_all(out).map_err(|e| Error::io("create directory", out, e))?;
     let val = val_frames(&data.instances, cfg.val_fraction, cfg.seed);
-    let (val_set, train_set): (Vec<&Instance>, Vec<&Instance>) =
-        data.instances.iter().partition(|i| val.contains(&i.frame()));
+    let (val_set, train_set): (Vec<&Instance>, Vec<&Instance>) = data
+        .instances
+        .iter()
+        .partition(|i| val.contains(&i.frame()));
     if train_set.is_empty() {
         return Err(Error::NoInstances {
             reason: "no training instances after the validation split".into(),
@@ -288,10 +292,14 @@ pub fn train(
         (model, state, history)
     } else {
         let model = TNetModel::new(cfg.width, cfg.normalization_scale, device)?;
-        let state = TrainState { epochs_done: 0, steps_done: 0 };
+        let state = TrainState {
+            epochs_done: 0,
+            steps_done: 0,
+        };
         (model, state, Vec::new())
     };
-    let config_json = serde_json::to_vec_pretty(cfg).map_err(|e| Error::InvalidOption(e.to_string()))?;
+    let config_json =
+        serde_json::to_vec_pretty(cfg).map_err(|e| Error::InvalidOption(e.to_string()))?;
     write_atomic(&out.join(CONFIG_FILE), &config_json)?;
     // metrics.jsonl holds exactly the finished epochs.
     let mut lines = String::new();
@@ -366,13 +374,22 @@ pub fn validate(model: &TNetModel, set: &[&Instance], batch: usize) -> Result<(f
     for chunk in set.chunks(batch.max(1)) {
         let (loss, got) = model.run(chunk)?;
         loss_sum += f64::from(loss.to_scalar::<f32>()?) * chunk.len() as f64;
-        err_sum += got.iter().zip(chunk).map(|(g, i)| centre_error_m(*g, i)).sum::<f64>();
+        err_sum += got
+            .iter()
+            .zip(chunk)
+            .map(|(g, i)| centre_error_m(*g, i))
+            .sum::<f64>();
     }
     let n = set.len() as f64;
     Ok((loss_sum / n, err_sum / n))
 }
 
-fn save_checkpoint(model: &TNetModel, out: &Path, epochs_done: usize, steps_done: usize) -> Result<()> {
+fn save_checkpoint(
+    model: &TNetModel,
+    out: &Path,
+    epochs_done: usize,
+    steps_done: usize,
+) -> Result<()> {
     let path = out.join(MODEL_FILE);
     let tmp = out.join("model.safetensors.tmp");
     model.varmap.save(&tmp).map_err(|e| Error::Malformed {
@@ -381,8 +398,11 @@ fn save_checkpoint(model: &TNetModel, out: &Path, epochs_done: usize, steps_done
         path: tmp.clone(),
     })?;
     std::fs::rename(&tmp, &path).map_err(|e| Error::io("rename", &path, e))?;
-    let state = serde_json::to_vec_pretty(&TrainState { epochs_done, steps_done })
-        .map_err(|e| Error::InvalidOption(e.to_string()))?;
+    let state = serde_json::to_vec_pretty(&TrainState {
+        epochs_done,
+        steps_done,
+    })
+    .map_err(|e| Error::InvalidOption(e.to_string()))?;
     write_atomic(&out.join(STATE_FILE), &state)
 }
 

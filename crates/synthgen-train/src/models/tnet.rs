@@ -109,10 +109,19 @@ pub fn make_batch(
 
 /// Centres (metres) from predicted offsets: mean of (x_i + Δx̂_i), un-normalized.
 pub fn centres_from_offsets(batch: &TNetBatch, pred: &Tensor, scale: f32) -> Result<Vec<[f32; 3]>> {
-    let c = (&batch.points + pred)?.mean(1)?.to_dtype(DType::F32)?.to_vec2::<f32>()?;
+    let c = (&batch.points + pred)?
+        .mean(1)?
+        .to_dtype(DType::F32)?
+        .to_vec2::<f32>()?;
     Ok(c.iter()
         .zip(&batch.means_m)
-        .map(|(v, m)| [v[0] / scale + m[0], v[1] / scale + m[1], v[2] / scale + m[2]])
+        .map(|(v, m)| {
+            [
+                v[0] / scale + m[0],
+                v[1] / scale + m[1],
+                v[2] / scale + m[2],
+            ]
+        })
         .collect())
 }
 
@@ -132,7 +141,11 @@ mod tests {
                 let d = [a * 0.7, b * 0.7, -1.0f32];
                 let l = (d[0] * d[0] + d[1] * d[1] + 1.0).sqrt();
                 let r = 0.05;
-                [centre[0] + r * d[0] / l, centre[1] + r * d[1] / l, centre[2] + r * d[2] / l]
+                [
+                    centre[0] + r * d[0] / l,
+                    centre[1] + r * d[1] / l,
+                    centre[2] + r * d[2] / l,
+                ]
             })
             .collect()
     }
@@ -158,7 +171,13 @@ mod tests {
         let net = TNet::new(32, vb).unwrap();
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2);
         let centres: Vec<[f32; 3]> = (0..8)
-            .map(|_| [rng.gen_range(-0.2..0.2), rng.gen_range(-0.2..0.2), rng.gen_range(0.5..1.0)])
+            .map(|_| {
+                [
+                    rng.gen_range(-0.2..0.2),
+                    rng.gen_range(-0.2..0.2),
+                    rng.gen_range(0.5..1.0),
+                ]
+            })
             .collect();
         let clouds: Vec<Vec<[f32; 3]>> = centres.iter().map(|&c| cap(&mut rng, c, 64)).collect();
         let refs: Vec<&[[f32; 3]]> = clouds.iter().map(Vec::as_slice).collect();
@@ -176,17 +195,23 @@ mod tests {
             .to_scalar::<f32>()
             .unwrap();
         for _ in 0..150 {
-            let loss = offset_l1_loss(&net.forward(&batch.points).unwrap(), &batch.offsets).unwrap();
+            let loss =
+                offset_l1_loss(&net.forward(&batch.points).unwrap(), &batch.offsets).unwrap();
             opt.backward_step(&loss).unwrap();
         }
         let pred = net.forward(&batch.points).unwrap();
-        let last = offset_l1_loss(&pred, &batch.offsets).unwrap().to_scalar::<f32>().unwrap();
+        let last = offset_l1_loss(&pred, &batch.offsets)
+            .unwrap()
+            .to_scalar::<f32>()
+            .unwrap();
         assert!(last < 0.3 * first, "loss {first} -> {last}");
         let got = centres_from_offsets(&batch, &pred, DEFAULT_SCALE).unwrap();
         let err: f32 = got
             .iter()
             .zip(&centres)
-            .map(|(g, c)| ((g[0] - c[0]).powi(2) + (g[1] - c[1]).powi(2) + (g[2] - c[2]).powi(2)).sqrt())
+            .map(|(g, c)| {
+                ((g[0] - c[0]).powi(2) + (g[1] - c[1]).powi(2) + (g[2] - c[2]).powi(2)).sqrt()
+            })
             .sum::<f32>()
             / 8.0;
         assert!(err < 0.02, "mean centre error {err} m");
