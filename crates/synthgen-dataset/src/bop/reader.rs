@@ -22,7 +22,8 @@ pub fn read_json<T: DeserializeOwned>(path: &Path) -> Result<T> {
     serde_json::from_slice(&bytes).map_err(|e| Error::json(path, e))
 }
 
-fn check_finite(path: &Path, what: &str, values: &[f64]) -> Result<()> {
+/// An error naming the file when any value is NaN or infinite.
+pub(crate) fn check_finite(path: &Path, what: &str, values: &[f64]) -> Result<()> {
     if values.iter().all(|v| v.is_finite()) {
         Ok(())
     } else {

@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use serde::de::DeserializeOwned;
 
 use super::{folder_name, frame_file, LinemodGt, LinemodInfo};
+use crate::bop::reader::check_finite;
 use crate::bop::ModelInfo;
 use crate::error::{Error, Result};
 use crate::io;
@@ -14,17 +15,6 @@ use crate::io;
 fn read_yaml<T: DeserializeOwned>(path: &Path) -> Result<T> {
     let bytes = io::read(path)?;
     serde_yaml_ng::from_slice(&bytes).map_err(|e| Error::yaml(path, e))
-}
-
-fn check_finite(path: &Path, what: &str, values: &[f64]) -> Result<()> {
-    if values.iter().all(|v| v.is_finite()) {
-        Ok(())
-    } else {
-        Err(Error::malformed(
-            path,
-            format!("non-finite value in {what}"),
-        ))
-    }
 }
 
 /// Reads `gt.yml` (frame id → objects). Checks types, keys and finiteness; rotations are
