@@ -101,6 +101,16 @@ impl BboxAcc {
     }
 }
 
+/// BOP's `[x, y, w, h]` of the non-zero pixels of a row-major mask `width` pixels wide;
+/// `[-1, -1, -1, -1]` when empty.
+pub fn mask_bbox(mask: &[u8], width: u32) -> [i32; 4] {
+    let mut acc = BboxAcc::default();
+    for (i, _) in mask.iter().enumerate().filter(|(_, &v)| v > 0) {
+        acc.add((i % width as usize) as i32, (i / width as usize) as i32);
+    }
+    acc.bbox()
+}
+
 /// Computes masks and gt info for every object of a frame.
 ///
 /// `scene_depth_m` is the depth the visibility test compares against (the rendered scene depth,

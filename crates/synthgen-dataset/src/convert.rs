@@ -4,6 +4,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
+use synthgen_core::annotate::mask_bbox;
 use synthgen_core::Progress;
 
 use crate::bop::chunk::write_map;
@@ -74,25 +75,6 @@ pub fn rescale_depth(values: &[u16], from: f64, to: f64) -> (Vec<u16>, u64) {
         })
         .collect();
     (out, overflow)
-}
-
-/// BOP's `[x, y, w, h]` of the non-zero pixels of a mask; -1s when empty.
-fn mask_bbox(mask: &[u8], width: u32) -> [i32; 4] {
-    let (mut x0, mut y0, mut x1, mut y1) = (i32::MAX, i32::MAX, -1, -1);
-    for (i, &v) in mask.iter().enumerate() {
-        if v > 0 {
-            let (x, y) = ((i % width as usize) as i32, (i / width as usize) as i32);
-            x0 = x0.min(x);
-            y0 = y0.min(y);
-            x1 = x1.max(x);
-            y1 = y1.max(y);
-        }
-    }
-    if x1 < 0 {
-        [-1; 4]
-    } else {
-        [x0, y0, x1 - x0, y1 - y0]
-    }
 }
 
 fn copy_file(from: &Path, to: &Path) -> Result<()> {

@@ -40,8 +40,6 @@ pub enum Error {
     InvalidOption(String),
     #[error("tensor error: {0}")]
     Candle(#[from] candle_core::Error),
-    #[error("cannot encode image: {message}: {path}")]
-    Encode { message: String, path: PathBuf },
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;

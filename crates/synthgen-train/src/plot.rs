@@ -1,10 +1,13 @@
-//! The training curve as a PNG, drawn pixel by pixel (no fonts, no system libraries).
+//! The training curve as a PNG, drawn on the dataset crate's canvas (no fonts, no system
+//! libraries).
 //! Top panel: train loss (blue) and val loss (orange), log scale. Bottom panel: validation
 //! centre error (green), log scale, with a grey line at 1 cm. Grid lines at decades.
 
 use std::path::Path;
 
-use crate::error::{Error, Result};
+use synthgen_dataset::draw::Canvas;
+
+use crate::error::Result;
 use crate::train::EpochMetrics;
 
 const W: u32 = 640;
@@ -14,31 +17,6 @@ const ORANGE: [u8; 3] = [255, 127, 14];
 const GREEN: [u8; 3] = [44, 160, 44];
 const GRID: [u8; 3] = [220, 220, 220];
 const AXIS: [u8; 3] = [60, 60, 60];
-
-struct Canvas {
-    px: Vec<u8>,
-}
-
-impl Canvas {
-    fn set(&mut self, x: i64, y: i64, c: [u8; 3]) {
-        if (0..i64::from(W)).contains(&x) && (0..i64::from(H)).contains(&y) {
-            let i = ((y as u32 * W + x as u32) * 3) as usize;
-            self.px[i..i + 3].copy_from_slice(&c);
-        }
-    }
-
-    /// A line two pixels thick.
-    fn line(&mut self, (x0, y0): (f64, f64), (x1, y1): (f64, f64), c: [u8; 3]) {
-        let steps = ((x1 - x0).abs().max((y1 - y0).abs()).ceil() as i64).max(1);
-        for s in 0..=steps {
-            let t = s as f64 / steps as f64;
-            let (x, y) = (x0 + (x1 - x0) * t, y0 + (y1 - y0) * t);
-            for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-                self.set(x.round() as i64 + dx, y.round() as i64 + dy, c);
-            }
-        }
-    }
-}
 
 /// A panel: pixel box and a log10 y range.
 struct Panel {
@@ -92,16 +70,16 @@ impl Panel {
             for m in 1..10 {
                 let y = self.y(10f64.powf(d) * f64::from(m));
                 if y >= self.y0 - 0.5 && m == 1 {
-                    c.line((self.x0, y), (self.x1, y), GRID);
+                    c.line((self.x0, y), (self.x1, y), GRID, 2);
                 }
             }
             d += 1.0;
         }
-        c.line((self.x0, self.y0), (self.x0, self.y1), AXIS);
-        c.line((self.x0, self.y1), (self.x1, self.y1), AXIS);
+        c.line((self.x0, self.y0), (self.x0, self.y1), AXIS, 2);
+        c.line((self.x0, self.y1), (self.x1, self.y1), AXIS, 2);
         for i in 0..self.n {
             let x = self.x(i);
-            c.line((x, self.y1), (x, self.y1 + 4.0), AXIS);
+            c.line((x, self.y1), (x, self.y1 + 4.0), AXIS, 2);
         }
     }
 
@@ -111,6 +89,7 @@ impl Panel {
                 (self.x(i), self.y(w[0])),
                 (self.x(i + 1), self.y(w[1])),
                 colour,
+                2,
             );
         }
         if v.len() == 1 {
@@ -118,6 +97,7 @@ impl Panel {
                 (self.x(0) - 3.0, self.y(v[0])),
                 (self.x(0) + 3.0, self.y(v[0])),
                 colour,
+                2,
             );
         }
     }
@@ -125,9 +105,7 @@ impl Panel {
 
 /// Draws the curve of `epochs` and writes it as a PNG.
 pub fn write_curve(path: &Path, epochs: &[EpochMetrics]) -> Result<()> {
-    let mut c = Canvas {
-        px: vec![255; (W * H * 3) as usize],
-    };
+    let mut c = Canvas::new(W, H, [255; 3]);
     let n = epochs.len();
     let train: Vec<f64> = epochs.iter().map(|e| e.train_loss).collect();
     let val: Vec<f64> = epochs.iter().map(|e| e.val_loss).collect();
@@ -148,17 +126,11 @@ pub fn write_curve(path: &Path, epochs: &[EpochMetrics]) -> Result<()> {
             (x, one_cm),
             ((x + 6.0).min(bottom.x1), one_cm),
             [150, 150, 150],
+            2,
         );
         x += 12.0;
     }
     bottom.series(&mut c, &err, GREEN);
-    let img = image::RgbImage::from_raw(W, H, c.px).ok_or_else(|| Error::Encode {
-        message: "buffer size".into(),
-        path: path.to_path_buf(),
-    })?;
-    img.save_with_format(path, image::ImageFormat::Png)
-        .map_err(|e| Error::Encode {
-            message: e.to_string(),
-            path: path.to_path_buf(),
-        })
+    c.write_png(path)?;
+    Ok(())
 }
