@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use glam::{Vec2, Vec3};
+use glam::{DVec3, Vec2, Vec3};
 
 /// An 8-bit sRGB texture, rows top to bottom (v = 1 is the top row, as in OBJ/glTF after the
 /// loader's flip: loaders store `uv` so that `v = 0` is the first row).
@@ -195,6 +195,43 @@ impl Model {
     }
 }
 
+/// Distance from point `p` to triangle (a, b, c) (Ericson, Real-Time Collision Detection).
+pub fn point_triangle_distance(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> f64 {
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return (p - a).length();
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return (p - b).length();
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return (p - (a + ab * v)).length();
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return (p - c).length();
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return (p - (a + ac * w)).length();
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return (p - (b + (c - b) * w)).length();
+    }
+    let denom = 1.0 / (va + vb + vc);
+    let (v, w) = (vb * denom, vc * denom);
+    (p - (a + ab * v + ac * w)).length()
+}
+
 /// `n` roughly uniform unit directions on the sphere (Fibonacci lattice).
 pub fn fibonacci_sphere(n: usize) -> impl Iterator<Item = Vec3> {
     let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
@@ -222,6 +259,16 @@ mod tests {
         let bb = m.aabb().unwrap();
         assert_eq!(bb.size(), Vec3::splat(0.1));
         assert_eq!(m.support_points(64).len(), 8);
+    }
+
+    #[test]
+    fn point_triangle_distance_regions() {
+        let (a, b, c) = (DVec3::ZERO, DVec3::X, DVec3::Y);
+        // Above the face, beyond a vertex, beside an edge.
+        assert!((point_triangle_distance(DVec3::new(0.2, 0.2, 0.5), a, b, c) - 0.5).abs() < 1e-12);
+        assert!((point_triangle_distance(DVec3::new(-1.0, 0.0, 0.0), a, b, c) - 1.0).abs() < 1e-12);
+        let d = point_triangle_distance(DVec3::new(1.0, 1.0, 0.0), a, b, c);
+        assert!((d - 0.5f64.sqrt()).abs() < 1e-12, "{d}");
     }
 
     #[test]

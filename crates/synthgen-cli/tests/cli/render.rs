@@ -4,6 +4,7 @@ use std::path::Path;
 
 use synthgen_assets::Units;
 use synthgen_core::glam::DVec3;
+use synthgen_core::mesh::point_triangle_distance;
 use synthgen_core::sample::SceneObject;
 use synthgen_core::{NoProgress, SceneSampler, SceneSpec};
 use synthgen_dataset::bop::{read_mask, BopDataset};
@@ -14,43 +15,6 @@ use crate::common::{repo_root, run, shared_data, stderr, synthgen};
 pub fn write_box_ply(path: &Path) {
     let m = synthgen_core::Model::cuboid("box", synthgen_core::glam::Vec3::new(0.08, 0.06, 0.04));
     synthgen_assets::write_ply(path, &m, 1.0).unwrap();
-}
-
-/// Distance from p to triangle abc (Ericson, Real-Time Collision Detection 5.1.5).
-fn point_triangle_distance(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> f64 {
-    let (ab, ac, ap) = (b - a, c - a, p - a);
-    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return p.distance(a);
-    }
-    let bp = p - b;
-    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return p.distance(b);
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        let v = d1 / (d1 - d3);
-        return p.distance(a + v * ab);
-    }
-    let cp = p - c;
-    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return p.distance(c);
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        let w = d2 / (d2 - d6);
-        return p.distance(a + w * ac);
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return p.distance(b + w * (c - b));
-    }
-    let denom = 1.0 / (va + vb + vc);
-    let (v, w) = (vb * denom, vc * denom);
-    p.distance(a + ab * v + ac * w)
 }
 
 struct Surface {

@@ -3,6 +3,7 @@
 
 use std::path::Path;
 
+use synthgen_core::mesh::point_triangle_distance;
 use synthgen_core::{annotate, Model, NoProgress, SceneObject, SceneSampler, SceneSpec};
 use synthgen_render::{CpuRenderer, Renderer};
 
