@@ -59,7 +59,9 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     writer.write_models(&models, &ids)?;
 
     let sampler = SceneSampler::new(spec.clone(), scene_objects, args.seed)?;
-    let renderer = CpuRenderer::new(models.clone(), backgrounds)?;
+    // The summary needs only the names: the meshes move into the renderer, not a copy.
+    let names: Vec<String> = models.iter().map(|m| m.name.clone()).collect();
+    let renderer = CpuRenderer::new(models, backgrounds)?;
     let delta_m = args.visib_delta_m as f32;
 
     let frames: Vec<u64> = frame_range.collect();
@@ -138,7 +140,7 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     summarize(
         printer,
         &args,
-        &models,
+        &names,
         written,
         &failures,
         elapsed,
@@ -407,13 +409,12 @@ fn load_backgrounds(spec: &SceneSpec, printer: &Printer) -> Result<Vec<Arc<Textu
 fn summarize(
     printer: &Printer,
     args: &RenderArgs,
-    models: &[Model],
+    names: &[String],
     written: u64,
     failures: &[(u64, String)],
     elapsed_s: f64,
     wrote: &str,
 ) {
-    let names: Vec<&str> = models.iter().map(|m| m.name.as_str()).collect();
     let fps = if elapsed_s > 0.0 {
         written as f64 / elapsed_s
     } else {
@@ -422,8 +423,8 @@ fn summarize(
     printer.info(format!(
         "Rendered {written} frames of {} object{} ({}) in {elapsed_s:.1} s ({fps:.1} frames/s) \
          with the embedded CPU renderer, seed {}; wrote {wrote}.{}",
-        models.len(),
-        if models.len() == 1 { "" } else { "s" },
+        names.len(),
+        if names.len() == 1 { "" } else { "s" },
         names.join(", "),
         args.seed,
         if failures.is_empty() {
