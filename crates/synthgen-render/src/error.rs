@@ -45,4 +45,11 @@ pub enum Error {
 
     #[error("invalid render option {name}: {reason}")]
     InvalidOption { name: &'static str, reason: String },
+
+    /// A failure inside another backend (Blender), kept as the error's source.
+    #[error("{backend} backend: {source}")]
+    Backend {
+        backend: &'static str,
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
 }
