@@ -547,6 +547,23 @@ pub struct RenderArgs {
     /// Stop at the first frame that fails instead of reporting failures at the end.
     #[arg(long)]
     pub fail_fast: bool,
+
+    /// --backend blender: Cycles path-tracing samples per pixel.
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..))]
+    pub samples: u32,
+
+    /// --backend blender: denoise with OpenImageDenoise.
+    #[arg(long)]
+    pub denoise: bool,
+
+    /// --backend blender: CPU threads for Cycles (default: all cores).
+    #[arg(long, value_name = "N")]
+    pub blender_threads: Option<u32>,
+
+    /// --backend blender: the venv with bpy (default: $SYNTHGEN_BLENDER_VENV, else
+    /// ~/.cache/synthgen/blender-venv, which scripts/setup-blender.sh creates).
+    #[arg(long, value_name = "DIR")]
+    pub blender_venv: Option<PathBuf>,
 }
 
 /// Parses `MIN..MAX` (or a single value) into a closed range.

@@ -29,7 +29,7 @@ struct ObjectSource {
 
 pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     let started = Instant::now();
-    check_backend(args.backend)?;
+    check_backend(&args)?;
     let spec = build_spec(&args)?;
     let sources = collect_sources(&args, &spec)?;
     check_out_dir(&args.out, args.force)?;
@@ -61,7 +61,7 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     let sampler = SceneSampler::new(spec.clone(), scene_objects, args.seed)?;
     // The summary needs only the names: the meshes move into the renderer, not a copy.
     let names: Vec<String> = models.iter().map(|m| m.name.clone()).collect();
-    let renderer = CpuRenderer::new(models, backgrounds)?;
+    let renderer = make_renderer(&args, models, backgrounds, printer)?;
     let delta_m = args.visib_delta_m as f32;
 
     let frames: Vec<u64> = frame_range.collect();
@@ -124,7 +124,7 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
 
     let elapsed = started.elapsed().as_secs_f64();
     let mut manifest = Manifest::new(std::env::args().collect(), args.seed);
-    manifest.backend = "cpu".into();
+    manifest.backend = renderer.name().into();
     manifest.frames = written;
     manifest.scene_spec = serde_json::to_value(&spec).context("cannot serialize the scene spec")?;
     manifest.extra = serde_json::json!({
@@ -153,18 +153,83 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     })
 }
 
-fn check_backend(backend: Backend) -> Result<()> {
-    match backend {
-        Backend::Cpu => Ok(()),
-        Backend::Blender if cfg!(feature = "blender") => Err(user_error(
-            "the blender backend is not implemented yet",
-            "use --backend cpu (the default); Blender rendering is tracked in the project's issues",
-        )),
+fn check_backend(args: &RenderArgs) -> Result<()> {
+    match args.backend {
+        Backend::Cpu => {
+            let blender_only = args.samples != 16
+                || args.denoise
+                || args.blender_threads.is_some()
+                || args.blender_venv.is_some();
+            if blender_only {
+                return Err(user_error(
+                    "--samples, --denoise, --blender-threads and --blender-venv apply only to --backend blender",
+                    "add --backend blender, or drop those flags",
+                ));
+            }
+            Ok(())
+        }
+        Backend::Blender if cfg!(feature = "blender") => Ok(()),
         Backend::Blender => Err(user_error(
             "synthgen was not compiled with the `blender` feature",
-            "use --backend cpu (the default), or rebuild with `--features blender`",
+            "use --backend cpu (the default), or rebuild with `cargo build -p synthgen-cli --features blender` (docs/blender.md)",
         )),
     }
+}
+
+/// The renderer of `--backend`. Both are `Sync`: frames render on the worker threads; the
+/// Blender renderer queues them to its one bpy thread.
+fn make_renderer(
+    args: &RenderArgs,
+    models: Vec<Model>,
+    backgrounds: Vec<Arc<Texture>>,
+    printer: &Printer,
+) -> Result<Box<dyn Renderer + Sync>> {
+    match args.backend {
+        Backend::Cpu => Ok(Box::new(CpuRenderer::new(models, backgrounds)?)),
+        Backend::Blender => blender_renderer(args, models, backgrounds, printer),
+    }
+}
+
+#[cfg(feature = "blender")]
+fn blender_renderer(
+    args: &RenderArgs,
+    models: Vec<Model>,
+    backgrounds: Vec<Arc<Texture>>,
+    printer: &Printer,
+) -> Result<Box<dyn Renderer + Sync>> {
+    use synthgen_blender::{BlenderOptions, BlenderRenderer, Error};
+    let options = BlenderOptions {
+        venv: args.blender_venv.clone(),
+        samples: args.samples,
+        denoise: args.denoise,
+        threads: args.blender_threads.unwrap_or(0),
+        ..BlenderOptions::default()
+    };
+    printer.info(format!(
+        "starting Blender (Cycles, {} samples{})",
+        options.samples,
+        if options.denoise { ", denoised" } else { "" }
+    ));
+    match BlenderRenderer::new(models, backgrounds, options) {
+        Ok(r) => Ok(Box::new(r)),
+        Err(e @ Error::BpyNotFound { .. }) => Err(user_error(e.to_string(), synthgen_blender::SETUP_HINT)),
+        Err(e @ Error::InvalidOption { .. }) => Err(user_error(e.to_string(), "see synthgen render --help")),
+        Err(e) => Err(anyhow::Error::new(e).context("cannot start the blender backend")),
+    }
+}
+
+#[cfg(not(feature = "blender"))]
+fn blender_renderer(
+    _args: &RenderArgs,
+    _models: Vec<Model>,
+    _backgrounds: Vec<Arc<Texture>>,
+    _printer: &Printer,
+) -> Result<Box<dyn Renderer + Sync>> {
+    // check_backend refuses --backend blender first in this build.
+    Err(user_error(
+        "synthgen was not compiled with the `blender` feature",
+        "rebuild with `cargo build -p synthgen-cli --features blender`",
+    ))
 }
 
 /// The scene spec: defaults, then `--scene FILE`, then flags.
@@ -422,10 +487,14 @@ fn summarize(
     };
     printer.info(format!(
         "Rendered {written} frames of {} object{} ({}) in {elapsed_s:.1} s ({fps:.1} frames/s) \
-         with the embedded CPU renderer, seed {}; wrote {wrote}.{}",
+         with the {} renderer, seed {}; wrote {wrote}.{}",
         names.len(),
         if names.len() == 1 { "" } else { "s" },
         names.join(", "),
+        match args.backend {
+            Backend::Cpu => "embedded CPU",
+            Backend::Blender => "Blender Cycles",
+        },
         args.seed,
         if failures.is_empty() {
             String::new()

@@ -48,6 +48,7 @@ fn no_objects_gives_a_hint() {
 }
 
 #[test]
+#[cfg(not(feature = "blender"))]
 fn blender_backend_says_how_to_enable_it() {
     let dir = tempfile::tempdir().unwrap();
     let mesh = dir.path().join("box.ply");

@@ -2,6 +2,8 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod annotate;
+#[cfg(feature = "blender")]
+mod blender;
 mod coco;
 mod common;
 mod errors;
