@@ -39,6 +39,15 @@ def setup(settings_json):
         scene.cycles.denoiser = "OPENIMAGEDENOISE"
     scene.cycles.filter_width = float(s["filter_width_px"])
     scene.cycles.use_light_tree = True
+    # BlenderProc's defaults for its BOP recipes: few bounces, no caustics.
+    scene.cycles.max_bounces = 4
+    scene.cycles.diffuse_bounces = 3
+    scene.cycles.glossy_bounces = 3
+    scene.cycles.transmission_bounces = 0
+    scene.cycles.volume_bounces = 0
+    scene.cycles.transparent_max_bounces = 2
+    scene.cycles.caustics_reflective = False
+    scene.cycles.caustics_refractive = False
     if int(s["threads"]) > 0:
         scene.render.threads_mode = "FIXED"
         scene.render.threads = int(s["threads"])

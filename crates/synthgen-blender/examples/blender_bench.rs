@@ -23,6 +23,18 @@ fn rss_mib() -> f64 {
     pages * 4096.0 / (1024.0 * 1024.0)
 }
 
+/// CPU seconds of this process, all threads (utime + stime, 100 ticks/s on Linux).
+fn cpu_s() -> f64 {
+    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    let after = stat.rsplit_once(')').map_or("", |(_, r)| r);
+    let f: Vec<f64> = after
+        .split_whitespace()
+        .filter_map(|v| v.parse().ok())
+        .collect();
+    // Fields 14 and 15 of stat; after the ")" they are the 12th and 13th (the state is not a number).
+    f.get(10).copied().unwrap_or(0.0) / 100.0 + f.get(11).copied().unwrap_or(0.0) / 100.0
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -73,15 +85,19 @@ fn main() -> anyhow::Result<()> {
         })
         .collect();
     let sampler = SceneSampler::new(spec, objects, 0)?;
-    let scenes: Vec<_> = (0..frames).map(|i| sampler.sample(i)).collect::<Result<_, _>>()?;
+    let scenes: Vec<_> = (0..frames)
+        .map(|i| sampler.sample(i))
+        .collect::<Result<_, _>>()?;
 
     let raster = CpuRenderer::new(models.clone(), vec![])?;
     let mut raster_s = Vec::new();
+    let mut raster_cpu = Vec::new();
     for sc in &scenes {
-        let t = Instant::now();
+        let (t, c0) = (Instant::now(), cpu_s());
         let f = raster.render(sc)?;
         synthgen_core::annotate(f.width, f.height, &f.depth_m, &f.alone, 0.015);
         raster_s.push(t.elapsed().as_secs_f64());
+        raster_cpu.push(cpu_s() - c0);
     }
 
     let rss_start = rss_mib();
@@ -96,17 +112,20 @@ fn main() -> anyhow::Result<()> {
     )?;
     let startup_s = t.elapsed().as_secs_f64();
     let mut cycles_s = Vec::new();
+    let mut cycles_cpu = Vec::new();
     let mut rss = Vec::new();
     for (i, sc) in scenes.iter().enumerate() {
-        let t = Instant::now();
+        let (t, c0) = (Instant::now(), cpu_s());
         let f = blender.render(sc)?;
         synthgen_core::annotate(f.width, f.height, &f.depth_m, &f.alone, 0.015);
         cycles_s.push(t.elapsed().as_secs_f64());
+        cycles_cpu.push(cpu_s() - c0);
         if rss_every > 0 && (i as u64 % rss_every == 0 || i as u64 + 1 == frames) {
             rss.push((i, rss_mib()));
         }
     }
     let (r, c) = (median(raster_s), median(cycles_s));
+    let (rc, cc) = (median(raster_cpu), median(cycles_cpu));
     println!(
         "{}x{} {} objects {} frames: raster {:.4} s/frame, cycles {} samples {:.3} s/frame (median; {:.0}x the raster), bpy startup + scene build {:.1} s",
         size.0,
@@ -118,6 +137,11 @@ fn main() -> anyhow::Result<()> {
         c,
         c / r,
         startup_s
+    );
+    println!(
+        "  cpu seconds per frame (all threads; robust to other load): raster {rc:.3}, cycles {cc:.2} ({:.0}x); load average {}",
+        cc / rc.max(0.001),
+        std::fs::read_to_string("/proc/loadavg").unwrap_or_default().trim()
     );
     if !rss.is_empty() {
         println!("rss before bpy {rss_start:.0} MiB; after frame (index: MiB):");

@@ -14,8 +14,12 @@ fn main() -> anyhow::Result<()> {
     let models: Vec<_> = args[3..]
         .iter()
         .map(|p| {
-            synthgen_assets::load_model(p.as_ref(), synthgen_assets::Units::Auto, &synthgen_core::NoProgress)
-                .map(|l| l.model)
+            synthgen_assets::load_model(
+                p.as_ref(),
+                synthgen_assets::Units::Auto,
+                &synthgen_core::NoProgress,
+            )
+            .map(|l| l.model)
         })
         .collect::<Result<_, _>>()?;
     let objects = models
@@ -41,14 +45,21 @@ fn main() -> anyhow::Result<()> {
     let (b, raster) = r.render_with_raster(&scene)?;
     let ann = synthgen_core::annotate(b.width, b.height, &b.depth_m, &b.alone, 0.015);
     let (w, h) = (b.width as usize, b.height as usize);
-    let tints = [[255u8, 60, 60], [60, 255, 60], [60, 120, 255], [255, 220, 40], [255, 60, 255]];
+    let tints = [
+        [255u8, 60, 60],
+        [60, 255, 60],
+        [60, 120, 255],
+        [255, 220, 40],
+        [255, 60, 255],
+    ];
     let mut overlay = b.rgb.clone();
     for (i, a) in ann.iter().enumerate() {
         let t = tints[i % tints.len()];
         for (p, &m) in a.mask_visib.iter().enumerate() {
             if m > 0 {
                 for c in 0..3 {
-                    overlay[p * 3 + c] = ((u16::from(overlay[p * 3 + c]) + u16::from(t[c])) / 2) as u8;
+                    overlay[p * 3 + c] =
+                        ((u16::from(overlay[p * 3 + c]) + u16::from(t[c])) / 2) as u8;
                 }
             }
         }
@@ -58,7 +69,11 @@ fn main() -> anyhow::Result<()> {
         for y in 0..h {
             for x in 0..w {
                 let p = (y * w + x) * 3;
-                img.put_pixel((k * w + x) as u32, y as u32, image::Rgb([src[p], src[p + 1], src[p + 2]]));
+                img.put_pixel(
+                    (k * w + x) as u32,
+                    y as u32,
+                    image::Rgb([src[p], src[p + 1], src[p + 2]]),
+                );
             }
         }
     }

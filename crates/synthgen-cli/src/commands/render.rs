@@ -212,8 +212,12 @@ fn blender_renderer(
     ));
     match BlenderRenderer::new(models, backgrounds, options) {
         Ok(r) => Ok(Box::new(r)),
-        Err(e @ Error::BpyNotFound { .. }) => Err(user_error(e.to_string(), synthgen_blender::SETUP_HINT)),
-        Err(e @ Error::InvalidOption { .. }) => Err(user_error(e.to_string(), "see synthgen render --help")),
+        Err(e @ Error::BpyNotFound { .. }) => {
+            Err(user_error(e.to_string(), synthgen_blender::SETUP_HINT))
+        }
+        Err(e @ Error::InvalidOption { .. }) => {
+            Err(user_error(e.to_string(), "see synthgen render --help"))
+        }
         Err(e) => Err(anyhow::Error::new(e).context("cannot start the blender backend")),
     }
 }

@@ -35,8 +35,17 @@ fn blender_backend_writes_the_same_bop_layout() {
             .args(["render", "--backend", backend, "--objects"])
             .arg(&mesh)
             .args(["--frames", "2", "--seed", "4", "--image-size", "96,72"])
-            .args(["--camera-k", "110,111,47.5,35.5", "--distance-m", "0.4..0.5"])
-            .args(if backend == "blender" { &["--samples", "4"][..] } else { &[] })
+            .args([
+                "--camera-k",
+                "110,111,47.5,35.5",
+                "--distance-m",
+                "0.4..0.5",
+            ])
+            .args(if backend == "blender" {
+                &["--samples", "4"][..]
+            } else {
+                &[]
+            })
             .arg("--out")
             .arg(&out_dir));
         assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
@@ -57,9 +66,15 @@ fn blender_backend_writes_the_same_bop_layout() {
     }
     for i in 0..2 {
         let name = format!("train_pbr/000000/mask/{i:06}_000000.png");
-        assert_eq!(std::fs::read(b.join(&name)).unwrap(), std::fs::read(c.join(&name)).unwrap());
+        assert_eq!(
+            std::fs::read(b.join(&name)).unwrap(),
+            std::fs::read(c.join(&name)).unwrap()
+        );
         let rgb = format!("train_pbr/000000/rgb/{i:06}.png");
-        assert_ne!(std::fs::read(b.join(&rgb)).unwrap(), std::fs::read(c.join(&rgb)).unwrap());
+        assert_ne!(
+            std::fs::read(b.join(&rgb)).unwrap(),
+            std::fs::read(c.join(&rgb)).unwrap()
+        );
     }
     let out = run(synthgen().arg("validate").arg(&b));
     assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
@@ -79,5 +94,8 @@ fn missing_bpy_says_how_to_install_it() {
         .arg(dir.path().join("o")));
     assert_eq!(out.status.code(), Some(1));
     let e = stderr(&out);
-    assert!(e.contains("bpy not found") && e.contains("setup-blender.sh"), "{e}");
+    assert!(
+        e.contains("bpy not found") && e.contains("setup-blender.sh"),
+        "{e}"
+    );
 }
