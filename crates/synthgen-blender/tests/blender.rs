@@ -319,8 +319,8 @@ fn vertex_colours_show_in_cycles() {
         let mut n = 0.0;
         for (p, &i) in f.instance.iter().enumerate() {
             if i == id {
-                for c in 0..3 {
-                    acc[c] += f64::from(f.rgb[p * 3 + c]);
+                for (a, &v) in acc.iter_mut().zip(&f.rgb[p * 3..p * 3 + 3]) {
+                    *a += f64::from(v);
                 }
                 n += 1.0;
             }
