@@ -19,6 +19,7 @@ pub mod progress;
 pub mod rng;
 pub mod sample;
 pub mod scene;
+mod sensor_spec;
 pub mod symmetry;
 
 pub use annotate::{annotate, AloneDepth, GtInfo, ObjectAnnotation, RenderedFrame};

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::camera::Intrinsics;
+pub use crate::sensor_spec::{D455Spec, DepthModel, RgbNoiseSpec, SensorSpec, TofSpec};
 use crate::Error;
 
 /// A closed range `[min, max]` sampled uniformly.
@@ -21,6 +22,8 @@ pub struct SceneSpec {
     pub lights: LightSpec,
     pub background: BackgroundSpec,
     pub materials: MaterialSpec,
+    /// Sensor models applied after rendering (depth noise, RGB noise). Default: none.
+    pub sensor: SensorSpec,
     /// Objects declared in the spec (in addition to `--objects` on the command line).
     pub objects: Vec<ObjectSpec>,
 }
@@ -322,7 +325,7 @@ impl SceneSpec {
     /// Checks ranges and values; errors name the field.
     pub fn validate(&self) -> Result<(), Error> {
         self.camera.intrinsics()?;
-        let ranges: [(&str, Range); 12] = [
+        let ranges: [(&str, Range); 11] = [
             ("camera_pose.distance_m", self.camera_pose.distance_m),
             ("camera_pose.elevation_deg", self.camera_pose.elevation_deg),
             ("camera_pose.azimuth_deg", self.camera_pose.azimuth_deg),
@@ -334,7 +337,6 @@ impl SceneSpec {
             ("materials.brightness", self.materials.brightness),
             ("materials.specular", self.materials.specular),
             ("materials.shininess", self.materials.shininess),
-            ("placement.area_m", self.placement.area_m),
         ];
         for (name, [lo, hi]) in ranges {
             if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
@@ -342,6 +344,13 @@ impl SceneSpec {
                     "{name} must be finite with min <= max, got [{lo}, {hi}]"
                 )));
             }
+        }
+        // area_m is a size (x, y), not a range: x may be larger than y.
+        let [ax, ay] = self.placement.area_m;
+        if !(ax.is_finite() && ay.is_finite() && ax >= 0.0 && ay >= 0.0) {
+            return Err(Error::InvalidSpec(format!(
+                "placement.area_m must be two finite sizes >= 0, got [{ax}, {ay}]"
+            )));
         }
         if self.camera_pose.distance_m[0] <= 0.0 {
             return Err(Error::InvalidSpec(
@@ -364,6 +373,7 @@ impl SceneSpec {
                 "placement.max_tries must be >= 1".into(),
             ));
         }
+        self.sensor.validate()?;
         if self.background.kind == BackgroundKind::Images && self.background.images_dir.is_none() {
             return Err(Error::InvalidSpec(
                 "background.kind = \"images\" needs background.images_dir".into(),
@@ -398,6 +408,28 @@ mod tests {
     fn inverted_range_is_an_error() {
         let e = SceneSpec::from_toml_str("[camera_pose]\ndistance_m = [2.0, 1.0]\n").unwrap_err();
         assert!(e.to_string().contains("camera_pose.distance_m"), "{e}");
+    }
+
+    #[test]
+    fn area_is_a_size_not_a_range() {
+        let s = SceneSpec::from_toml_str("[placement]\narea_m = [0.3, 0.25]\n").unwrap();
+        assert_eq!(s.placement.area_m, [0.3, 0.25]);
+        assert!(SceneSpec::from_toml_str("[placement]\narea_m = [-0.1, 0.2]\n").is_err());
+    }
+
+    #[test]
+    fn sensor_section_parses_and_is_checked() {
+        let s = SceneSpec::from_toml_str(
+            "[sensor]\ndepth = \"d455\"\n[sensor.d455]\nsubpixel_sigma_px = 0.1\n",
+        )
+        .unwrap();
+        assert_eq!(s.sensor.depth, DepthModel::D455);
+        assert_eq!(s.sensor.d455.subpixel_sigma_px, 0.1);
+        assert_eq!(s.sensor.d455.baseline_m, 0.095);
+        let e = SceneSpec::from_toml_str("[sensor.d455]\nedge_dropout = 2.0\n").unwrap_err();
+        assert!(e.to_string().contains("sensor.d455.edge_dropout"), "{e}");
+        let e = SceneSpec::from_toml_str("[sensor]\ndepth = \"kinect2\"\n").unwrap_err();
+        assert!(e.to_string().contains("kinect2"), "{e}");
     }
 
     #[test]

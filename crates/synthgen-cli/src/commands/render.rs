@@ -12,7 +12,7 @@ use synthgen_core::sample::SceneObject;
 use synthgen_core::scene::{BackgroundKind, Orientation};
 use synthgen_core::{Model, Progress, SceneSampler, SceneSpec, Texture};
 use synthgen_dataset::manifest::{write_manifest, Manifest};
-use synthgen_render::{CpuRenderer, Renderer};
+use synthgen_render::{CpuRenderer, Renderer, SensorModel};
 
 use crate::cli::{Backend, BackgroundArg, FormatArg, OrientationArg, RenderArgs, UnitsArg};
 use crate::commands::render_sink::{self, Sink};
@@ -62,6 +62,8 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     // The summary needs only the names: the meshes move into the renderer, not a copy.
     let names: Vec<String> = models.iter().map(|m| m.name.clone()).collect();
     let renderer = CpuRenderer::new(models, backgrounds)?;
+    // Applied after the annotations, so masks and GT come from the clean render.
+    let sensor = SensorModel::new(spec.sensor.clone(), args.seed)?;
     let delta_m = args.visib_delta_m as f32;
 
     let frames: Vec<u64> = frame_range.collect();
@@ -77,7 +79,7 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
                 .map(|&i| {
                     let r = (|| {
                         let scene = sampler.sample(i)?;
-                        let frame = renderer.render(&scene)?;
+                        let mut frame = renderer.render(&scene)?;
                         let ann = synthgen_core::annotate(
                             frame.width,
                             frame.height,
@@ -85,6 +87,9 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
                             &frame.alone,
                             delta_m,
                         );
+                        if !sensor.is_identity() {
+                            sensor.apply(&scene, &mut frame);
+                        }
                         let rec = writer.write_frame(i, &scene, &frame, &ann)?;
                         printer.advance(1);
                         anyhow::Ok(rec)
