@@ -29,7 +29,7 @@ pub use glam;
 pub use mesh::{Aabb, Material, Model, Primitive, Texture};
 pub use pose::Pose;
 pub use progress::{NoProgress, Progress};
-pub use sample::{FrameScene, ObjectInstance, SceneObject, SceneSampler};
+pub use sample::{FrameScene, ObjectInstance, SceneObject, SceneSampler, Settle};
 pub use scene::SceneSpec;
 pub use symmetry::Symmetries;
 

@@ -120,10 +120,59 @@ pub enum Orientation {
     Random,
 }
 
+/// How the sampled placement becomes the final one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PlacementMode {
+    /// The footprint sampler's poses as they are (default).
+    #[default]
+    Sample,
+    /// The footprint poses lifted by `physics.drop_height_m`, dropped and settled by a
+    /// physics engine (synthgen-physics); on failure, the footprint poses and a warning.
+    Physics,
+}
+
+/// Drop-and-settle parameters for `placement.mode = "physics"`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PhysicsSpec {
+    /// Height each object is lifted above its resting footprint pose before the drop,
+    /// metres. Default 0.02..0.1.
+    pub drop_height_m: Range,
+    /// Simulation step, seconds. Default 1/60.
+    pub timestep_s: f64,
+    /// Step budget per frame; a scene still moving after it falls back. Default 600.
+    pub max_steps: u32,
+    /// Coulomb friction coefficient of every contact. Default 0.7.
+    pub friction: f64,
+    /// Restitution (bounciness) 0..1. Default 0.05.
+    pub restitution: f64,
+    /// A scene is settled when every object's speed is below this, m/s (or rapier puts it
+    /// to sleep). Default 0.005.
+    pub settle_speed_m_s: f64,
+}
+
+impl Default for PhysicsSpec {
+    fn default() -> Self {
+        Self {
+            drop_height_m: [0.02, 0.1],
+            timestep_s: 1.0 / 60.0,
+            max_steps: 600,
+            friction: 0.7,
+            restitution: 0.05,
+            settle_speed_m_s: 0.005,
+        }
+    }
+}
+
 /// Objects on a ground plane (world z = 0, z up), non-overlapping footprints.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PlacementSpec {
+    /// `sample` (default) or `physics`.
+    pub mode: PlacementMode,
+    /// Used when `mode = "physics"`.
+    pub physics: PhysicsSpec,
     /// `upright` (default) or `random`.
     pub orientation: Orientation,
     /// Size of the rectangle (x, y) centred on the world origin where object centres land,
@@ -138,6 +187,8 @@ pub struct PlacementSpec {
 impl Default for PlacementSpec {
     fn default() -> Self {
         Self {
+            mode: PlacementMode::Sample,
+            physics: PhysicsSpec::default(),
             orientation: Orientation::Upright,
             area_m: [0.5, 0.5],
             min_gap_m: 0.005,
@@ -366,6 +417,36 @@ impl SceneSpec {
         if self.lights.count[0] > self.lights.count[1] || self.lights.count[1] > 16 {
             return Err(Error::InvalidSpec(
                 "lights.count must be [min, max] with min <= max <= 16".into(),
+            ));
+        }
+        let ph = &self.placement.physics;
+        let [d0, d1] = ph.drop_height_m;
+        if !(d0.is_finite() && d1.is_finite() && 0.0 <= d0 && d0 <= d1 && d1 <= 10.0) {
+            return Err(Error::InvalidSpec(format!(
+                "placement.physics.drop_height_m must be [min, max] with 0 <= min <= max <= 10, got [{d0}, {d1}]"
+            )));
+        }
+        let checks = [
+            ("placement.physics.timestep_s", ph.timestep_s, 1e-4, 0.1),
+            ("placement.physics.friction", ph.friction, 0.0, 10.0),
+            ("placement.physics.restitution", ph.restitution, 0.0, 1.0),
+            (
+                "placement.physics.settle_speed_m_s",
+                ph.settle_speed_m_s,
+                0.0,
+                10.0,
+            ),
+        ];
+        for (name, v, lo, hi) in checks {
+            if !(v.is_finite() && v >= lo && v <= hi) {
+                return Err(Error::InvalidSpec(format!(
+                    "{name} must lie within {lo}..{hi}, got {v}"
+                )));
+            }
+        }
+        if ph.max_steps == 0 {
+            return Err(Error::InvalidSpec(
+                "placement.physics.max_steps must be >= 1".into(),
             ));
         }
         if self.placement.max_tries == 0 {
