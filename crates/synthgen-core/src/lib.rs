@@ -19,6 +19,7 @@ pub mod progress;
 pub mod rng;
 pub mod sample;
 pub mod scene;
+mod sensor_spec;
 pub mod symmetry;
 
 pub use annotate::{annotate, AloneDepth, GtInfo, ObjectAnnotation, RenderedFrame};
@@ -28,7 +29,7 @@ pub use glam;
 pub use mesh::{Aabb, Material, Model, Primitive, Texture};
 pub use pose::Pose;
 pub use progress::{NoProgress, Progress};
-pub use sample::{FrameScene, ObjectInstance, SceneObject, SceneSampler};
+pub use sample::{FrameScene, ObjectInstance, SceneObject, SceneSampler, Settle};
 pub use scene::SceneSpec;
 pub use symmetry::Symmetries;
 

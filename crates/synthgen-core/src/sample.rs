@@ -1,6 +1,8 @@
 //! Per-frame scene sampling: object placement on a ground plane, camera on a shell, lights,
 //! materials and background, all from (seed, frame index).
 
+use std::sync::{Arc, Mutex};
+
 use glam::{DMat3, DQuat, DVec3, Vec3};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
@@ -9,7 +11,7 @@ use serde::{Deserialize, Serialize};
 use crate::camera::Intrinsics;
 use crate::pose::Pose;
 use crate::rng::{derive_seed, frame_rng, Stream};
-use crate::scene::{BackgroundKind, Orientation, Range, SceneSpec};
+use crate::scene::{BackgroundKind, Orientation, PlacementMode, Range, SceneSpec};
 use crate::Error;
 
 /// One object instance to place in every frame.
@@ -76,6 +78,28 @@ pub struct FrameScene {
     pub background: BackgroundSample,
 }
 
+/// Settles dropped objects on the plane z = 0 (world z up). Implemented by synthgen-physics,
+/// so that core needs no physics engine.
+pub trait Settle: Send + Sync {
+    /// `world_from_objs[i]` is the drop pose of `objects[i]`; returns the resting poses, or
+    /// why settling failed. Must be a pure function of its inputs.
+    fn settle(
+        &self,
+        objects: &[SceneObject],
+        world_from_objs: &[Pose],
+    ) -> Result<Vec<Pose>, String>;
+}
+
+/// A `Settle` behind an `Arc`, with a `Debug` that names it only.
+#[derive(Clone)]
+struct SettleHook(Arc<dyn Settle>);
+
+impl std::fmt::Debug for SettleHook {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Settle")
+    }
+}
+
 /// Samples frames of a scene spec deterministically.
 #[derive(Debug, Clone)]
 pub struct SceneSampler {
@@ -83,6 +107,9 @@ pub struct SceneSampler {
     pub intrinsics: Intrinsics,
     pub objects: Vec<SceneObject>,
     pub seed: u64,
+    settle: Option<SettleHook>,
+    /// Frames whose physics placement failed and fell back to the footprint poses, with why.
+    fallbacks: Arc<Mutex<Vec<(u64, String)>>>,
 }
 
 fn uniform(rng: &mut ChaCha8Rng, [lo, hi]: Range) -> f64 {
@@ -132,12 +159,34 @@ impl SceneSampler {
             intrinsics,
             objects,
             seed,
+            settle: None,
+            fallbacks: Arc::default(),
         })
+    }
+
+    /// Uses `settle` for `placement.mode = "physics"`.
+    pub fn with_settle(mut self, settle: Arc<dyn Settle>) -> SceneSampler {
+        self.settle = Some(SettleHook(settle));
+        self
+    }
+
+    /// Frames (index, reason) whose physics placement failed so far and used the footprint
+    /// poses instead, sorted by frame.
+    pub fn physics_fallbacks(&self) -> Vec<(u64, String)> {
+        let mut v = match self.fallbacks.lock() {
+            Ok(v) => v.clone(),
+            Err(p) => p.into_inner().clone(),
+        };
+        v.sort();
+        v
     }
 
     /// Samples frame `frame_index`. The same (seed, index) always gives the same frame.
     pub fn sample(&self, frame_index: u64) -> Result<FrameScene, Error> {
-        let world_from_objs = self.place_objects(frame_index)?;
+        let mut world_from_objs = self.place_objects(frame_index)?;
+        if self.spec.placement.mode == PlacementMode::Physics {
+            world_from_objs = self.settle_objects(frame_index, world_from_objs)?;
+        }
         let world_from_cam = self.sample_camera(frame_index, &world_from_objs);
         let cam_from_world = world_from_cam.inverse();
 
@@ -198,6 +247,43 @@ impl SceneSampler {
             ground,
             background,
         })
+    }
+
+    /// Lifts the footprint poses by the drop heights and lets the physics engine settle them;
+    /// on failure keeps the footprint poses and records the frame.
+    fn settle_objects(&self, frame_index: u64, placed: Vec<Pose>) -> Result<Vec<Pose>, Error> {
+        let Some(SettleHook(settle)) = &self.settle else {
+            return Err(Error::InvalidSpec(
+                "placement.mode = \"physics\" needs the physics engine (synthgen-physics), which this program did not provide".into(),
+            ));
+        };
+        let mut rng = frame_rng(self.seed, frame_index, Stream::Placement);
+        // A separate stream: the footprint draws stay those of mode "sample".
+        rng.set_stream(1);
+        let drop = self.spec.placement.physics.drop_height_m;
+        let lifted: Vec<Pose> = placed
+            .iter()
+            .map(|p| {
+                let mut p = *p;
+                p.translation_m.z += uniform(&mut rng, drop);
+                p
+            })
+            .collect();
+        match settle.settle(&self.objects, &lifted) {
+            Ok(poses) if poses.len() == placed.len() => Ok(poses),
+            Ok(poses) => Err(Error::InvalidSpec(format!(
+                "physics returned {} poses for {} objects",
+                poses.len(),
+                placed.len()
+            ))),
+            Err(why) => {
+                match self.fallbacks.lock() {
+                    Ok(mut v) => v.push((frame_index, why)),
+                    Err(p) => p.into_inner().push((frame_index, why)),
+                }
+                Ok(placed)
+            }
+        }
     }
 
     fn place_objects(&self, frame_index: u64) -> Result<Vec<Pose>, Error> {

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::camera::Intrinsics;
+pub use crate::sensor_spec::{D455Spec, DepthModel, RgbNoiseSpec, SensorSpec, TofSpec};
 use crate::Error;
 
 /// A closed range `[min, max]` sampled uniformly.
@@ -21,6 +22,8 @@ pub struct SceneSpec {
     pub lights: LightSpec,
     pub background: BackgroundSpec,
     pub materials: MaterialSpec,
+    /// Sensor models applied after rendering (depth noise, RGB noise). Default: none.
+    pub sensor: SensorSpec,
     /// Objects declared in the spec (in addition to `--objects` on the command line).
     pub objects: Vec<ObjectSpec>,
 }
@@ -117,10 +120,59 @@ pub enum Orientation {
     Random,
 }
 
+/// How the sampled placement becomes the final one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PlacementMode {
+    /// The footprint sampler's poses as they are (default).
+    #[default]
+    Sample,
+    /// The footprint poses lifted by `physics.drop_height_m`, dropped and settled by a
+    /// physics engine (synthgen-physics); on failure, the footprint poses and a warning.
+    Physics,
+}
+
+/// Drop-and-settle parameters for `placement.mode = "physics"`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PhysicsSpec {
+    /// Height each object is lifted above its resting footprint pose before the drop,
+    /// metres. Default 0.02..0.1.
+    pub drop_height_m: Range,
+    /// Simulation step, seconds. Default 1/60.
+    pub timestep_s: f64,
+    /// Step budget per frame; a scene still moving after it falls back. Default 600.
+    pub max_steps: u32,
+    /// Coulomb friction coefficient of every contact. Default 0.7.
+    pub friction: f64,
+    /// Restitution (bounciness) 0..1. Default 0.05.
+    pub restitution: f64,
+    /// A scene is settled when every object's speed is below this, m/s (or rapier puts it
+    /// to sleep). Default 0.005.
+    pub settle_speed_m_s: f64,
+}
+
+impl Default for PhysicsSpec {
+    fn default() -> Self {
+        Self {
+            drop_height_m: [0.02, 0.1],
+            timestep_s: 1.0 / 60.0,
+            max_steps: 600,
+            friction: 0.7,
+            restitution: 0.05,
+            settle_speed_m_s: 0.005,
+        }
+    }
+}
+
 /// Objects on a ground plane (world z = 0, z up), non-overlapping footprints.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PlacementSpec {
+    /// `sample` (default) or `physics`.
+    pub mode: PlacementMode,
+    /// Used when `mode = "physics"`.
+    pub physics: PhysicsSpec,
     /// `upright` (default) or `random`.
     pub orientation: Orientation,
     /// Size of the rectangle (x, y) centred on the world origin where object centres land,
@@ -135,6 +187,8 @@ pub struct PlacementSpec {
 impl Default for PlacementSpec {
     fn default() -> Self {
         Self {
+            mode: PlacementMode::Sample,
+            physics: PhysicsSpec::default(),
             orientation: Orientation::Upright,
             area_m: [0.5, 0.5],
             min_gap_m: 0.005,
@@ -322,7 +376,7 @@ impl SceneSpec {
     /// Checks ranges and values; errors name the field.
     pub fn validate(&self) -> Result<(), Error> {
         self.camera.intrinsics()?;
-        let ranges: [(&str, Range); 12] = [
+        let ranges: [(&str, Range); 11] = [
             ("camera_pose.distance_m", self.camera_pose.distance_m),
             ("camera_pose.elevation_deg", self.camera_pose.elevation_deg),
             ("camera_pose.azimuth_deg", self.camera_pose.azimuth_deg),
@@ -334,7 +388,6 @@ impl SceneSpec {
             ("materials.brightness", self.materials.brightness),
             ("materials.specular", self.materials.specular),
             ("materials.shininess", self.materials.shininess),
-            ("placement.area_m", self.placement.area_m),
         ];
         for (name, [lo, hi]) in ranges {
             if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
@@ -342,6 +395,13 @@ impl SceneSpec {
                     "{name} must be finite with min <= max, got [{lo}, {hi}]"
                 )));
             }
+        }
+        // area_m is a size (x, y), not a range: x may be larger than y.
+        let [ax, ay] = self.placement.area_m;
+        if !(ax.is_finite() && ay.is_finite() && ax >= 0.0 && ay >= 0.0) {
+            return Err(Error::InvalidSpec(format!(
+                "placement.area_m must be two finite sizes >= 0, got [{ax}, {ay}]"
+            )));
         }
         if self.camera_pose.distance_m[0] <= 0.0 {
             return Err(Error::InvalidSpec(
@@ -359,11 +419,42 @@ impl SceneSpec {
                 "lights.count must be [min, max] with min <= max <= 16".into(),
             ));
         }
+        let ph = &self.placement.physics;
+        let [d0, d1] = ph.drop_height_m;
+        if !(d0.is_finite() && d1.is_finite() && 0.0 <= d0 && d0 <= d1 && d1 <= 10.0) {
+            return Err(Error::InvalidSpec(format!(
+                "placement.physics.drop_height_m must be [min, max] with 0 <= min <= max <= 10, got [{d0}, {d1}]"
+            )));
+        }
+        let checks = [
+            ("placement.physics.timestep_s", ph.timestep_s, 1e-4, 0.1),
+            ("placement.physics.friction", ph.friction, 0.0, 10.0),
+            ("placement.physics.restitution", ph.restitution, 0.0, 1.0),
+            (
+                "placement.physics.settle_speed_m_s",
+                ph.settle_speed_m_s,
+                0.0,
+                10.0,
+            ),
+        ];
+        for (name, v, lo, hi) in checks {
+            if !(v.is_finite() && v >= lo && v <= hi) {
+                return Err(Error::InvalidSpec(format!(
+                    "{name} must lie within {lo}..{hi}, got {v}"
+                )));
+            }
+        }
+        if ph.max_steps == 0 {
+            return Err(Error::InvalidSpec(
+                "placement.physics.max_steps must be >= 1".into(),
+            ));
+        }
         if self.placement.max_tries == 0 {
             return Err(Error::InvalidSpec(
                 "placement.max_tries must be >= 1".into(),
             ));
         }
+        self.sensor.validate()?;
         if self.background.kind == BackgroundKind::Images && self.background.images_dir.is_none() {
             return Err(Error::InvalidSpec(
                 "background.kind = \"images\" needs background.images_dir".into(),
@@ -398,6 +489,28 @@ mod tests {
     fn inverted_range_is_an_error() {
         let e = SceneSpec::from_toml_str("[camera_pose]\ndistance_m = [2.0, 1.0]\n").unwrap_err();
         assert!(e.to_string().contains("camera_pose.distance_m"), "{e}");
+    }
+
+    #[test]
+    fn area_is_a_size_not_a_range() {
+        let s = SceneSpec::from_toml_str("[placement]\narea_m = [0.3, 0.25]\n").unwrap();
+        assert_eq!(s.placement.area_m, [0.3, 0.25]);
+        assert!(SceneSpec::from_toml_str("[placement]\narea_m = [-0.1, 0.2]\n").is_err());
+    }
+
+    #[test]
+    fn sensor_section_parses_and_is_checked() {
+        let s = SceneSpec::from_toml_str(
+            "[sensor]\ndepth = \"d455\"\n[sensor.d455]\nsubpixel_sigma_px = 0.1\n",
+        )
+        .unwrap();
+        assert_eq!(s.sensor.depth, DepthModel::D455);
+        assert_eq!(s.sensor.d455.subpixel_sigma_px, 0.1);
+        assert_eq!(s.sensor.d455.baseline_m, 0.095);
+        let e = SceneSpec::from_toml_str("[sensor.d455]\nedge_dropout = 2.0\n").unwrap_err();
+        assert!(e.to_string().contains("sensor.d455.edge_dropout"), "{e}");
+        let e = SceneSpec::from_toml_str("[sensor]\ndepth = \"kinect2\"\n").unwrap_err();
+        assert!(e.to_string().contains("kinect2"), "{e}");
     }
 
     #[test]

@@ -117,10 +117,12 @@ mod error;
 mod ground;
 mod prepare;
 mod raster;
+pub mod sensor;
 mod shade;
 
 pub use cpu::{render_frames, CpuOptions, CpuRenderer};
 pub use error::Error;
+pub use sensor::SensorModel;
 
 use synthgen_core::{FrameScene, RenderedFrame};
 

@@ -9,10 +9,10 @@ use anyhow::{Context, Result};
 use rayon::prelude::*;
 use synthgen_assets::Units;
 use synthgen_core::sample::SceneObject;
-use synthgen_core::scene::{BackgroundKind, Orientation};
+use synthgen_core::scene::{BackgroundKind, Orientation, PlacementMode};
 use synthgen_core::{Model, Progress, SceneSampler, SceneSpec, Texture};
 use synthgen_dataset::manifest::{write_manifest, Manifest};
-use synthgen_render::{CpuRenderer, Renderer};
+use synthgen_render::{CpuRenderer, Renderer, SensorModel};
 
 use crate::cli::{Backend, BackgroundArg, FormatArg, OrientationArg, RenderArgs, UnitsArg};
 use crate::commands::render_sink::{self, Sink};
@@ -58,10 +58,19 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     let writer = Sink::create(&args, intrinsics, frame_range.clone())?;
     writer.write_models(&models, &ids)?;
 
-    let sampler = SceneSampler::new(spec.clone(), scene_objects, args.seed)?;
+    let mut sampler = SceneSampler::new(spec.clone(), scene_objects, args.seed)?;
+    if spec.placement.mode == PlacementMode::Physics {
+        let settler = synthgen_physics::PhysicsSettler::new(
+            &sampler.objects,
+            spec.placement.physics.clone(),
+        )?;
+        sampler = sampler.with_settle(Arc::new(settler));
+    }
     // The summary needs only the names: the meshes move into the renderer, not a copy.
     let names: Vec<String> = models.iter().map(|m| m.name.clone()).collect();
     let renderer = make_renderer(&args, models, backgrounds, printer)?;
+    // Applied after the annotations, so masks and GT come from the clean render.
+    let sensor = SensorModel::new(spec.sensor.clone(), args.seed)?;
     let delta_m = args.visib_delta_m as f32;
 
     let frames: Vec<u64> = frame_range.collect();
@@ -77,7 +86,7 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
                 .map(|&i| {
                     let r = (|| {
                         let scene = sampler.sample(i)?;
-                        let frame = renderer.render(&scene)?;
+                        let mut frame = renderer.render(&scene)?;
                         let ann = synthgen_core::annotate(
                             frame.width,
                             frame.height,
@@ -85,6 +94,9 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
                             &frame.alone,
                             delta_m,
                         );
+                        if !sensor.is_identity() {
+                            sensor.apply(&scene, &mut frame);
+                        }
                         let rec = writer.write_frame(i, &scene, &frame, &ann)?;
                         printer.advance(1);
                         anyhow::Ok(rec)
@@ -112,6 +124,15 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     }
     let summary = writer.finish(&args.out)?;
     printer.finish();
+    let fallbacks = sampler.physics_fallbacks();
+    if let Some((first, why)) = fallbacks.first() {
+        printer.warning(format!(
+            "{} frame{} did not settle and kept the non-physics placement (first: frame {first}: {why})",
+            fallbacks.len(),
+            if fallbacks.len() == 1 { "" } else { "s" },
+        ));
+        printer.hint("raise placement.physics.max_steps in the scene spec");
+    }
     if summary.depth_out_of_range_px > 0 {
         printer.warning(format!(
             "{} depth pixels were beyond what a 16-bit PNG holds at depth_scale {} and were written as 0 (invalid)",
@@ -134,6 +155,7 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
         })).collect::<Vec<_>>(),
         "visib_delta_m": args.visib_delta_m,
         "failed_frames": failures.iter().map(|f| f.0).collect::<Vec<_>>(),
+        "physics_fallback_frames": fallbacks.iter().map(|f| f.0).collect::<Vec<_>>(),
     });
     write_manifest(&args.out, &manifest)?;
 

@@ -12,4 +12,5 @@ mod inspect;
 mod linemod;
 mod mix;
 mod render;
+mod scenes;
 mod train;

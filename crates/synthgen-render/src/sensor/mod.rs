@@ -1,0 +1,145 @@
+//! Sensor models applied to a rendered frame after its annotations were computed: a
+//! RealSense D455-style stereo depth model, a Kinect/ToF-style depth model and RGB sensor
+//! effects. They change only `RenderedFrame::rgb` and `RenderedFrame::depth_m`; instance ids
+//! and alone depths (hence masks and GT) stay those of the clean render. Every draw comes
+//! from the frame's `Stream::Sensor` RNG, so a frame's noise depends on (seed, frame index)
+//! alone. Formulas and sources: docs/sensors.md.
+
+mod d455;
+mod rgb;
+mod tof;
+
+pub use d455::apply_d455;
+pub(crate) use rgb::apply_rgb;
+pub use tof::{apply_tof, tof_sigma_m};
+
+use rand::{Rng, RngCore};
+use rand_chacha::ChaCha8Rng;
+use synthgen_core::rng::{frame_rng, Stream};
+use synthgen_core::scene::{DepthModel, SensorSpec};
+use synthgen_core::{FrameScene, RenderedFrame};
+
+use crate::color::ColorLuts;
+use crate::Error;
+
+/// A configured sensor: the spec, the run's seed and the colour tables.
+pub struct SensorModel {
+    spec: SensorSpec,
+    seed: u64,
+    luts: ColorLuts,
+}
+
+/// RNG streams within the frame's sensor stream.
+const DEPTH_STREAM: u64 = 1;
+const RGB_STREAM: u64 = 2;
+
+impl SensorModel {
+    pub fn new(spec: SensorSpec, seed: u64) -> Result<SensorModel, Error> {
+        spec.validate().map_err(|e| Error::InvalidOption {
+            name: "sensor",
+            reason: e.to_string(),
+        })?;
+        Ok(SensorModel {
+            spec,
+            seed,
+            luts: ColorLuts::new(),
+        })
+    }
+
+    pub fn spec(&self) -> &SensorSpec {
+        &self.spec
+    }
+
+    /// True when `apply` changes nothing.
+    pub fn is_identity(&self) -> bool {
+        self.spec.is_identity()
+    }
+
+    /// Applies the depth model and the RGB effects to `frame` (rendered from `scene`).
+    pub fn apply(&self, scene: &FrameScene, frame: &mut RenderedFrame) {
+        let k = &scene.intrinsics;
+        let (w, h) = (frame.width as usize, frame.height as usize);
+        if frame.depth_m.len() == w * h {
+            let mut rng = self.rng(scene.frame_index, DEPTH_STREAM);
+            match self.spec.depth {
+                DepthModel::None => {}
+                DepthModel::D455 => {
+                    apply_d455(&self.spec.d455, k.fx, w, h, &mut frame.depth_m, &mut rng)
+                }
+                DepthModel::Tof => apply_tof(&self.spec.tof, k, &mut frame.depth_m, &mut rng),
+            }
+        }
+        if self.spec.rgb.enabled && frame.rgb.len() == w * h * 3 {
+            let mut rng = self.rng(scene.frame_index, RGB_STREAM);
+            apply_rgb(&self.spec.rgb, &self.luts, w, h, &mut frame.rgb, &mut rng);
+        }
+    }
+
+    fn rng(&self, frame_index: u64, stream: u64) -> ChaCha8Rng {
+        let mut rng = frame_rng(self.seed, frame_index, Stream::Sensor);
+        rng.set_stream(stream);
+        rng
+    }
+}
+
+/// Standard normal draws (Box-Muller, both values used).
+pub(crate) struct Normal {
+    spare: Option<f64>,
+}
+
+impl Normal {
+    pub fn new() -> Normal {
+        Normal { spare: None }
+    }
+
+    pub fn sample(&mut self, rng: &mut impl RngCore) -> f64 {
+        if let Some(v) = self.spare.take() {
+            return v;
+        }
+        // u1 in (0, 1] so ln(u1) is finite.
+        let u1 = 1.0 - rng.gen::<f64>();
+        let u2: f64 = rng.gen();
+        let r = (-2.0 * u1.ln()).sqrt();
+        let (s, c) = (std::f64::consts::TAU * u2).sin_cos();
+        self.spare = Some(r * s);
+        r * c
+    }
+}
+
+/// Marks pixels on a depth discontinuity: a 4-neighbour is empty (0) or differs by more than
+/// `rel` times the pixel's depth. Empty pixels and the image border are never marked.
+pub(crate) fn discontinuities(depth: &[f32], w: usize, h: usize, rel: f32) -> Vec<bool> {
+    let mut out = vec![false; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            let z = depth[i];
+            if z <= 0.0 {
+                continue;
+            }
+            let lim = rel * z;
+            let jump = |j: usize| {
+                let n = depth[j];
+                n <= 0.0 || (n - z).abs() > lim
+            };
+            out[i] = (x > 0 && jump(i - 1))
+                || (x + 1 < w && jump(i + 1))
+                || (y > 0 && jump(i - w))
+                || (y + 1 < h && jump(i + w));
+        }
+    }
+    out
+}
+
+/// Rounds to a multiple of `unit` (no rounding when `unit` is 0).
+#[inline]
+pub(crate) fn quantize(z: f64, unit: f64) -> f64 {
+    if unit > 0.0 {
+        (z / unit).round() * unit
+    } else {
+        z
+    }
+}
+
+#[cfg(test)]
+mod tests;

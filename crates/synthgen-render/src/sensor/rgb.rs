@@ -1,0 +1,130 @@
+//! RGB sensor effects in linear light: exposure jitter, Gaussian blur (optics / motion),
+//! shot noise (variance proportional to the signal) and read noise.
+
+use rand::{Rng, RngCore};
+use rand_chacha::ChaCha8Rng;
+use synthgen_core::scene::RgbNoiseSpec;
+
+use crate::color::{srgb_index, ColorLuts, TO_SRGB_MAX};
+
+/// Applies the RGB effects to `rgb` (sRGB bytes, `w` x `h` x 3) in place: per frame an
+/// exposure factor 2^s (s uniform in `exposure_stops`) and a blur σ (uniform in
+/// `blur_sigma_px`, separable Gaussian, radius ⌈3σ⌉, edges clamped); per value Gaussian noise
+/// of variance `shot_noise` · v + `read_noise`², clamped to 0..1.
+pub(crate) fn apply_rgb(
+    spec: &RgbNoiseSpec,
+    luts: &ColorLuts,
+    w: usize,
+    h: usize,
+    rgb: &mut [u8],
+    rng: &mut ChaCha8Rng,
+) {
+    let stops = uniform(rng, spec.exposure_stops);
+    let sigma = uniform(rng, spec.blur_sigma_px);
+    let gain = 2f64.powf(stops) as f32;
+    let mut lin: Vec<f32> = rgb
+        .iter()
+        .map(|&b| luts.to_linear[b as usize] * gain)
+        .collect();
+    if sigma > 0.05 {
+        blur(&mut lin, w, h, sigma as f32);
+    }
+    let shot = spec.shot_noise as f32;
+    let read2 = (spec.read_noise * spec.read_noise) as f32;
+    for (v, out) in lin.iter().zip(rgb.iter_mut()) {
+        let v = v.clamp(0.0, 1.0);
+        let n = approx_normal(rng.next_u64());
+        let noisy = v + (shot * v + read2).sqrt() * n;
+        *out = luts.srgb_at(srgb_index(noisy * TO_SRGB_MAX as f32));
+    }
+}
+
+fn uniform(rng: &mut ChaCha8Rng, [lo, hi]: [f64; 2]) -> f64 {
+    if hi > lo {
+        rng.gen_range(lo..=hi)
+    } else {
+        lo
+    }
+}
+
+/// A standard normal approximated by the sum of four uniforms (Irwin-Hall, rescaled to unit
+/// variance, tails cut at ±3.46σ) from one 64-bit draw: per-value noise on 0.9 M values per
+/// frame must be cheap, and image noise needs no far tails.
+#[inline]
+fn approx_normal(bits: u64) -> f32 {
+    let s = (bits & 0xffff) + ((bits >> 16) & 0xffff) + ((bits >> 32) & 0xffff) + (bits >> 48);
+    // Each part is uniform on 0..65535 (mean 32767.5, variance ~ 65536² / 12).
+    const MEAN: f32 = 4.0 * 32767.5;
+    const SCALE: f32 = 1.732_050_8 / 65536.0; // √3 / 65536: unit variance for 4 parts
+    (s as f32 - MEAN) * SCALE
+}
+
+/// Separable Gaussian blur of an interleaved RGB float image, edges clamped.
+fn blur(img: &mut [f32], w: usize, h: usize, sigma: f32) {
+    let r = (3.0 * sigma).ceil() as isize;
+    let mut k: Vec<f32> = (-r..=r)
+        .map(|i| (-(i * i) as f32 / (2.0 * sigma * sigma)).exp())
+        .collect();
+    let sum: f32 = k.iter().sum();
+    k.iter_mut().for_each(|v| *v /= sum);
+    let mut tmp = vec![0.0f32; img.len()];
+    let (wi, hi) = (w as isize, h as isize);
+    for y in 0..h {
+        for x in 0..wi {
+            let mut acc = [0.0f32; 3];
+            for (j, kv) in k.iter().enumerate() {
+                let sx = (x + j as isize - r).clamp(0, wi - 1) as usize;
+                let s = (y * w + sx) * 3;
+                for c in 0..3 {
+                    acc[c] += kv * img[s + c];
+                }
+            }
+            tmp[(y * w + x as usize) * 3..][..3].copy_from_slice(&acc);
+        }
+    }
+    for y in 0..hi {
+        for x in 0..w {
+            let mut acc = [0.0f32; 3];
+            for (j, kv) in k.iter().enumerate() {
+                let sy = (y + j as isize - r).clamp(0, hi - 1) as usize;
+                let s = (sy * w + x) * 3;
+                for c in 0..3 {
+                    acc[c] += kv * tmp[s + c];
+                }
+            }
+            img[(y as usize * w + x) * 3..][..3].copy_from_slice(&acc);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn approx_normal_has_unit_variance() {
+        let mut rng = <ChaCha8Rng as rand::SeedableRng>::seed_from_u64(3);
+        let n = 200_000;
+        let xs: Vec<f64> = (0..n)
+            .map(|_| f64::from(approx_normal(rng.next_u64())))
+            .collect();
+        let mean = xs.iter().sum::<f64>() / n as f64;
+        let var = xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n as f64;
+        assert!(mean.abs() < 0.01, "{mean}");
+        assert!((var - 1.0).abs() < 0.02, "{var}");
+    }
+
+    #[test]
+    fn blur_keeps_a_constant_image_and_spreads_a_dot() {
+        let (w, h) = (9, 7);
+        let mut img = vec![0.5f32; w * h * 3];
+        blur(&mut img, w, h, 1.0);
+        assert!(img.iter().all(|v| (v - 0.5).abs() < 1e-5));
+        let mut dot = vec![0.0f32; w * h * 3];
+        dot[(3 * w + 4) * 3] = 1.0;
+        blur(&mut dot, w, h, 1.0);
+        let total: f32 = dot.iter().step_by(3).sum();
+        assert!((total - 1.0).abs() < 1e-4);
+        assert!(dot[(3 * w + 4) * 3] < 0.2 && dot[(3 * w + 5) * 3] > 0.05);
+    }
+}

@@ -1,0 +1,159 @@
+//! Kinect / time-of-flight style depth: axial noise growing with depth and with the angle of
+//! incidence (Nguyen, Izadi and Lovell 2012), lateral jitter, flying pixels at edges, range
+//! limits.
+
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+use synthgen_core::scene::TofSpec;
+use synthgen_core::Intrinsics;
+
+use super::{discontinuities, quantize, Normal};
+
+/// Axial σ in metres at depth `z_m` and incidence angle `theta_rad`.
+pub fn tof_sigma_m(spec: &TofSpec, z_m: f64, theta_rad: f64) -> f64 {
+    let half_pi = std::f64::consts::FRAC_PI_2;
+    let a = (z_m - spec.sigma_z0_m).powi(2);
+    let t = theta_rad.min(half_pi - 1e-3);
+    spec.sigma_a_m
+        + spec.sigma_b_per_m * a
+        + spec.sigma_angle_m / z_m.sqrt() * t * t / ((half_pi - t) * (half_pi - t))
+}
+
+/// Applies the ToF model to `depth` (metres, row-major, 0 = no hit) in place.
+///
+/// In order, all from the clean depth: the incidence angle from the normal of the
+/// back-projected neighbours (central differences where both neighbours lie on the same
+/// surface, else one-sided, else 0); pixels beyond `max_incidence_deg` become 0; a pixel takes
+/// a random 4-neighbour's depth with probability `lateral_jitter`; a discontinuity pixel
+/// becomes a flying pixel (uniform mix of the nearest and farthest depth around it) with
+/// probability `flying_pixel_prob`; Gaussian axial noise `tof_sigma_m`; rounding to
+/// `depth_unit_m`; 0 outside `range_m`.
+pub fn apply_tof(spec: &TofSpec, k: &Intrinsics, depth: &mut [f32], rng: &mut ChaCha8Rng) {
+    let (w, h) = (k.width as usize, k.height as usize);
+    if depth.len() != w * h {
+        return;
+    }
+    let clean = depth.to_vec();
+    let edges = discontinuities(&clean, w, h, spec.edge_jump_rel as f32);
+    let max_theta = spec.max_incidence_deg.to_radians();
+    let [lo, hi] = spec.range_m;
+    let mut normal = Normal::new();
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            let z = f64::from(clean[i]);
+            if z <= 0.0 {
+                continue;
+            }
+            let u_jitter: f64 = rng.gen();
+            let dir: u32 = rng.gen_range(0..4);
+            let u_fly: f64 = rng.gen();
+            let t_fly: f64 = rng.gen();
+            let n = normal.sample(rng);
+            let theta = incidence(&clean, spec.edge_jump_rel, k, x, y);
+            if theta > max_theta {
+                depth[i] = 0.0;
+                continue;
+            }
+            let mut zi = z;
+            if u_jitter < spec.lateral_jitter {
+                let (nx, ny) = match dir {
+                    0 => (x.wrapping_sub(1), y),
+                    1 => (x + 1, y),
+                    2 => (x, y.wrapping_sub(1)),
+                    _ => (x, y + 1),
+                };
+                if nx < w && ny < h && clean[ny * w + nx] > 0.0 {
+                    zi = f64::from(clean[ny * w + nx]);
+                }
+            }
+            if edges[i] && u_fly < spec.flying_pixel_prob {
+                let (zmin, zmax) = neighbour_extent(&clean, w, h, x, y);
+                zi = zmin + t_fly * (zmax - zmin);
+            }
+            let zn = quantize(zi + tof_sigma_m(spec, zi, theta) * n, spec.depth_unit_m);
+            depth[i] = if zn >= lo && zn <= hi { zn as f32 } else { 0.0 };
+        }
+    }
+}
+
+/// Nearest and farthest non-empty depth among the pixel and its 4-neighbours.
+fn neighbour_extent(d: &[f32], w: usize, h: usize, x: usize, y: usize) -> (f64, f64) {
+    let mut lo = f64::from(d[y * w + x]);
+    let mut hi = lo;
+    for (nx, ny) in [
+        (x.wrapping_sub(1), y),
+        (x + 1, y),
+        (x, y.wrapping_sub(1)),
+        (x, y + 1),
+    ] {
+        if nx < w && ny < h {
+            let z = f64::from(d[ny * w + nx]);
+            if z > 0.0 {
+                lo = lo.min(z);
+                hi = hi.max(z);
+            }
+        }
+    }
+    (lo, hi)
+}
+
+/// Angle between the surface normal and the viewing ray at pixel (x, y), radians.
+fn incidence(d: &[f32], rel: f64, k: &Intrinsics, x: usize, y: usize) -> f64 {
+    let (w, h) = (k.width as usize, k.height as usize);
+    let point = |x: usize, y: usize| -> Option<[f64; 3]> {
+        let z = f64::from(d[y * w + x]);
+        (z > 0.0).then(|| {
+            [
+                (x as f64 - k.cx) / k.fx * z,
+                (y as f64 - k.cy) / k.fy * z,
+                z,
+            ]
+        })
+    };
+    let Some(p) = point(x, y) else {
+        return 0.0;
+    };
+    // A neighbour across a discontinuity is another surface: leave it out.
+    let usable = |nx: usize, ny: usize| {
+        let zn = f64::from(d[ny * w + nx]);
+        zn > 0.0 && (zn - p[2]).abs() <= rel * p[2]
+    };
+    let diff = |a: Option<[f64; 3]>, b: Option<[f64; 3]>| match (a, b) {
+        (Some(a), Some(b)) => Some([b[0] - a[0], b[1] - a[1], b[2] - a[2]]),
+        _ => None,
+    };
+    let left = (x > 0 && usable(x - 1, y))
+        .then(|| point(x - 1, y))
+        .flatten();
+    let right = (x + 1 < w && usable(x + 1, y))
+        .then(|| point(x + 1, y))
+        .flatten();
+    let up = (y > 0 && usable(x, y - 1))
+        .then(|| point(x, y - 1))
+        .flatten();
+    let down = (y + 1 < h && usable(x, y + 1))
+        .then(|| point(x, y + 1))
+        .flatten();
+    let du = diff(left, right)
+        .or_else(|| diff(Some(p), right))
+        .or_else(|| diff(left, Some(p)));
+    let dv = diff(up, down)
+        .or_else(|| diff(Some(p), down))
+        .or_else(|| diff(up, Some(p)));
+    let (Some(a), Some(b)) = (du, dv) else {
+        return 0.0;
+    };
+    let n = [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ];
+    let nn = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+    let pn = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+    if nn <= 0.0 || pn <= 0.0 {
+        return 0.0;
+    }
+    let c = ((n[0] * p[0] + n[1] * p[1] + n[2] * p[2]) / (nn * pn)).abs();
+    c.min(1.0).acos()
+}
