@@ -10,4 +10,5 @@ mod inspect;
 mod linemod;
 mod mix;
 mod render;
+mod scale;
 mod train;
