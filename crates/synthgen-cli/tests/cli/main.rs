@@ -4,6 +4,7 @@
 mod annotate;
 mod coco;
 mod common;
+mod corpus;
 mod errors;
 mod help;
 mod inspect;
