@@ -4,7 +4,9 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
+mod scale;
 mod train;
+pub use scale::{MergeArgs, Shard, MERGE_EXAMPLES};
 pub use train::{DeviceArg, EvalArgs, ModelArg, ScheduleArg, TrainArgs};
 
 #[derive(Debug, Parser)]
@@ -62,6 +64,9 @@ pub enum Command {
     /// Score pose estimates (a BOP results CSV or a checkpoint) against a dataset's GT.
     #[command(after_long_help = train::EVAL_EXAMPLES)]
     Eval(Box<EvalArgs>),
+    /// Combine the shard folders of a `synthgen render --shard I/N` run into one BOP dataset.
+    #[command(after_long_help = MERGE_EXAMPLES)]
+    Merge(MergeArgs),
 }
 
 const ANNOTATE_EXAMPLES: &str = "Examples:
@@ -564,6 +569,16 @@ pub struct RenderArgs {
     /// ~/.cache/synthgen/blender-venv, which scripts/setup-blender.sh creates).
     #[arg(long, value_name = "DIR")]
     pub blender_venv: Option<PathBuf>,
+
+    /// Render only shard I of N of the --frames (a contiguous slice; frame, scene and image
+    /// ids stay global). Combine the shard folders with `synthgen merge`. BOP only.
+    #[arg(long, value_name = "I/N")]
+    pub shard: Option<Shard>,
+
+    /// Finish an interrupted run in --out: frames already written are kept, the rest are
+    /// rendered. Pass the same options as the interrupted run. BOP only.
+    #[arg(long)]
+    pub resume: bool,
 }
 
 /// Parses `MIN..MAX` (or a single value) into a closed range.

@@ -47,6 +47,7 @@ pub fn main() -> ExitCode {
         cli::Command::Validate(args) => commands::validate::run(args, &printer),
         cli::Command::Train(args) => commands::train::run(*args, &printer),
         cli::Command::Eval(args) => commands::eval::run(*args, &printer),
+        cli::Command::Merge(args) => commands::merge::run(args, &printer),
     };
     match result {
         Ok(status) => status.into(),

@@ -56,6 +56,24 @@ pub fn atomic_write_with(path: &Path, bytes: &[u8], fsync: bool) -> Result<()> {
     Ok(())
 }
 
+/// Checks that `name` (a split or folder name taken from a command line or a file) is one
+/// plain path component, so joining it to a dataset root cannot leave the root: no `/` or
+/// `\\`, not `.`/`..`, no leading dot, no NUL, not empty.
+pub fn check_plain_name(name: &str, what: &str, root: &Path) -> Result<()> {
+    let plain = !name.is_empty()
+        && !name.starts_with('.')
+        && !name.contains(['/', '\\', '\0'])
+        && !(cfg!(windows) && name.contains(':'));
+    if plain {
+        Ok(())
+    } else {
+        Err(Error::InvalidRequest(format!(
+            "{what} {name:?} is not a plain folder name (it could point outside the dataset): {}",
+            root.display()
+        )))
+    }
+}
+
 /// `std::fs::create_dir_all` with the path in the error.
 pub fn create_dir_all(path: &Path) -> Result<()> {
     std::fs::create_dir_all(path).map_err(|e| Error::io("create directory", path, e))
@@ -133,6 +151,30 @@ mod tests {
         assert_eq!(b.len(), 1000);
         assert!(b.iter().all(|&v| v == b[0]));
         assert_eq!(names(dir.path()), ["x.bin"]);
+    }
+
+    #[test]
+    fn names_that_escape_the_root_are_refused() {
+        let root = Path::new("/data/ds");
+        for bad in [
+            "..",
+            "../../etc",
+            "a/b",
+            "a\\b",
+            ".hidden",
+            "",
+            "/abs",
+            "x\0y",
+        ] {
+            let e = check_plain_name(bad, "split", root)
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains("not a plain folder name") && e.ends_with("/data/ds"),
+                "{e}"
+            );
+        }
+        check_plain_name("train_pbr", "split", root).unwrap();
     }
 
     #[test]

@@ -15,6 +15,7 @@ use synthgen_dataset::manifest::{write_manifest, Manifest};
 use synthgen_render::{CpuRenderer, Renderer, SensorModel};
 
 use crate::cli::{Backend, BackgroundArg, FormatArg, OrientationArg, RenderArgs, UnitsArg};
+use crate::commands::render_resume;
 use crate::commands::render_sink::{self, Sink};
 use crate::commands::user_error;
 use crate::{ExitStatus, Printer};
@@ -30,9 +31,13 @@ struct ObjectSource {
 pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     let started = Instant::now();
     check_backend(&args)?;
+    render_resume::check_supported(&args)?;
+    let frame_range = render_resume::frame_range(&args)?;
     let spec = build_spec(&args)?;
     let sources = collect_sources(&args, &spec)?;
-    check_out_dir(&args.out, args.force)?;
+    if !args.resume {
+        check_out_dir(&args.out, args.force)?;
+    }
 
     // Models, in the order given; ids from flags, the spec, file names, or 1, 2, ...
     let mut models = Vec::new();
@@ -54,8 +59,9 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
         .context("cannot start worker threads")?;
 
     let intrinsics = spec.camera.intrinsics()?;
-    let frame_range = args.first_frame..args.first_frame + args.frames;
     let writer = Sink::create(&args, intrinsics, frame_range.clone())?;
+    let mut manifest = base_manifest(&args, &spec, &sources, &ids, &frame_range)?;
+    let done = render_resume::begin(&args, &manifest, &writer, frame_range.clone())?;
     writer.write_models(&models, &ids)?;
 
     let mut sampler = SceneSampler::new(spec.clone(), scene_objects, args.seed)?;
@@ -73,13 +79,25 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     let sensor = SensorModel::new(spec.sensor.clone(), args.seed)?;
     let delta_m = args.visib_delta_m as f32;
 
-    let frames: Vec<u64> = frame_range.collect();
-    printer.start("rendering", args.frames);
+    let range_len = frame_range.end - frame_range.start;
+    if done.count() > 0 {
+        printer.info(format!(
+            "resuming: {} of {range_len} frames already written",
+            done.count()
+        ));
+    }
+    printer.start("rendering", range_len - done.count());
+    let mut todo = frame_range.clone().filter(|&i| !done.is_done(i));
     let mut failures: Vec<(u64, String)> = Vec::new();
+    let mut rendered: u64 = 0;
     // Batches bound memory (a frame's buffers are dropped once it is written) while giving
     // every thread several frames to work on.
     let batch = (pool.current_num_threads() * 8).max(8);
-    'outer: for batch_frames in frames.chunks(batch) {
+    'outer: loop {
+        let batch_frames: Vec<u64> = todo.by_ref().take(batch).collect();
+        if batch_frames.is_empty() {
+            break;
+        }
         let results: Vec<(u64, Result<_>)> = pool.install(|| {
             batch_frames
                 .par_iter()
@@ -111,6 +129,7 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
                 // its last frame of this run is in.
                 Ok(rec) => {
                     writer.add_record(rec)?;
+                    rendered += 1;
                 }
                 Err(e) => {
                     printer.warning(format!("frame {i} failed: {e:#}"));
@@ -141,23 +160,27 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
         ));
         printer.hint("pass --depth-scale 1.0 for 1 mm steps up to 65 m");
     }
-    let written = summary.frames;
+    // Frames in the dataset: those an earlier, interrupted run wrote and this run's.
+    let written = if matches!(args.format, FormatArg::Bop) {
+        done.count() + rendered
+    } else {
+        summary.frames
+    };
 
     let elapsed = started.elapsed().as_secs_f64();
-    let mut manifest = Manifest::new(std::env::args().collect(), args.seed);
-    manifest.backend = renderer.name().into();
     manifest.frames = written;
-    manifest.scene_spec = serde_json::to_value(&spec).context("cannot serialize the scene spec")?;
-    manifest.extra = serde_json::json!({
-        "first_frame": args.first_frame,
-        "objects": sources.iter().zip(&ids).map(|(s, id)| serde_json::json!({
-            "path": s.path, "obj_id": id, "count": s.count,
-        })).collect::<Vec<_>>(),
-        "visib_delta_m": args.visib_delta_m,
-        "failed_frames": failures.iter().map(|f| f.0).collect::<Vec<_>>(),
-        "physics_fallback_frames": fallbacks.iter().map(|f| f.0).collect::<Vec<_>>(),
-    });
+    if let Some(extra) = manifest.extra.as_object_mut() {
+        extra.insert(
+            "failed_frames".into(),
+            failures.iter().map(|f| f.0).collect::<Vec<_>>().into(),
+        );
+        extra.insert(
+            "physics_fallback_frames".into(),
+            fallbacks.iter().map(|f| f.0).collect::<Vec<_>>().into(),
+        );
+    }
     write_manifest(&args.out, &manifest)?;
+    render_resume::end(&args.out)?;
 
     summarize(
         printer,
@@ -173,6 +196,42 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     } else {
         ExitStatus::Failure
     })
+}
+
+/// The manifest of this run before any frame is rendered (frames 0, no failures).
+fn base_manifest(
+    args: &RenderArgs,
+    spec: &SceneSpec,
+    sources: &[ObjectSource],
+    ids: &[u32],
+    frame_range: &std::ops::Range<u64>,
+) -> Result<Manifest> {
+    let mut manifest = Manifest::new(render_resume::command_line(), args.seed);
+    manifest.backend = match args.backend {
+        Backend::Cpu => "cpu",
+        Backend::Blender => "blender",
+    }
+    .into();
+    manifest.scene_spec = serde_json::to_value(spec).context("cannot serialize the scene spec")?;
+    let mut extra = serde_json::json!({
+        "first_frame": args.first_frame,
+        "frame_range": [frame_range.start, frame_range.end],
+        "objects": sources.iter().zip(ids).map(|(s, id)| serde_json::json!({
+            "path": s.path, "obj_id": id, "count": s.count,
+        })).collect::<Vec<_>>(),
+        "visib_delta_m": args.visib_delta_m,
+        "dataset": render_sink::dataset_options(args),
+        "failed_frames": [],
+        "physics_fallback_frames": [],
+    });
+    if let (Some(shard), Some(o)) = (args.shard, extra.as_object_mut()) {
+        o.insert(
+            "shard".into(),
+            serde_json::json!({"index": shard.index, "count": shard.count}),
+        );
+    }
+    manifest.extra = extra;
+    Ok(manifest)
 }
 
 fn check_backend(args: &RenderArgs) -> Result<()> {

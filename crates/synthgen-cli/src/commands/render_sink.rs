@@ -7,7 +7,9 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 use synthgen_core::{FrameScene, Intrinsics, Model, ObjectAnnotation, RenderedFrame};
-use synthgen_dataset::bop::{BopWriter, BopWriterOptions, FrameRecord, ModelInfo, RgbFormat};
+use synthgen_dataset::bop::{
+    BopWriter, BopWriterOptions, DoneFrames, FrameRecord, ModelInfo, RgbFormat,
+};
 use synthgen_dataset::linemod::writer::LinemodRecord;
 use synthgen_dataset::linemod::{LinemodWriter, LinemodWriterOptions, ListFile};
 
@@ -39,6 +41,20 @@ pub fn depth_scale(args: &RenderArgs) -> f64 {
     })
 }
 
+/// The writer options that shape the files, recorded in the manifest (so `--resume` and
+/// `synthgen merge` can check that runs match).
+pub fn dataset_options(args: &RenderArgs) -> serde_json::Value {
+    serde_json::json!({
+        "format": match args.format { FormatArg::Bop => "bop", FormatArg::Linemod => "linemod" },
+        "split": args.split,
+        "chunk_size": args.chunk_size,
+        "rgb_format": match args.rgb_format { RgbArg::Png => "png", RgbArg::Jpg => "jpg" },
+        "jpg_quality": args.jpg_quality,
+        "depth_scale": depth_scale(args),
+        "min_visib_fract": args.min_visib_fract,
+    })
+}
+
 impl Sink {
     pub fn create(args: &RenderArgs, intrinsics: Intrinsics, frames: Range<u64>) -> Result<Sink> {
         Ok(match args.format {
@@ -56,6 +72,9 @@ impl Sink {
                         },
                         depth_scale: depth_scale(args),
                         frame_range: Some(frames),
+                        merge_existing: args.resume,
+                        // Every run keeps journals, so any run can be resumed after a crash.
+                        journal: true,
                         ..BopWriterOptions::new(intrinsics)
                     },
                 )?;
@@ -114,6 +133,14 @@ impl Sink {
                 Record::Linemod(w.write_frame(&f, ListFile::Train)?)
             }
         })
+    }
+
+    /// The frames an interrupted run already wrote (BOP only; see `render_resume`).
+    pub fn resume(&self) -> Result<DoneFrames> {
+        match self {
+            Sink::Bop(w) => Ok(w.resume()?),
+            Sink::Linemod(_) => anyhow::bail!("internal error: resuming a Linemod dataset"),
+        }
     }
 
     pub fn add_record(&self, record: Record) -> Result<()> {

@@ -3,7 +3,9 @@
 
 pub(crate) mod chunk;
 pub mod image;
+pub mod journal;
 pub mod json;
+pub mod merge;
 pub mod reader;
 pub mod types;
 pub mod writer;
@@ -12,4 +14,4 @@ pub use chunk::{write_map, ChunkAnnotations, FrameRecord, SCENE_CAMERA, SCENE_GT
 pub use image::{read_depth_m, read_mask, read_rgb, Plane, PngCompression, RgbFormat, RgbImage};
 pub use reader::{BopDataset, BopScene};
 pub use types::{CameraInfo, GtEntry, ModelInfo, SceneCamera};
-pub use writer::{BopWriter, BopWriterOptions, WriteSummary};
+pub use writer::{BopWriter, BopWriterOptions, DoneFrames, WriteSummary};

@@ -235,6 +235,7 @@ impl BopDataset {
 
     /// Scene ids of a split, sorted.
     pub fn scene_ids(&self, split: &str) -> Result<Vec<u32>> {
+        crate::io::check_plain_name(split, "split", &self.root)?;
         let dir = self.root.join(split);
         Ok(list_dir(&dir)?
             .into_iter()
@@ -245,6 +246,7 @@ impl BopDataset {
 
     /// Reads a scene folder's JSON files and checks that every image has its files.
     pub fn read_scene(&self, split: &str, scene_id: u32) -> Result<BopScene> {
+        crate::io::check_plain_name(split, "split", &self.root)?;
         let dir = self.root.join(split).join(format!("{scene_id:06}"));
         let camera_path = dir.join("scene_camera.json");
         let gt_path = dir.join("scene_gt.json");

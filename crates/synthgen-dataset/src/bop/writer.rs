@@ -15,11 +15,12 @@ use super::image::{
     depth_to_png_values, encode_gray16_png, encode_gray8_png, encode_rgb_jpeg, encode_rgb_png,
     PngCompression, RgbFormat,
 };
+use super::journal;
 use super::json::save_json_object;
 use super::reader::ROTATION_TOLERANCE;
 use super::types::{no_negative_zero, CameraInfo, GtEntry, ModelInfo, SceneCamera};
 use crate::error::{Error, Result};
-use crate::io::{atomic_write, create_dir_all};
+use crate::io::{atomic_write, create_dir_all, remove_stale_temp_files};
 
 /// Options of a [`BopWriter`].
 #[derive(Debug, Clone, PartialEq)]
@@ -45,6 +46,9 @@ pub struct BopWriterOptions {
     pub merge_existing: bool,
     /// fsync the scene JSON files before renaming them into place.
     pub fsync_json: bool,
+    /// Record every added frame in its scene folder's journal (see [`super::journal`]) so an
+    /// interrupted run can be resumed with [`BopWriter::resume`].
+    pub journal: bool,
 }
 
 impl BopWriterOptions {
@@ -59,6 +63,7 @@ impl BopWriterOptions {
             frame_range: None,
             merge_existing: false,
             fsync_json: false,
+            journal: false,
         }
     }
 
@@ -345,8 +350,16 @@ impl BopWriter {
     /// Adds a frame's annotations to its scene folder's JSON. Returns the scene id when this
     /// completed the folder and its JSON was written.
     pub fn add_record(&self, record: FrameRecord) -> Result<Option<u32>> {
+        self.add_record_inner(record, self.opts.journal)
+    }
+
+    fn add_record_inner(&self, record: FrameRecord, to_journal: bool) -> Result<Option<u32>> {
         let scene_id = record.scene_id;
         let mut chunks = lock(&self.chunks);
+        if to_journal {
+            // After the images, before the JSON: the line is what makes the frame count as done.
+            journal::append(&self.scene_dir(scene_id), &record, self.opts.fsync_json)?;
+        }
         if !chunks.open.contains_key(&scene_id) {
             let mut chunk = ChunkAnnotations::new(scene_id, self.expected_ims(scene_id));
             // A folder written earlier (by this run or, when resuming, by another) keeps its
@@ -374,6 +387,9 @@ impl BopWriter {
                 return Err(e);
             }
             chunks.written.insert(scene_id);
+            if self.opts.journal {
+                journal::remove(&self.scene_dir(scene_id))?;
+            }
         }
         Ok(Some(scene_id))
     }
@@ -390,8 +406,78 @@ impl BopWriter {
                 return Err(e);
             }
             chunks.written.insert(scene_id);
+            if self.opts.journal {
+                journal::remove(&self.scene_dir(scene_id))?;
+            }
         }
         Ok(())
+    }
+
+    /// Picks up an interrupted run over the options' `frame_range`: removes the temporary
+    /// files a killed process left, re-adds the frames recorded in the scene folders'
+    /// journals (a folder they complete gets its JSON written) and returns which frames are
+    /// done: those in a `scene_camera.json` or a journal. Needs `merge_existing`.
+    pub fn resume(&self) -> Result<DoneFrames> {
+        let Some(range) = self.opts.frame_range.clone() else {
+            return Err(Error::InvalidOptions(
+                "resuming needs the run's frame range".into(),
+            ));
+        };
+        if !self.opts.merge_existing {
+            return Err(Error::InvalidOptions(
+                "resuming needs merge_existing".into(),
+            ));
+        }
+        let mut done = DoneFrames::new(range.clone());
+        for dir in [
+            self.root.clone(),
+            self.root.join("models"),
+            self.split_dir.clone(),
+        ] {
+            remove_stale_temp_files(&dir)?;
+        }
+        if range.is_empty() {
+            return Ok(done);
+        }
+        let (first, _) = self.frame_location(range.start)?;
+        let (last, _) = self.frame_location(range.end - 1)?;
+        let cs = u64::from(self.opts.chunk_size);
+        for scene_id in first..=last {
+            let dir = self.scene_dir(scene_id);
+            if !dir.is_dir() {
+                continue;
+            }
+            remove_stale_temp_files(&dir)?;
+            for sub in IMAGE_DIRS {
+                remove_stale_temp_files(&dir.join(sub))?;
+            }
+            let base = u64::from(scene_id) * cs;
+            let camera_path = dir.join(super::SCENE_CAMERA);
+            if camera_path.exists() {
+                for im in super::reader::read_scene_camera(&camera_path)?.keys() {
+                    done.mark(base + u64::from(*im));
+                }
+            }
+            let (all, whole) = journal::read_checked(&dir)?;
+            let n_all = all.len();
+            let records: Vec<FrameRecord> = all
+                .into_iter()
+                .filter(|r| {
+                    r.scene_id == scene_id
+                        && r.frame_index == base + u64::from(r.im_id)
+                        && range.contains(&r.frame_index)
+                })
+                .collect();
+            if records.len() != n_all || !whole {
+                // Drop a torn last line before new lines are appended after it.
+                journal::rewrite(&dir, &records)?;
+            }
+            for r in records {
+                done.mark(r.frame_index);
+                self.add_record_inner(r, false)?;
+            }
+        }
+        Ok(done)
     }
 
     /// Flushes the open scene folders and reports what was written.
@@ -403,5 +489,49 @@ impl BopWriter {
             scenes: chunks.written.iter().copied().collect(),
             depth_out_of_range_px: self.depth_out_of_range_px.load(Ordering::Relaxed),
         })
+    }
+}
+
+/// Which frames of a range are done, one bit per frame (a million frames take 125 kB).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DoneFrames {
+    range: Range<u64>,
+    bits: Vec<u64>,
+    count: u64,
+}
+
+impl DoneFrames {
+    pub fn new(range: Range<u64>) -> DoneFrames {
+        let n = range.end.saturating_sub(range.start);
+        DoneFrames {
+            bits: vec![0; n.div_ceil(64) as usize],
+            range,
+            count: 0,
+        }
+    }
+
+    pub fn mark(&mut self, frame_index: u64) {
+        if !self.range.contains(&frame_index) {
+            return;
+        }
+        let k = frame_index - self.range.start;
+        let (w, b) = ((k / 64) as usize, k % 64);
+        if self.bits[w] & (1 << b) == 0 {
+            self.bits[w] |= 1 << b;
+            self.count += 1;
+        }
+    }
+
+    pub fn is_done(&self, frame_index: u64) -> bool {
+        if !self.range.contains(&frame_index) {
+            return false;
+        }
+        let k = frame_index - self.range.start;
+        self.bits[(k / 64) as usize] & (1 << (k % 64)) != 0
+    }
+
+    /// Frames marked done.
+    pub fn count(&self) -> u64 {
+        self.count
     }
 }
