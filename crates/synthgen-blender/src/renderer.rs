@@ -23,11 +23,13 @@ use crate::{BlenderOptions, Error};
 /// The scene script, embedded so the binary needs only the venv.
 const SCENE_SCRIPT: &str = include_str!("../../../blender/synthgen_scene.py");
 
-/// Cycles point-light power (W) per unit of irradiance at 1 m: the raster backend's
-/// `intensity` is the irradiance a light delivers (no falloff), and a Cycles point light of
-/// `P` watts gives a white Lambertian surface facing it at `d` metres the pixel value
-/// `P / (4 π² d²)` (measured: see the `point_light_calibration` test). The power is chosen
-/// so that the two agree at the objects' centroid; elsewhere Cycles' falloff is physical.
+/// Cycles point-light power (W) per unit of irradiance at 1 m. The raster backend's
+/// `intensity` is the irradiance a light delivers (no falloff); for a Cycles point light of
+/// `P` watts we take a white Lambertian surface facing it at `d` metres to reach the pixel
+/// value `P / (4 π² d²)` (Cycles' point-light convention as we understand it; not
+/// calibrated by a test — only the exposure depends on it, no annotation does). The power is
+/// chosen so that the two agree at the objects' centroid; elsewhere Cycles' falloff is
+/// physical.
 pub const WATTS_PER_IRRADIANCE_AT_1M: f64 = 4.0 * std::f64::consts::PI * std::f64::consts::PI;
 
 struct Job {

@@ -175,7 +175,8 @@ fn cycles_masks_and_depth_agree_with_the_raster_backend() {
                 continue; // too few pixels for the edge fraction to say anything
             }
             checked += 1;
-            assert!(iou >= 0.95, "frame {i} object {o}: IoU {iou}");
+            // The bar for "annotations are right in both backends".
+            assert!(iou >= 0.98, "frame {i} object {o}: IoU {iou}");
             assert!(
                 med < 1e-3,
                 "frame {i} object {o}: median depth difference {med} m"
