@@ -354,8 +354,12 @@ pub fn train(
         writeln!(f, "{line}").map_err(|e| Error::io("write", &path, e))?;
         observer.epoch_end(&m);
         history.push(m);
+        // After every epoch, so that a run stopped early still has its curve.
+        crate::plot::write_curve(&out.join(CURVE_FILE), &history)?;
     }
-    crate::plot::write_curve(&out.join(CURVE_FILE), &history)?;
+    if history.is_empty() {
+        crate::plot::write_curve(&out.join(CURVE_FILE), &history)?;
+    }
     Ok(TrainOutcome {
         history,
         n_train: train_set.len(),
