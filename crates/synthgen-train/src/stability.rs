@@ -226,7 +226,7 @@ mod tests {
             "{}",
             g.r_spread_deg
         );
-        let md = to_markdown(&[g.clone()]);
+        let md = to_markdown(std::slice::from_ref(g));
         assert!(md.contains("| 8 | 3 |"), "{md}");
     }
 
