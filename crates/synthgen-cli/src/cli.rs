@@ -58,7 +58,7 @@ pub enum Command {
     /// Check a BOP or Linemod dataset: files, image sizes, poses, masks, depth, ids.
     #[command(after_long_help = VALIDATE_EXAMPLES)]
     Validate(ValidateArgs),
-    /// Train a pose model (TNet) on a BOP dataset; checkpoints, metrics and a curve.
+    /// Train a pose model (TNet, RNet, Full) on a BOP dataset; checkpoints, metrics and a curve.
     #[command(after_long_help = train::TRAIN_EXAMPLES)]
     Train(Box<TrainArgs>),
     /// Score pose estimates (a BOP results CSV or a checkpoint) against a dataset's GT.

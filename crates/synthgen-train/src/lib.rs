@@ -1,4 +1,4 @@
-//! Pose models and their evaluation for synthgen: BOP data loading, TNet (candle), the
+//! Pose models and their evaluation for synthgen: BOP data loading, TNet, RNet and Full (candle), the
 //! training loop, and the pose metrics (ADD, ADD-S, 5cm5°) with BOP results CSV scoring.
 //!
 //! ```no_run
@@ -18,7 +18,9 @@ pub mod losses;
 pub mod metrics;
 pub mod models;
 pub mod plot;
+pub mod pose_model;
 pub mod results;
+pub mod stability;
 pub mod train;
 
 pub use error::{Error, Result};

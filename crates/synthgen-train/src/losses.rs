@@ -1,6 +1,6 @@
-//! The losses of RNet and Full (the models themselves are not implemented yet): the
-//! confidence-weighted quaternion loss and the per-pixel ADD loss with the minimum over an
-//! object's symmetries (equation (6) of the reference study).
+//! The losses of RNet and Full: the confidence-weighted quaternion loss and the per-pixel
+//! ADD loss with the minimum over an object's symmetries (equation (6) of the reference
+//! study), plain and confidence-weighted.
 
 use candle_core::{Result, Tensor, D};
 use synthgen_core::glam::{DMat3, DVec3};
@@ -29,20 +29,40 @@ pub fn symmetric_add_loss(
     points: &Tensor,
     targets: &Tensor,
 ) -> Result<Tensor> {
+    symmetric_add_per_pixel(pred_r, pred_t, points, targets)?.mean_all()
+}
+
+/// The per-pixel distances of [`symmetric_add_loss`], (B, N), before averaging.
+pub fn symmetric_add_per_pixel(
+    pred_r: &Tensor,
+    pred_t: &Tensor,
+    points: &Tensor,
+    targets: &Tensor,
+) -> Result<Tensor> {
     let (b, n, _, _) = pred_r.dims4()?;
     let (_, m, _) = points.dims3()?;
-    // x_j R̂ᵀ + t̂: (B, N, M, 3).
-    let x = points
-        .unsqueeze(1)?
-        .broadcast_as((b, n, m, 3))?
-        .contiguous()?;
-    let rt = pred_r.transpose(2, 3)?.contiguous()?;
-    let posed = x.matmul(&rt)?.broadcast_add(&pred_t.unsqueeze(2)?)?;
-    // (B, N, 1, M, 3) − (B, 1, K, M, 3).
+    // All pixels' rotations in one batched matmul: x (B, M, 3) · R̂ as (B, 3, N·3), where
+    // entry [k, (i, r)] = R̂_i[r, k]; gives (B, M, N, 3) = (R̂_i x_j)_r.
+    let r_cols = pred_r
+        .permute((0, 3, 1, 2))?
+        .contiguous()?
+        .reshape((b, 3, n * 3))?;
+    let posed = points
+        .matmul(&r_cols)?
+        .reshape((b, m, n, 3))?
+        .transpose(1, 2)?
+        .broadcast_add(&pred_t.unsqueeze(2)?)?; // (B, N, M, 3)
+                                                // (B, N, 1, M, 3) − (B, 1, K, M, 3).
     let diff = posed.unsqueeze(2)?.broadcast_sub(&targets.unsqueeze(1)?)?;
     // The epsilon keeps the gradient of the norm finite at zero distance.
     let dist = (diff.sqr()?.sum(D::Minus1)? + 1e-12)?.sqrt()?; // (B, N, K, M)
-    dist.mean(D::Minus1)?.min(D::Minus1)?.mean_all()
+    dist.mean(D::Minus1)?.min(D::Minus1)
+}
+
+/// Full's confidence-weighted form (DenseFusion): (1/BN) Σ (d_i c_i − w log c_i), with d_i
+/// the per-pixel distances of [`symmetric_add_per_pixel`] (metres) and `conf`: (B, N).
+pub fn confident_add_loss(dist: &Tensor, conf: &Tensor, w: f64) -> Result<Tensor> {
+    ((dist * conf)? - (conf.log()? * w)?)?.mean_all()
 }
 
 /// The symmetry transforms of an object (object frame, metres), the identity first:

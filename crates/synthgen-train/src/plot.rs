@@ -1,7 +1,8 @@
 //! The training curve as a PNG, drawn on the dataset crate's canvas (no fonts, no system
 //! libraries).
-//! Top panel: train loss (blue) and val loss (orange), log scale. Bottom panel: validation
-//! centre error (green), log scale, with a grey line at 1 cm. Grid lines at decades.
+//! Top panel: train loss (blue) and val loss (orange), log scale. Bottom panel (green, log
+//! scale): validation centre error with a grey line at 1 cm (TNet), or the ADD(-S) error rate
+//! with a grey line at 10% (RNet, Full). Grid lines at decades.
 
 use std::path::Path;
 
@@ -103,28 +104,46 @@ impl Panel {
     }
 }
 
-/// Draws the curve of `epochs` and writes it as a PNG.
+/// Draws the curve of `epochs` and writes it as a PNG. The bottom panel shows the
+/// validation ADD(-S) error rate (1 − accuracy, grey line at 10%) when the run has it (RNet,
+/// Full), else the centre error (grey line at 1 cm).
 pub fn write_curve(path: &Path, epochs: &[EpochMetrics]) -> Result<()> {
     let mut c = Canvas::new(W, H, [255; 3]);
     let n = epochs.len();
     let train: Vec<f64> = epochs.iter().map(|e| e.train_loss).collect();
     let val: Vec<f64> = epochs.iter().map(|e| e.val_loss).collect();
-    let err: Vec<f64> = epochs.iter().map(|e| e.val_centre_error_m).collect();
+    let (err, mark): (Vec<f64>, f64) = if epochs.iter().any(|e| e.val_add_s_acc.is_some()) {
+        (
+            epochs
+                .iter()
+                .map(|e| 1.0 - e.val_add_s_acc.unwrap_or(0.0))
+                .collect(),
+            0.1,
+        )
+    } else {
+        (
+            epochs
+                .iter()
+                .map(|e| e.val_centre_error_m.unwrap_or(f64::NAN))
+                .collect(),
+            0.01,
+        )
+    };
     let both: Vec<f64> = train.iter().chain(&val).copied().collect();
     let top = Panel::new(20.0, 230.0, &both, n);
     top.frame(&mut c);
     top.series(&mut c, &train, BLUE);
     top.series(&mut c, &val, ORANGE);
     let mut err_range = err.clone();
-    err_range.push(0.01);
+    err_range.push(mark);
     let bottom = Panel::new(260.0, 450.0, &err_range, n);
     bottom.frame(&mut c);
-    let one_cm = bottom.y(0.01);
+    let mark_y = bottom.y(mark);
     let mut x = bottom.x0;
     while x < bottom.x1 {
         c.line(
-            (x, one_cm),
-            ((x + 6.0).min(bottom.x1), one_cm),
+            (x, mark_y),
+            ((x + 6.0).min(bottom.x1), mark_y),
             [150, 150, 150],
             2,
         );

@@ -6,8 +6,8 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use candle_core::{DType, Device};
-use candle_nn::{AdamW, Optimizer, ParamsAdamW, VarBuilder, VarMap};
+use candle_core::Device;
+use candle_nn::{AdamW, Optimizer, ParamsAdamW};
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -16,8 +16,9 @@ use synthgen_core::rng::splitmix64;
 
 use crate::data::{Instance, InstanceSet};
 use crate::error::{Error, Result};
-use crate::models::tnet::{centres_from_offsets, make_batch, offset_l1_loss, TNet};
 use crate::models::ModelKind;
+use crate::pose_model::{Objects, PoseModel, Prediction};
+use rayon::prelude::*;
 
 pub const MODEL_FILE: &str = "model.safetensors";
 pub const CONFIG_FILE: &str = "config.json";
@@ -55,6 +56,19 @@ pub struct TrainConfig {
     pub min_visib_fract: f64,
     pub data: PathBuf,
     pub split: String,
+    /// Side of the RGB crop (RNet, Full; 0 for TNet).
+    #[serde(default)]
+    pub crop_size: u32,
+    /// Model points per object in Full's ADD loss.
+    #[serde(default = "default_loss_points")]
+    pub loss_points: usize,
+    /// Checkpoints the run was initialized from (`--init`), in order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub init: Vec<PathBuf>,
+}
+
+fn default_loss_points() -> usize {
+    100
 }
 
 impl TrainConfig {
@@ -83,8 +97,16 @@ pub struct EpochMetrics {
     pub epoch: usize,
     pub train_loss: f64,
     pub val_loss: f64,
-    /// Mean ‖centre − ĉ‖ over the validation instances, metres.
-    pub val_centre_error_m: f64,
+    /// Mean ‖centre − ĉ‖ over the validation instances, metres (TNet, Full).
+    #[serde(default)]
+    pub val_centre_error_m: Option<f64>,
+    /// Fraction of validation instances with ADD(-S) below 10% of the diameter (RNet, Full;
+    /// RNet's poses use the GT translation).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub val_add_s_acc: Option<f64>,
+    /// Mean rotation error over the validation instances, degrees (RNet, Full).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub val_mean_re_deg: Option<f64>,
     /// Learning rate at the epoch's last step.
     pub lr: f64,
     pub seconds: f64,
@@ -103,6 +125,8 @@ pub trait TrainObserver {
     /// After each step, with the epoch's running mean loss.
     fn step(&self, _running_loss: f64) {}
     fn epoch_end(&self, _m: &EpochMetrics) {}
+    /// `--init`: `set` of the model's `total` variables came from `checkpoint`.
+    fn initialized(&self, _checkpoint: &Path, _set: usize, _total: usize) {}
 }
 
 pub struct NoObserver;
@@ -137,59 +161,22 @@ pub fn device(cuda: bool) -> Result<Device> {
     }
 }
 
-/// A TNet with its variables, fresh or from a checkpoint.
-pub struct TNetModel {
-    pub varmap: VarMap,
-    pub net: TNet,
-    pub scale: f32,
-    pub device: Device,
+/// A fresh model for `cfg`.
+pub fn new_model(cfg: &TrainConfig, device: &Device) -> Result<PoseModel> {
+    PoseModel::new(
+        cfg.model,
+        cfg.width,
+        cfg.normalization_scale,
+        cfg.crop_size,
+        device,
+    )
 }
 
-impl TNetModel {
-    pub fn new(width: usize, scale: f32, device: &Device) -> Result<TNetModel> {
-        let varmap = VarMap::new();
-        let vb = VarBuilder::from_varmap(&varmap, DType::F32, device);
-        let net = TNet::new(width, vb)?;
-        Ok(TNetModel {
-            varmap,
-            net,
-            scale,
-            device: device.clone(),
-        })
-    }
-
-    pub fn load(checkpoint: &Path, cfg: &TrainConfig, device: &Device) -> Result<TNetModel> {
-        let mut m = TNetModel::new(cfg.width, cfg.normalization_scale, device)?;
-        m.varmap.load(checkpoint).map_err(|e| Error::Malformed {
-            what: "checkpoint",
-            message: e.to_string(),
-            path: checkpoint.to_path_buf(),
-        })?;
-        Ok(m)
-    }
-
-    /// Loss (optional) and predicted centres (metres) of a batch of instances.
-    pub fn run(&self, batch: &[&Instance]) -> Result<(candle_core::Tensor, Vec<[f32; 3]>)> {
-        let clouds: Vec<&[[f32; 3]]> = batch.iter().map(|i| i.points_m.as_slice()).collect();
-        let centres: Vec<[f32; 3]> = batch
-            .iter()
-            .map(|i| i.pose.translation_m.as_vec3().to_array())
-            .collect();
-        let b = make_batch(&clouds, Some(&centres), self.scale, &self.device)?;
-        let pred = self.net.forward(&b.points)?;
-        let loss = offset_l1_loss(&pred, &b.offsets)?;
-        let got = centres_from_offsets(&b, &pred, self.scale)?;
-        Ok((loss, got))
-    }
-
-    /// Predicted centres (metres) of instances, in batches.
-    pub fn predict_centres(&self, instances: &[&Instance], batch: usize) -> Result<Vec<[f32; 3]>> {
-        let mut out = Vec::with_capacity(instances.len());
-        for chunk in instances.chunks(batch.max(1)) {
-            out.extend(self.run(chunk)?.1);
-        }
-        Ok(out)
-    }
+/// The model of `cfg` with the weights of `checkpoint`.
+pub fn load_model(checkpoint: &Path, cfg: &TrainConfig, device: &Device) -> Result<PoseModel> {
+    let mut m = new_model(cfg, device)?;
+    m.load_strict(checkpoint)?;
+    Ok(m)
 }
 
 pub fn centre_error_m(pred: [f32; 3], inst: &Instance) -> f64 {
@@ -252,17 +239,20 @@ pub struct TrainOutcome {
 
 /// Trains `cfg.model` on `data`, writing into `out`. With `resume`, continues from the
 /// checkpoint in `out` (weights and epoch count; AdamW's moments restart from zero).
+/// `objects` (models, symmetries) are needed by Full's loss and by the rotation metrics of
+/// RNet and Full; `cfg.init` checkpoints initialize a fresh run's matching variables.
 pub fn train(
     cfg: &TrainConfig,
     data: &InstanceSet,
+    objects: Option<&Objects>,
     out: &Path,
     resume: bool,
     device: &Device,
     observer: &dyn TrainObserver,
 ) -> Result<TrainOutcome> {
-    if cfg.model != ModelKind::Tnet {
+    if cfg.model != ModelKind::Tnet && objects.is_none() {
         return Err(Error::InvalidOption(format!(
-            "model {} is not implemented yet (only tnet); see docs/training.md",
+            "model {} needs the objects' models (models_info.json and the model files)",
             cfg.model.name()
         )));
     }
@@ -287,11 +277,15 @@ pub fn train(
     let model_path = out.join(MODEL_FILE);
     let (model, state, mut history) = if resume {
         let state: TrainState = read_json(&out.join(STATE_FILE), "state.json")?;
-        let model = TNetModel::load(&model_path, cfg, device)?;
+        let model = load_model(&model_path, cfg, device)?;
         let history = read_metrics(out, state.epochs_done)?;
         (model, state, history)
     } else {
-        let model = TNetModel::new(cfg.width, cfg.normalization_scale, device)?;
+        let mut model = new_model(cfg, device)?;
+        for ckpt in &cfg.init {
+            let n = model.init_from(ckpt)?;
+            observer.initialized(ckpt, n, model.varmap.all_vars().len());
+        }
         let state = TrainState {
             epochs_done: 0,
             steps_done: 0,
@@ -332,19 +326,21 @@ pub fn train(
         for batch in order.chunks(cfg.batch) {
             lr = cfg.lr_at(step, total_steps, epoch);
             opt.set_learning_rate(lr);
-            let (loss, _) = model.run(batch)?;
+            let (loss, _) = model.run(batch, objects, false)?;
             opt.backward_step(&loss)?;
             sum += f64::from(loss.to_scalar::<f32>()?) * batch.len() as f64;
             count += batch.len();
             step += 1;
             observer.step(sum / count as f64);
         }
-        let (val_loss, val_err) = validate(&model, &val_set, cfg.batch)?;
+        let v = validate(&model, &val_set, objects, cfg.batch)?;
         let m = EpochMetrics {
             epoch: epoch + 1,
             train_loss: sum / count.max(1) as f64,
-            val_loss,
-            val_centre_error_m: val_err,
+            val_loss: v.loss,
+            val_centre_error_m: v.centre_error_m,
+            val_add_s_acc: v.add_s_acc,
+            val_mean_re_deg: v.mean_re_deg,
             lr,
             seconds: started.elapsed().as_secs_f64(),
         };
@@ -358,8 +354,12 @@ pub fn train(
         writeln!(f, "{line}").map_err(|e| Error::io("write", &path, e))?;
         observer.epoch_end(&m);
         history.push(m);
+        // After every epoch, so that a run stopped early still has its curve.
+        crate::plot::write_curve(&out.join(CURVE_FILE), &history)?;
     }
-    crate::plot::write_curve(&out.join(CURVE_FILE), &history)?;
+    if history.is_empty() {
+        crate::plot::write_curve(&out.join(CURVE_FILE), &history)?;
+    }
     Ok(TrainOutcome {
         history,
         n_train: train_set.len(),
@@ -368,24 +368,63 @@ pub fn train(
     })
 }
 
-/// Mean loss and mean centre error (metres) over `set`; NaN when it is empty.
-pub fn validate(model: &TNetModel, set: &[&Instance], batch: usize) -> Result<(f64, f64)> {
-    let (mut loss_sum, mut err_sum) = (0.0, 0.0);
+/// Validation numbers of one pass over a set.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Validation {
+    pub loss: f64,
+    pub centre_error_m: Option<f64>,
+    pub add_s_acc: Option<f64>,
+    pub mean_re_deg: Option<f64>,
+}
+
+/// Mean loss, mean centre error (metres; TNet, Full), ADD(-S) accuracy and mean rotation
+/// error (RNet with the GT translation, Full) over `set`; NaN when it is empty.
+pub fn validate(
+    model: &PoseModel,
+    set: &[&Instance],
+    objects: Option<&Objects>,
+    batch: usize,
+) -> Result<Validation> {
+    let mut loss_sum = 0.0;
+    let mut preds: Vec<Prediction> = Vec::with_capacity(set.len());
     for chunk in set.chunks(batch.max(1)) {
-        let (loss, got) = model.run(chunk)?;
+        let (loss, p) = model.run(chunk, objects, true)?;
         loss_sum += f64::from(loss.to_scalar::<f32>()?) * chunk.len() as f64;
-        err_sum += got
-            .iter()
-            .zip(chunk)
-            .map(|(g, i)| centre_error_m(*g, i))
-            .sum::<f64>();
+        preds.extend(p);
     }
     let n = set.len() as f64;
-    Ok((loss_sum / n, err_sum / n))
+    let centre_error_m = (model.kind != ModelKind::Rnet).then(|| {
+        preds
+            .iter()
+            .zip(set)
+            .filter_map(|(p, i)| p.centre_m.map(|c| centre_error_m(c, i)))
+            .sum::<f64>()
+            / n
+    });
+    let (mut add_s_acc, mut mean_re_deg) = (None, None);
+    if let (ModelKind::Rnet | ModelKind::Full, Some(objs)) = (model.kind, objects) {
+        let scored: Vec<(bool, f64)> = preds
+            .par_iter()
+            .zip(set)
+            .filter_map(|(p, i)| {
+                let obj = &objs.get(&i.obj_id)?.eval;
+                let e = obj.errors(&i.pose, &p.pose(i.pose.translation_m));
+                Some((obj.add_s_correct(&e), e.re_deg))
+            })
+            .collect();
+        add_s_acc = Some(scored.iter().filter(|s| s.0).count() as f64 / n);
+        mean_re_deg = Some(scored.iter().map(|s| s.1).sum::<f64>() / n);
+    }
+    Ok(Validation {
+        loss: loss_sum / n,
+        centre_error_m,
+        add_s_acc,
+        mean_re_deg,
+    })
 }
 
 fn save_checkpoint(
-    model: &TNetModel,
+    model: &PoseModel,
     out: &Path,
     epochs_done: usize,
     steps_done: usize,
@@ -452,6 +491,9 @@ mod tests {
             min_visib_fract: 0.1,
             data: PathBuf::new(),
             split: String::new(),
+            crop_size: 0,
+            loss_points: 100,
+            init: Vec::new(),
         };
         assert!((cfg.lr_at(0, 100, 0) - 1e-3).abs() < 1e-12);
         assert!((cfg.lr_at(100, 100, 9) - 1e-5).abs() < 1e-12);

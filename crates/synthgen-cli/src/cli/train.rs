@@ -8,9 +8,9 @@ use clap::{Args, ValueEnum};
 pub enum ModelArg {
     /// Object centre from the masked depth points (PointNet offsets).
     Tnet,
-    /// Rotation from colour + points (not implemented yet).
+    /// Rotation from colour + points (DenseFusion style), quaternion loss.
     Rnet,
-    /// Both heads with the per-point ADD loss (not implemented yet).
+    /// Both heads, per-pixel ADD loss (min over the object's symmetries).
     Full,
 }
 
@@ -38,13 +38,18 @@ pub const TRAIN_EXAMPLES: &str = "Examples:
   # Go on from the last checkpoint up to 50 epochs:
   synthgen train --data data/drill --out runs/tnet --epochs 50 --resume
 
+  # The full model (translation + rotation), starting from the TNet run:
+  synthgen train --data data/drill --model full --init runs/tnet/model.safetensors --out runs/full
+
 Output (in --out):
   model.safetensors   the weights after the last finished epoch
   config.json         model, width, points, normalization, data, seed, ...
   state.json          epochs and steps done (for --resume)
   metrics.jsonl       one JSON line per epoch: epoch, train_loss, val_loss,
-                      val_centre_error_m, lr, seconds
-  curve.png           losses (top) and validation centre error (bottom), log scales";
+                      val_centre_error_m, val_add_s_acc and val_mean_re_deg
+                      (rnet, full), lr, seconds
+  curve.png           losses (top) and validation centre error or ADD(-S) error
+                      rate (bottom), log scales";
 
 #[derive(Debug, Args)]
 pub struct TrainArgs {
@@ -88,6 +93,19 @@ pub struct TrainArgs {
     #[arg(long, default_value_t = 128)]
     pub width: usize,
 
+    /// Side of the RGB crop around the object (rnet, full), pixels, even.
+    #[arg(long, default_value_t = 48)]
+    pub crop_size: u32,
+
+    /// Model points per object in the full model's ADD loss.
+    #[arg(long, default_value_t = 100)]
+    pub loss_points: usize,
+
+    /// Initialize the variables this checkpoint shares with the model (same names and
+    /// shapes), e.g. a TNet or RNet run's model.safetensors for --model full. Repeatable.
+    #[arg(long, value_name = "CKPT")]
+    pub init: Vec<PathBuf>,
+
     /// Fraction of frames held out for validation.
     #[arg(long, default_value_t = 0.1)]
     pub val_fraction: f64,
@@ -123,11 +141,18 @@ pub const EVAL_EXAMPLES: &str = "Examples:
   # Centre error of a trained TNet on a dataset:
   synthgen eval --checkpoint runs/tnet/model.safetensors --data data/drill_test
 
+  # ADD(-S), 5cm5°, E_te, E_re of a full (or rnet) model, as a table and JSON:
+  synthgen eval --checkpoint runs/full/model.safetensors --data data/drill_test --json s.json
+
+  # Spread of the estimates over repeated frames of a static object:
+  synthgen eval --checkpoint runs/full/model.safetensors --data data/static --stability
+
 Results CSV (bop_toolkit): scene_id,im_id,obj_id,score,R,t,time with R 9 values
 row-major and t in millimetres, space-separated. Accuracy is over all GT instances
 (an instance without an estimate counts as wrong); the highest-scoring estimate
 per (image, object) counts; ADD-S is used for objects with symmetries in
-models_info.json. See docs/metrics.md.";
+models_info.json. An rnet checkpoint predicts rotation only: its poses take the
+GT translation (E_te = 0). See docs/metrics.md.";
 
 #[derive(Debug, Args)]
 pub struct EvalArgs {
@@ -163,6 +188,12 @@ pub struct EvalArgs {
     /// Seed for point sampling with --checkpoint.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+
+    /// Report the mean and covariance of the estimated translation and quaternion over
+    /// groups of frames with the same GT pose (a static object seen repeatedly), per object.
+    /// Needs --checkpoint of an rnet or full model (tnet: translation only).
+    #[arg(long, requires = "checkpoint")]
+    pub stability: bool,
 
     #[arg(long, value_enum, default_value_t = DeviceArg::Cpu)]
     pub device: DeviceArg,

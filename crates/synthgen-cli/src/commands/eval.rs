@@ -5,10 +5,14 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 use synthgen_dataset::bop::BopDataset;
-use synthgen_train::data::{load_instances, DataOptions};
+use synthgen_train::data::{load_instances, DataOptions, Instance};
 use synthgen_train::eval::{evaluate, load_eval_objects, pick_split, read_gt};
-use synthgen_train::results::read_results_csv;
-use synthgen_train::train::{self, centre_error_m, read_config, TNetModel, CONFIG_FILE};
+use synthgen_train::metrics::EvalObject;
+use synthgen_train::models::ModelKind;
+use synthgen_train::pose_model::{load_dataset_objects, Prediction};
+use synthgen_train::results::{read_results_csv, Estimate};
+use synthgen_train::stability::{stability, to_markdown as stability_markdown, Sample};
+use synthgen_train::train::{self, centre_error_m, load_model, read_config, CONFIG_FILE};
 
 use crate::cli::{DeviceArg, EvalArgs};
 use crate::commands::user_error;
@@ -97,12 +101,13 @@ fn run_checkpoint(args: &EvalArgs, ckpt: &Path, printer: &Printer) -> Result<Exi
     }
     let cfg = read_config(&config_path)?;
     let device = train::device(args.device == DeviceArg::Cuda)?;
-    let model = TNetModel::load(ckpt, &cfg, &device)?;
+    let model = load_model(ckpt, &cfg, &device)?;
     let opts = DataOptions {
         n_points: cfg.n_points,
         min_visib_fract: args.min_visib_fract,
         seed: args.seed,
         split: args.split.clone(),
+        crop_size: cfg.crop_size,
         ..DataOptions::default()
     };
     let set = load_instances(&args.data, &opts, printer)
@@ -113,15 +118,17 @@ fn run_checkpoint(args: &EvalArgs, ckpt: &Path, printer: &Printer) -> Result<Exi
             "check that the dataset has depth/ and mask_visib/ images",
         ));
     }
+    let objects = if cfg.model == ModelKind::Tnet {
+        None
+    } else {
+        Some(
+            load_dataset_objects(&args.data, set.obj_ids(), cfg.loss_points).with_context(
+                || format!("cannot load the object models of {}", args.data.display()),
+            )?,
+        )
+    };
     let refs: Vec<_> = set.instances.iter().collect();
-    let centres = model.predict_centres(&refs, 64)?;
-    let mut per_obj: BTreeMap<u32, CentreAcc> = BTreeMap::new();
-    let mut all = CentreAcc::default();
-    for (c, inst) in centres.iter().zip(&set.instances) {
-        let e = centre_error_m(*c, inst);
-        per_obj.entry(inst.obj_id).or_default().errors_m.push(e);
-        all.errors_m.push(e);
-    }
+    let preds = model.predict(&refs, objects.as_ref(), 64)?;
     printer.info(format!(
         "{} on {} instances of {}/{} ({} skipped: too few valid pixels)",
         cfg.model.name(),
@@ -130,6 +137,90 @@ fn run_checkpoint(args: &EvalArgs, ckpt: &Path, printer: &Printer) -> Result<Exi
         set.split,
         set.skipped_few_pixels
     ));
+    if cfg.model == ModelKind::Rnet {
+        printer.warning(
+            "rnet predicts rotation only: its poses take the GT translation (E_te = 0, ADD(-S) measures rotation alone)",
+        );
+    }
+    if args.stability {
+        let samples: Vec<Sample> = preds
+            .iter()
+            .zip(&set.instances)
+            .map(|(p, i)| Sample {
+                obj_id: i.obj_id,
+                gt: i.pose,
+                est: p.pose(i.pose.translation_m),
+            })
+            .collect();
+        let groups = stability(&samples, 2);
+        if groups.is_empty() {
+            return Err(user_error(
+                format!(
+                    "no object has the same GT pose in two or more frames of {}",
+                    args.data.display()
+                ),
+                "--stability needs repeated frames of a static object (same GT pose)",
+            ));
+        }
+        printer.info(format!(
+            "{} groups of frames with the same GT pose",
+            groups.len()
+        ));
+        print!("{}", stability_markdown(&groups));
+        if let Some(path) = &args.json {
+            write_json(path, &serde_json::json!({ "stability": groups }))?;
+            printer.info(format!("wrote {}", path.display()));
+        }
+        return Ok(ExitStatus::Success);
+    }
+    if cfg.model == ModelKind::Tnet {
+        return centre_table(args, &set.instances, &preds, printer);
+    }
+    // Rotation models: score the estimates like a results CSV against the split's GT.
+    let Some(objects) = objects else {
+        return Err(anyhow::anyhow!("internal: objects not loaded"));
+    };
+    let ds = BopDataset::open(&args.data)?;
+    let gts = read_gt(&ds, &set.split, args.min_visib_fract)?;
+    let estimates: Vec<Estimate> = preds
+        .iter()
+        .zip(&set.instances)
+        .map(|(p, i)| Estimate {
+            scene_id: i.scene_id,
+            im_id: i.im_id,
+            obj_id: i.obj_id,
+            score: p.score(),
+            pose: p.pose(i.pose.translation_m),
+            time_s: -1.0,
+        })
+        .collect();
+    let eval_objects: BTreeMap<u32, EvalObject> = objects
+        .iter()
+        .map(|(&id, o)| (id, o.eval.clone()))
+        .collect();
+    let report = evaluate(&gts, &estimates, &eval_objects)?;
+    print!("{}", report.to_markdown(&eval_objects));
+    if let Some(path) = &args.json {
+        write_json(path, &report.to_json())?;
+        printer.info(format!("wrote {}", path.display()));
+    }
+    Ok(ExitStatus::Success)
+}
+
+fn centre_table(
+    args: &EvalArgs,
+    instances: &[Instance],
+    preds: &[Prediction],
+    printer: &Printer,
+) -> Result<ExitStatus> {
+    let mut per_obj: BTreeMap<u32, CentreAcc> = BTreeMap::new();
+    let mut all = CentreAcc::default();
+    for (p, inst) in preds.iter().zip(instances) {
+        let Some(c) = p.centre_m else { continue };
+        let e = centre_error_m(c, inst);
+        per_obj.entry(inst.obj_id).or_default().errors_m.push(e);
+        all.errors_m.push(e);
+    }
     let mut json = serde_json::Map::new();
     let mut md = String::from(
         "| object | n | mean centre error cm | median cm | p90 cm | < 1 cm | < 2 cm |\n|---|---:|---:|---:|---:|---:|---:|\n",

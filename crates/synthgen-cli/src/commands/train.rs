@@ -7,6 +7,7 @@ use synthgen_core::Progress;
 use synthgen_train::data::{load_instances, DataOptions};
 use synthgen_train::models::tnet::DEFAULT_SCALE;
 use synthgen_train::models::ModelKind;
+use synthgen_train::pose_model::load_dataset_objects;
 use synthgen_train::train::{
     self, read_config, EpochMetrics, Schedule, TrainConfig, TrainObserver, CONFIG_FILE, CURVE_FILE,
     METRICS_FILE, MODEL_FILE,
@@ -39,28 +40,60 @@ impl TrainObserver for BarObserver<'_> {
     fn epoch_end(&self, m: &EpochMetrics) {
         self.printer.finish();
         self.printer.info(format!(
-            "epoch {:>3}: train loss {:.4}, val loss {:.4}, val centre error {:.2} cm, lr {:.2e}, {:.1} s",
+            "epoch {:>3}: train loss {:.4}, val loss {:.4}{}, lr {:.2e}, {:.1} s",
             m.epoch,
             m.train_loss,
             m.val_loss,
-            m.val_centre_error_m * 100.0,
+            val_summary(m),
             m.lr,
             m.seconds
         ));
     }
+
+    fn initialized(&self, checkpoint: &std::path::Path, set: usize, total: usize) {
+        self.printer.info(format!(
+            "initialized {set} of {total} variables from {}",
+            checkpoint.display()
+        ));
+    }
+}
+
+/// ", val centre error 0.24 cm, val ADD(-S) acc 93.0%, val E_re 3.1°" (what the run has).
+fn val_summary(m: &EpochMetrics) -> String {
+    let mut s = String::new();
+    if let Some(e) = m.val_centre_error_m {
+        s += &format!(", val centre error {:.2} cm", e * 100.0);
+    }
+    if let Some(a) = m.val_add_s_acc {
+        s += &format!(", val ADD(-S) acc {:.1}%", a * 100.0);
+    }
+    if let Some(r) = m.val_mean_re_deg {
+        s += &format!(", val E_re {r:.1}°");
+    }
+    s
 }
 
 pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
     let started = Instant::now();
     let model = match args.model {
         ModelArg::Tnet => ModelKind::Tnet,
-        ModelArg::Rnet | ModelArg::Full => {
-            return Err(user_error(
-                format!("--model {:?} is not implemented yet", args.model).to_lowercase(),
-                "only --model tnet trains today; see docs/training.md for the plan",
-            ))
-        }
+        ModelArg::Rnet => ModelKind::Rnet,
+        ModelArg::Full => ModelKind::Full,
     };
+    for ckpt in &args.init {
+        if !ckpt.is_file() {
+            return Err(user_error(
+                format!("--init {} does not exist", ckpt.display()),
+                "pass the model.safetensors of an earlier `synthgen train` run",
+            ));
+        }
+    }
+    if args.resume && !args.init.is_empty() {
+        return Err(user_error(
+            "--init and --resume do not go together",
+            "--resume continues from the run's own checkpoint",
+        ));
+    }
     if let Some(j) = args.jobs {
         // Ignored when a pool already exists (only in tests that call run twice).
         let _ = rayon::ThreadPoolBuilder::new()
@@ -107,8 +140,23 @@ pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
             min_visib_fract: args.min_visib_fract,
             data: args.data.clone(),
             split: args.split.clone().unwrap_or_default(),
+            crop_size: if model.needs_rgb() { args.crop_size } else { 0 },
+            loss_points: args.loss_points,
+            init: args.init.clone(),
         }
     };
+    if cfg.model.needs_rgb() && (cfg.crop_size < 2 || cfg.crop_size % 2 != 0) {
+        return Err(user_error(
+            format!("--crop-size {} must be even and at least 2", cfg.crop_size),
+            "e.g. --crop-size 48",
+        ));
+    }
+    if cfg.model == ModelKind::Full && cfg.loss_points == 0 {
+        return Err(user_error(
+            "--loss-points must be positive",
+            "e.g. --loss-points 100",
+        ));
+    }
     if cfg.n_points == 0 || cfg.width == 0 || cfg.batch == 0 || cfg.epochs == 0 {
         return Err(user_error(
             "--points, --width, --batch and --epochs must be positive",
@@ -128,6 +176,7 @@ pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
         min_visib_fract: cfg.min_visib_fract,
         seed: cfg.seed,
         split: (!cfg.split.is_empty()).then(|| cfg.split.clone()),
+        crop_size: cfg.crop_size,
         ..DataOptions::default()
     };
     let t_load = Instant::now();
@@ -157,7 +206,24 @@ pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
         printer,
         epoch: std::cell::Cell::new((0, cfg.epochs)),
     };
-    let outcome = train::train(&cfg, &set, &args.out, args.resume, &device, &observer)?;
+    let objects = if cfg.model == ModelKind::Tnet {
+        None
+    } else {
+        Some(
+            load_dataset_objects(&args.data, set.obj_ids(), cfg.loss_points).with_context(
+                || format!("cannot load the object models of {}", args.data.display()),
+            )?,
+        )
+    };
+    let outcome = train::train(
+        &cfg,
+        &set,
+        objects.as_ref(),
+        &args.out,
+        args.resume,
+        &device,
+        &observer,
+    )?;
     printer.finish();
     if args.resume {
         printer.info(format!(
@@ -167,13 +233,13 @@ pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
     }
     if let Some(last) = outcome.history.last() {
         println!(
-            "{} after {} epochs: val centre error {:.2} cm over {} held-out instances ({} trained on), val loss {:.4}",
+            "{} after {} epochs over {} held-out instances ({} trained on): val loss {:.4}{}",
             cfg.model.name(),
             last.epoch,
-            last.val_centre_error_m * 100.0,
             outcome.n_val,
             outcome.n_train,
-            last.val_loss
+            last.val_loss,
+            val_summary(last)
         );
     }
     printer.info(format!(

@@ -1,5 +1,7 @@
-//! The pose models. Only TNet is implemented so far (RNet and Full: see docs/training.md).
+//! The pose models: TNet (centre), RNet (rotation) and Full (both), see docs/training.md.
 
+pub mod full;
+pub mod rnet;
 pub mod tnet;
 
 use serde::{Deserialize, Serialize};
@@ -10,9 +12,9 @@ use serde::{Deserialize, Serialize};
 pub enum ModelKind {
     /// Object centre from the point cloud (PointNet offsets).
     Tnet,
-    /// Rotation from colour + points (DenseFusion style). Not implemented yet.
+    /// Rotation from colour + points (DenseFusion style), quaternion-confidence loss.
     Rnet,
-    /// Both heads with the per-point ADD loss. Not implemented yet.
+    /// Both heads on shared point features, per-pixel ADD loss (min over symmetries).
     Full,
 }
 
@@ -23,5 +25,10 @@ impl ModelKind {
             ModelKind::Rnet => "rnet",
             ModelKind::Full => "full",
         }
+    }
+
+    /// Whether the model reads RGB crops.
+    pub fn needs_rgb(self) -> bool {
+        self != ModelKind::Tnet
     }
 }

@@ -8,12 +8,13 @@
 use candle_core::{DType, Device, Module, Result, Tensor, D};
 use candle_nn::{linear, linear_no_bias, Linear, VarBuilder};
 
+use super::rnet::PointStem;
+
 /// Input normalization: points minus the cloud's mean, times `scale` (1/m).
 pub const DEFAULT_SCALE: f32 = 10.0;
 
 pub struct TNet {
-    l1: Linear,
-    l2: Linear,
+    stem: PointStem,
     l3: Linear,
     h1_point: Linear,
     h1_global: Linear,
@@ -25,8 +26,7 @@ pub struct TNet {
 impl TNet {
     pub fn new(width: usize, vb: VarBuilder) -> Result<TNet> {
         Ok(TNet {
-            l1: linear(3, 64, vb.pp("l1"))?,
-            l2: linear(64, 128, vb.pp("l2"))?,
+            stem: PointStem::new(&vb)?,
             l3: linear(128, width, vb.pp("l3"))?,
             h1_point: linear(128, 128, vb.pp("h1_point"))?,
             h1_global: linear_no_bias(width, 128, vb.pp("h1_global"))?,
@@ -38,17 +38,21 @@ impl TNet {
 
     /// `x`: (B, N, 3) normalized points → (B, N, 3) predicted offsets (normalized units).
     pub fn forward(&self, x: &Tensor) -> Result<Tensor> {
+        Ok(self.forward_with_features(x)?.0)
+    }
+
+    /// The offsets and the shared per-point features (B·N, 128) of TNet's first layers.
+    pub fn forward_with_features(&self, x: &Tensor) -> Result<(Tensor, Tensor)> {
         let (b, n, _) = x.dims3()?;
         let x = x.reshape((b * n, 3))?;
-        let f1 = self.l1.forward(&x)?.relu()?;
-        let f2 = self.l2.forward(&f1)?.relu()?;
+        let f2 = self.stem.forward(&x)?;
         let f3 = self.l3.forward(&f2)?.relu()?;
         let g = f3.reshape((b, n, self.width))?.max(1)?; // (B, width)
         let hg = self.h1_global.forward(&g)?.unsqueeze(1)?; // (B, 1, 128)
         let hp = self.h1_point.forward(&f2)?.reshape((b, n, 128))?;
         let h = hp.broadcast_add(&hg)?.relu()?.reshape((b * n, 128))?;
         let h = self.h2.forward(&h)?.relu()?;
-        self.h3.forward(&h)?.reshape((b, n, 3))
+        Ok((self.h3.forward(&h)?.reshape((b, n, 3))?, f2))
     }
 }
 

@@ -1,0 +1,290 @@
+//! RNet: rotation from colour and points, DenseFusion style.
+//!
+//! A small CNN over the RGB crop (3→16, 16→32 stride 2, 32→32; 3×3 kernels) gives a colour
+//! feature map at half the crop's resolution; each sampled pixel reads the feature at its
+//! position. The point branch is TNet's first two layers (3→64→128, the same variable names,
+//! so a TNet checkpoint initializes them). Per pixel the colour and point features are fused
+//! (`relu(W_c e_i + W_p f_i)`, 128, then a layer to `width`), a global feature average-pooled
+//! over the pixels is appended, and a head 128 → 64 → 5 gives per pixel a quaternion
+//! (w, x, y, z; normalized) and a confidence (sigmoid). The output is the most confident
+//! pixel's quaternion.
+
+use candle_core::{DType, Device, Module, Result, Tensor, D};
+use candle_nn::{conv2d, linear, linear_no_bias, Conv2d, Conv2dConfig, Linear, VarBuilder};
+
+/// Default side of the square RGB crop, pixels.
+pub const DEFAULT_CROP: u32 = 48;
+/// Channels of the colour feature.
+pub const COLOUR_CHANNELS: usize = 32;
+/// The confidence regularizer's weight `w` (DenseFusion's 0.015).
+pub const CONFIDENCE_WEIGHT: f64 = 0.015;
+
+/// TNet's first layers: per point 3 → 64 → 128. Shared by RNet and Full.
+pub struct PointStem {
+    l1: Linear,
+    l2: Linear,
+}
+
+impl PointStem {
+    pub fn new(vb: &VarBuilder) -> Result<PointStem> {
+        Ok(PointStem {
+            l1: linear(3, 64, vb.pp("l1"))?,
+            l2: linear(64, 128, vb.pp("l2"))?,
+        })
+    }
+
+    /// `x`: (B·N, 3) → (B·N, 128).
+    pub fn forward(&self, x: &Tensor) -> Result<Tensor> {
+        self.l2.forward(&self.l1.forward(x)?.relu()?)?.relu()
+    }
+}
+
+/// The colour CNN: (B, 3, S, S) → (B, 32, S/2, S/2) (S even).
+pub struct ColourCnn {
+    c1: Conv2d,
+    c2: Conv2d,
+    c3: Conv2d,
+}
+
+impl ColourCnn {
+    pub fn new(vb: VarBuilder) -> Result<ColourCnn> {
+        let same = Conv2dConfig {
+            padding: 1,
+            ..Default::default()
+        };
+        let down = Conv2dConfig {
+            padding: 1,
+            stride: 2,
+            ..Default::default()
+        };
+        Ok(ColourCnn {
+            c1: conv2d(3, 16, 3, same, vb.pp("c1"))?,
+            c2: conv2d(16, COLOUR_CHANNELS, 3, down, vb.pp("c2"))?,
+            c3: conv2d(COLOUR_CHANNELS, COLOUR_CHANNELS, 3, same, vb.pp("c3"))?,
+        })
+    }
+
+    pub fn forward(&self, x: &Tensor) -> Result<Tensor> {
+        let x = self.c1.forward(x)?.relu()?;
+        let x = self.c2.forward(&x)?.relu()?;
+        self.c3.forward(&x)?.relu()
+    }
+}
+
+/// The rotation branch: colour CNN, fusion with the point features, global average pooling,
+/// per-pixel quaternion and confidence.
+pub struct RotationBranch {
+    cnn: ColourCnn,
+    fuse_c: Linear,
+    fuse_p: Linear,
+    fuse2: Linear,
+    r1_point: Linear,
+    r1_global: Linear,
+    r2: Linear,
+    r3: Linear,
+    width: usize,
+}
+
+/// Per pixel quaternions (B, N, 4), unit, (w, x, y, z), and confidences (B, N) in (0, 1).
+pub struct RotationOut {
+    pub quats: Tensor,
+    pub conf: Tensor,
+}
+
+impl RotationBranch {
+    pub fn new(width: usize, vb: VarBuilder) -> Result<RotationBranch> {
+        Ok(RotationBranch {
+            cnn: ColourCnn::new(vb.pp("cnn"))?,
+            fuse_c: linear(COLOUR_CHANNELS, 128, vb.pp("fuse_c"))?,
+            fuse_p: linear_no_bias(128, 128, vb.pp("fuse_p"))?,
+            fuse2: linear(128, width, vb.pp("fuse2"))?,
+            r1_point: linear(width, 128, vb.pp("r1_point"))?,
+            r1_global: linear_no_bias(width, 128, vb.pp("r1_global"))?,
+            r2: linear(128, 64, vb.pp("r2"))?,
+            r3: linear(64, 5, vb.pp("r3"))?,
+            width,
+        })
+    }
+
+    /// `point_feat`: (B·N, 128); `crops`: (B, 3, S, S); `pixels`: (B·N) u32 indices into the
+    /// flattened (B, S/2, S/2) feature maps (see [`pixel_indices`]).
+    pub fn forward(
+        &self,
+        point_feat: &Tensor,
+        crops: &Tensor,
+        pixels: &Tensor,
+        b: usize,
+        n: usize,
+    ) -> Result<RotationOut> {
+        let fmap = self.cnn.forward(crops)?; // (B, C, h, w)
+        let (_, c, h, w) = fmap.dims4()?;
+        let flat = fmap
+            .reshape((b, c, h * w))?
+            .transpose(1, 2)?
+            .contiguous()?
+            .reshape((b * h * w, c))?;
+        let colour = flat.index_select(pixels, 0)?; // (B·N, C)
+        let fused = (self.fuse_c.forward(&colour)? + self.fuse_p.forward(point_feat)?)?.relu()?;
+        let fused = self.fuse2.forward(&fused)?.relu()?; // (B·N, width)
+        let global = fused.reshape((b, n, self.width))?.mean(1)?; // (B, width)
+        let hg = self.r1_global.forward(&global)?.unsqueeze(1)?; // (B, 1, 128)
+        let hp = self.r1_point.forward(&fused)?.reshape((b, n, 128))?;
+        let h = hp.broadcast_add(&hg)?.relu()?.reshape((b * n, 128))?;
+        let h = self.r2.forward(&h)?.relu()?;
+        let out = self.r3.forward(&h)?.reshape((b, n, 5))?;
+        let raw_q = out.narrow(2, 0, 4)?;
+        let norm = (raw_q.sqr()?.sum_keepdim(D::Minus1)? + 1e-12)?.sqrt()?;
+        let quats = raw_q.broadcast_div(&norm)?;
+        let conf = candle_nn::ops::sigmoid(&out.narrow(2, 4, 1)?.squeeze(2)?)?;
+        Ok(RotationOut { quats, conf })
+    }
+}
+
+/// RNet: the point stem and the rotation branch.
+pub struct RNet {
+    stem: PointStem,
+    rot: RotationBranch,
+}
+
+impl RNet {
+    pub fn new(width: usize, vb: VarBuilder) -> Result<RNet> {
+        Ok(RNet {
+            stem: PointStem::new(&vb)?,
+            rot: RotationBranch::new(width, vb.pp("rot"))?,
+        })
+    }
+
+    /// `points`: (B, N, 3) normalized; `crops`: (B, 3, S, S); `pixels`: (B·N) u32.
+    pub fn forward(&self, points: &Tensor, crops: &Tensor, pixels: &Tensor) -> Result<RotationOut> {
+        let (b, n, _) = points.dims3()?;
+        let f = self.stem.forward(&points.reshape((b * n, 3))?)?;
+        self.rot.forward(&f, crops, pixels, b, n)
+    }
+}
+
+/// Crops (`S² × 3` bytes each, RGB row-major) as a (B, 3, S, S) tensor, standardized
+/// ((v/255 − 0.5) / 0.25).
+pub fn crops_tensor(crops: &[&[u8]], size: u32, device: &Device) -> Result<Tensor> {
+    let s = size as usize;
+    let mut v = Vec::with_capacity(crops.len() * 3 * s * s);
+    for crop in crops {
+        if crop.len() != s * s * 3 {
+            candle_core::bail!("crop has {} bytes, expected {}", crop.len(), s * s * 3);
+        }
+        for c in 0..3 {
+            v.extend(
+                crop.iter()
+                    .skip(c)
+                    .step_by(3)
+                    .map(|&x| (f32::from(x) / 255.0 - 0.5) / 0.25),
+            );
+        }
+    }
+    Tensor::from_vec(v, (crops.len(), 3, s, s), device)
+}
+
+/// Indices of the sampled pixels into the flattened half-resolution feature maps of a batch:
+/// cloud `k`'s pixel at crop position (x, y) reads feature `k·h·w + ⌊y/2⌋·w + ⌊x/2⌋`.
+pub fn pixel_indices(crop_xy: &[&[[f32; 2]]], size: u32, device: &Device) -> Result<Tensor> {
+    let half = size.div_ceil(2);
+    let per_map = half * half;
+    let mut v = Vec::new();
+    for (k, xy) in crop_xy.iter().enumerate() {
+        for p in xy.iter() {
+            let x = ((p[0].max(0.0) as u32) / 2).min(half - 1);
+            let y = ((p[1].max(0.0) as u32) / 2).min(half - 1);
+            v.push(k as u32 * per_map + y * half + x);
+        }
+    }
+    let n = v.len();
+    Tensor::from_vec(v, n, device)?.to_dtype(DType::U32)
+}
+
+/// Unit quaternions (…, 4), (w, x, y, z), to row-major rotation matrices (…, 3, 3).
+pub fn quaternion_to_matrix(q: &Tensor) -> Result<Tensor> {
+    let dims = q.dims().to_vec();
+    let last = dims.len() - 1;
+    let part = |i: usize| q.narrow(last, i, 1);
+    let (w, x, y, z) = (part(0)?, part(1)?, part(2)?, part(3)?);
+    let two = |a: &Tensor, b: &Tensor| -> Result<Tensor> { (a * b)? * 2.0 };
+    let (xx, yy, zz) = (two(&x, &x)?, two(&y, &y)?, two(&z, &z)?);
+    let (xy, xz, yz) = (two(&x, &y)?, two(&x, &z)?, two(&y, &z)?);
+    let (wx, wy, wz) = (two(&w, &x)?, two(&w, &y)?, two(&w, &z)?);
+    let one_minus = |a: &Tensor, b: &Tensor| -> Result<Tensor> { 1.0 - (a + b)? };
+    let entries = [
+        one_minus(&yy, &zz)?,
+        (&xy - &wz)?,
+        (&xz + &wy)?,
+        (&xy + &wz)?,
+        one_minus(&xx, &zz)?,
+        (&yz - &wx)?,
+        (&xz - &wy)?,
+        (&yz + &wx)?,
+        one_minus(&xx, &yy)?,
+    ];
+    let m = Tensor::cat(&entries, last)?;
+    let mut shape = dims[..last].to_vec();
+    shape.extend([3, 3]);
+    m.reshape(shape)
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+    use synthgen_core::glam::{DMat3, DQuat, DVec3};
+
+    #[test]
+    fn quaternion_matrix_matches_glam() {
+        let r = DMat3::from_axis_angle(DVec3::new(1.0, -2.0, 0.5).normalize(), 1.1);
+        let q = DQuat::from_mat3(&r);
+        let t = Tensor::from_vec(
+            vec![q.w as f32, q.x as f32, q.y as f32, q.z as f32],
+            (1, 1, 4),
+            &Device::Cpu,
+        )
+        .unwrap();
+        let m: Vec<f32> = quaternion_to_matrix(&t)
+            .unwrap()
+            .flatten_all()
+            .unwrap()
+            .to_vec1()
+            .unwrap();
+        let want = r.transpose().to_cols_array(); // row-major
+        for (a, b) in m.iter().zip(want) {
+            assert!((f64::from(*a) - b).abs() < 1e-5, "{m:?} vs {want:?}");
+        }
+    }
+
+    #[test]
+    fn pixel_indices_address_the_half_resolution_maps() {
+        let a = [[0.0f32, 0.0], [5.0, 3.0]];
+        let b = [[7.9f32, 7.9]];
+        let t = pixel_indices(&[&a, &b], 8, &Device::Cpu).unwrap();
+        let v: Vec<u32> = t.to_vec1().unwrap();
+        // 8 px crop → 4×4 maps; (5, 3) → (2, 1) → 1·4 + 2; second map starts at 16.
+        assert_eq!(v, vec![0, 6, 16 + 15]);
+    }
+
+    #[test]
+    fn rnet_shapes_and_unit_quaternions() {
+        let dev = Device::Cpu;
+        let varmap = candle_nn::VarMap::new();
+        let vb = VarBuilder::from_varmap(&varmap, DType::F32, &dev);
+        let net = RNet::new(16, vb).unwrap();
+        let (b, n, s) = (2usize, 5usize, 8u32);
+        let pts = Tensor::randn(0f32, 1.0, (b, n, 3), &dev).unwrap();
+        let crop = vec![128u8; (s * s * 3) as usize];
+        let crops = crops_tensor(&[&crop, &crop], s, &dev).unwrap();
+        assert_eq!(crops.dims(), &[2, 3, 8, 8]);
+        let xy: Vec<[f32; 2]> = (0..n).map(|i| [i as f32, 7.0 - i as f32]).collect();
+        let pix = pixel_indices(&[&xy, &xy], s, &dev).unwrap();
+        let out = net.forward(&pts, &crops, &pix).unwrap();
+        assert_eq!(out.quats.dims(), &[b, n, 4]);
+        assert_eq!(out.conf.dims(), &[b, n]);
+        let norms: Vec<Vec<f32>> = out.quats.sqr().unwrap().sum(2).unwrap().to_vec2().unwrap();
+        assert!(norms.iter().flatten().all(|v| (v - 1.0).abs() < 1e-4));
+        let c: Vec<Vec<f32>> = out.conf.to_vec2().unwrap();
+        assert!(c.iter().flatten().all(|v| *v > 0.0 && *v < 1.0));
+    }
+}
