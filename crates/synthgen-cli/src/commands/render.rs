@@ -10,7 +10,7 @@ use rayon::prelude::*;
 use synthgen_assets::Units;
 use synthgen_core::sample::SceneObject;
 use synthgen_core::scene::{BackgroundKind, Orientation, PlacementMode};
-use synthgen_core::{Model, Progress, SceneSampler, SceneSpec, Texture};
+use synthgen_core::{Model, Progress, SceneSampler, SceneSpec, Symmetries, Texture};
 use synthgen_dataset::manifest::{write_manifest, Manifest};
 use synthgen_render::{CpuRenderer, Renderer, SensorModel};
 
@@ -62,7 +62,11 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     let writer = Sink::create(&args, intrinsics, frame_range.clone())?;
     let mut manifest = base_manifest(&args, &spec, &sources, &ids, &frame_range)?;
     let done = render_resume::begin(&args, &manifest, &writer, frame_range.clone())?;
-    writer.write_models(&models, &ids)?;
+    let symmetries: Vec<Option<Symmetries>> = sources
+        .iter()
+        .map(|s| source_symmetries(&s.path, printer))
+        .collect::<Result<_>>()?;
+    writer.write_models(&models, &ids, &symmetries)?;
 
     let mut sampler = SceneSampler::new(spec.clone(), scene_objects, args.seed)?;
     if spec.placement.mode == PlacementMode::Physics {
@@ -255,6 +259,36 @@ fn check_backend(args: &RenderArgs) -> Result<()> {
             "use --backend cpu (the default), or rebuild with `cargo build -p synthgen-cli --features blender` (docs/blender.md)",
         )),
     }
+}
+
+/// The symmetries of a BOP model (`.../models/obj_000010.ply`) from the `models_info.json`
+/// beside it, so a dataset rendered from BOP models keeps them (ADD-S, symmetric losses).
+/// `None` for other meshes or when the file has no entry for the object.
+fn source_symmetries(path: &Path, printer: &Printer) -> Result<Option<Symmetries>> {
+    let Some(id) = path
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .and_then(|s| s.strip_prefix("obj_"))
+        .and_then(|s| s.parse::<u32>().ok())
+    else {
+        return Ok(None);
+    };
+    let info_path = path.with_file_name("models_info.json");
+    if !info_path.is_file() {
+        return Ok(None);
+    }
+    let infos = synthgen_dataset::bop::reader::read_models_info(&info_path)
+        .with_context(|| format!("cannot read the symmetries of {}", path.display()))?;
+    let sym = infos.get(&id).map(|i| i.symmetries.clone());
+    if let Some(s) = &sym {
+        if !s.symmetries_discrete.is_empty() || !s.symmetries_continuous.is_empty() {
+            printer.info(format!(
+                "object {id}: symmetries from {}",
+                info_path.display()
+            ));
+        }
+    }
+    Ok(sym)
 }
 
 /// The renderer of `--backend`. Both are `Sync`: frames render on the worker threads; the

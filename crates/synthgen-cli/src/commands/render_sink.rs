@@ -6,7 +6,7 @@ use std::ops::Range;
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use synthgen_core::{FrameScene, Intrinsics, Model, ObjectAnnotation, RenderedFrame};
+use synthgen_core::{FrameScene, Intrinsics, Model, ObjectAnnotation, RenderedFrame, Symmetries};
 use synthgen_dataset::bop::{
     BopWriter, BopWriterOptions, DoneFrames, FrameRecord, ModelInfo, RgbFormat,
 };
@@ -93,9 +93,16 @@ impl Sink {
     }
 
     /// Model PLYs in millimetres and the models_info file, once per object id.
-    pub fn write_models(&self, models: &[Model], ids: &[u32]) -> Result<()> {
+    /// Writes `models/` and its info file; `symmetries[i]` (from the source's own
+    /// models_info.json, when it had one) is carried over so symmetric objects stay symmetric.
+    pub fn write_models(
+        &self,
+        models: &[Model],
+        ids: &[u32],
+        symmetries: &[Option<Symmetries>],
+    ) -> Result<()> {
         let mut infos: BTreeMap<u32, ModelInfo> = BTreeMap::new();
-        for (m, &id) in models.iter().zip(ids) {
+        for (k, (m, &id)) in models.iter().zip(ids).enumerate() {
             if infos.contains_key(&id) {
                 continue;
             }
@@ -105,7 +112,11 @@ impl Sink {
             };
             synthgen_assets::write_ply(&path, m, 1000.0)
                 .with_context(|| format!("cannot write model {}", path.display()))?;
-            infos.insert(id, ModelInfo::from_model(m));
+            let mut info = ModelInfo::from_model(m);
+            if let Some(Some(sym)) = symmetries.get(k) {
+                info.symmetries = sym.clone();
+            }
+            infos.insert(id, info);
         }
         match self {
             Sink::Bop(w) => {

@@ -294,3 +294,39 @@ fn readme_setup_command_mesh_exists() {
     assert_eq!(m.model.name, "driller");
     assert!(m.model.triangle_count() > 10_000);
 }
+
+/// Rendering BOP models kept no symmetries, so training a symmetric object on the result
+/// used plain ADD (found while training the eggbox and glue).
+#[test]
+fn bop_model_symmetries_are_carried_into_models_info() {
+    let dir = tempfile::tempdir().unwrap();
+    let models = dir.path().join("models");
+    std::fs::create_dir_all(&models).unwrap();
+    let mesh = models.join("obj_000010.ply");
+    // The box in millimetres, as BOP models are.
+    let m = synthgen_core::Model::cuboid("box", synthgen_core::glam::Vec3::new(0.08, 0.06, 0.04));
+    synthgen_assets::write_ply(&mesh, &m, 1000.0).unwrap();
+    let flip_z = [
+        -1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+    ];
+    let info = serde_json::json!({"10": {
+        "diameter": 107.7, "min_x": -40.0, "min_y": -30.0, "min_z": -20.0,
+        "size_x": 80.0, "size_y": 60.0, "size_z": 40.0,
+        "symmetries_discrete": [flip_z],
+    }});
+    std::fs::write(models.join("models_info.json"), info.to_string()).unwrap();
+    let out = dir.path().join("out");
+    let o = run(synthgen()
+        .args(["render", "--objects"])
+        .arg(&mesh)
+        .args(["--frames", "1", "--image-size", "64,48", "-q", "--out"])
+        .arg(&out));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let written: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(out.join("models/models_info.json")).unwrap(),
+    )
+    .unwrap();
+    let sym = &written["10"]["symmetries_discrete"];
+    assert_eq!(sym.as_array().map(|a| a.len()), Some(1), "{written}");
+    assert_eq!(sym[0][0].as_f64(), Some(-1.0));
+}
