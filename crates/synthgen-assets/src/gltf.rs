@@ -42,10 +42,15 @@ pub(crate) fn load_gltf(
     };
     let bytes = crate::read_file(path)?;
     let ::gltf::Gltf { document, blob } =
-        ::gltf::Gltf::from_slice(&bytes).map_err(|e| gltf_err(e.to_string()))?;
+        crate::guard_parser("gltf", || ::gltf::Gltf::from_slice(&bytes))
+            .map_err(gltf_err)?
+            .map_err(|e| gltf_err(e.to_string()))?;
     let base = crate::model_dir(path);
-    let buffers = ::gltf::import_buffers(&document, Some(&base), blob)
-        .map_err(|e| gltf_err(format!("buffers: {e}")))?;
+    let buffers = crate::guard_parser("gltf", || {
+        ::gltf::import_buffers(&document, Some(&base), blob)
+    })
+    .map_err(gltf_err)?
+    .map_err(|e| gltf_err(format!("buffers: {e}")))?;
 
     let roots: Vec<::gltf::Node> = match document
         .default_scene()
