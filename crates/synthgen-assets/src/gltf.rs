@@ -36,6 +36,22 @@ pub(crate) fn load_gltf(
     textures: &mut TextureCache,
     progress: &dyn Progress,
 ) -> Result<Model, Error> {
+    // The gltf crate also panics while reading primitives of some malformed files (an
+    // `unreachable!` in gltf 1.4.1's mesh reader, found by fuzzing), so the whole load is
+    // guarded.
+    crate::guard_parser("gltf", || load_gltf_unguarded(path, textures, progress)).map_err(
+        |reason| Error::Gltf {
+            reason,
+            path: path.to_path_buf(),
+        },
+    )?
+}
+
+fn load_gltf_unguarded(
+    path: &Path,
+    textures: &mut TextureCache,
+    progress: &dyn Progress,
+) -> Result<Model, Error> {
     let gltf_err = |reason: String| Error::Gltf {
         reason,
         path: path.to_path_buf(),
