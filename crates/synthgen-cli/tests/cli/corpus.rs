@@ -25,6 +25,7 @@ fn replay(target: &str, f: fn(&[u8])) {
         n += 1;
     }
     assert!(n > 0, "empty corpus {}", dir.display());
+    let _ = std::fs::remove_dir_all(harness::scratch());
 }
 
 #[test]
