@@ -1,5 +1,13 @@
 // Shared by the fuzz crate (src/lib.rs) and the corpus replay test; plain items only.
 
+/// The readers turn third-party parser panics into errors (catch_unwind); libfuzzer-sys's
+/// panic hook would abort before that, so use a silent hook. A panic that escapes the
+/// readers still aborts: libfuzzer-sys checks every input's catch_unwind result.
+pub fn quiet_panics() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| std::panic::set_hook(Box::new(|_| {})));
+}
+
 /// A per-process scratch folder (on /dev/shm when there is one, for speed).
 pub fn scratch() -> std::path::PathBuf {
     let base = if std::path::Path::new("/dev/shm").is_dir() {

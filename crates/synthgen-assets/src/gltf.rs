@@ -36,16 +36,37 @@ pub(crate) fn load_gltf(
     textures: &mut TextureCache,
     progress: &dyn Progress,
 ) -> Result<Model, Error> {
+    // The gltf crate also panics while reading primitives of some malformed files (an
+    // `unreachable!` in gltf 1.4.1's mesh reader, found by fuzzing), so the whole load is
+    // guarded.
+    crate::guard_parser("gltf", || load_gltf_unguarded(path, textures, progress)).map_err(
+        |reason| Error::Gltf {
+            reason,
+            path: path.to_path_buf(),
+        },
+    )?
+}
+
+fn load_gltf_unguarded(
+    path: &Path,
+    textures: &mut TextureCache,
+    progress: &dyn Progress,
+) -> Result<Model, Error> {
     let gltf_err = |reason: String| Error::Gltf {
         reason,
         path: path.to_path_buf(),
     };
     let bytes = crate::read_file(path)?;
     let ::gltf::Gltf { document, blob } =
-        ::gltf::Gltf::from_slice(&bytes).map_err(|e| gltf_err(e.to_string()))?;
+        crate::guard_parser("gltf", || ::gltf::Gltf::from_slice(&bytes))
+            .map_err(gltf_err)?
+            .map_err(|e| gltf_err(e.to_string()))?;
     let base = crate::model_dir(path);
-    let buffers = ::gltf::import_buffers(&document, Some(&base), blob)
-        .map_err(|e| gltf_err(format!("buffers: {e}")))?;
+    let buffers = crate::guard_parser("gltf", || {
+        ::gltf::import_buffers(&document, Some(&base), blob)
+    })
+    .map_err(gltf_err)?
+    .map_err(|e| gltf_err(format!("buffers: {e}")))?;
 
     let roots: Vec<::gltf::Node> = match document
         .default_scene()

@@ -24,7 +24,11 @@ pub(crate) fn load_obj(
         ..Default::default()
     };
     let failed_mtl: RefCell<Vec<(PathBuf, String)>> = RefCell::new(Vec::new());
-    let (models, materials) =
+    let obj_err = |reason: String| Error::Obj {
+        reason,
+        path: path.to_path_buf(),
+    };
+    let (models, materials) = crate::guard_parser("tobj", || {
         tobj::load_obj_buf(&mut std::io::Cursor::new(&bytes), &options, |mtl| {
             let mtl_path = dir.join(mtl);
             tobj::load_mtl(&mtl_path).inspect_err(|e| {
@@ -33,10 +37,9 @@ pub(crate) fn load_obj(
                     .push((mtl_path.clone(), e.to_string()));
             })
         })
-        .map_err(|e| Error::Obj {
-            reason: e.to_string(),
-            path: path.to_path_buf(),
-        })?;
+    })
+    .map_err(obj_err)?
+    .map_err(|e| obj_err(e.to_string()))?;
     for (mtl_path, reason) in failed_mtl.into_inner() {
         progress.warn(&format!(
             "material library unreadable ({reason}), using default materials: {}",

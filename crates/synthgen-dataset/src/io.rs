@@ -60,10 +60,11 @@ pub fn atomic_write_with(path: &Path, bytes: &[u8], fsync: bool) -> Result<()> {
 /// plain path component, so joining it to a dataset root cannot leave the root: no `/` or
 /// `\\`, not `.`/`..`, no leading dot, no NUL, not empty.
 pub fn check_plain_name(name: &str, what: &str, root: &Path) -> Result<()> {
-    let plain = !name.is_empty()
-        && !name.starts_with('.')
-        && !name.contains(['/', '\\', '\0'])
-        && !(cfg!(windows) && name.contains(':'));
+    let escapes = name.is_empty()
+        || name.starts_with('.')
+        || name.contains(['/', '\\', '\0'])
+        || (cfg!(windows) && name.contains(':'));
+    let plain = !escapes;
     if plain {
         Ok(())
     } else {

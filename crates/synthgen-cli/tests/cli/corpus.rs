@@ -25,6 +25,7 @@ fn replay(target: &str, f: fn(&[u8])) {
         n += 1;
     }
     assert!(n > 0, "empty corpus {}", dir.display());
+    let _ = std::fs::remove_dir_all(harness::scratch());
 }
 
 #[test]
@@ -55,4 +56,40 @@ fn fuzz_corpus_linemod_yaml() {
 #[test]
 fn fuzz_corpus_scene_toml() {
     replay("scene_toml", harness::fuzz_scene_toml);
+}
+
+/// tobj 4.0.5 panics (unwrap in parse_float3) on an MTL colour with fewer than 3 numbers.
+#[test]
+fn tobj_mtl_short_colour_is_an_error_not_a_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("m.mtl"), "newmtl red\nKd 1\n").unwrap();
+    let p = dir.path().join("m.obj");
+    std::fs::write(
+        &p,
+        "mtllib m.mtl\nusemtl red\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    )
+    .unwrap();
+    let e = synthgen_assets::load_model(&p, synthgen_assets::Units::M, &synthgen_core::NoProgress)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("tobj parser failed on malformed input"), "{e}");
+    assert!(e.ends_with(&p.display().to_string()), "{e}");
+}
+
+/// gltf-json 1.4.1 panics (index out of bounds) validating a POSITION accessor that does not
+/// exist.
+#[test]
+fn gltf_json_position_accessor_out_of_range_is_an_error_not_a_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("m.gltf");
+    std::fs::write(
+        &p,
+        r#"{"asset":{"version":"2.0"},"meshes":[{"primitives":[{"attributes":{"POSITION":7}}]}]}"#,
+    )
+    .unwrap();
+    let e = synthgen_assets::load_model(&p, synthgen_assets::Units::M, &synthgen_core::NoProgress)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("cannot load gltf"), "{e}");
+    assert!(e.ends_with(&p.display().to_string()), "{e}");
 }

@@ -234,3 +234,87 @@ fn resume_refuses_a_different_run_and_finishes_a_finished_one() {
     assert!(o.status.success());
     assert!(tree(&out) == before, "resuming a finished run changed it");
 }
+
+/// A tmpfs mounted at `dir` (needs root; None, with the reason printed, otherwise).
+struct Mount(PathBuf);
+
+impl Mount {
+    fn tmpfs(dir: &Path, opts: &str) -> Option<Mount> {
+        std::fs::create_dir_all(dir).unwrap();
+        let o = Command::new("mount")
+            .args(["-t", "tmpfs", "-o", opts, "tmpfs"])
+            .arg(dir)
+            .output();
+        match o {
+            Ok(o) if o.status.success() => Some(Mount(dir.to_path_buf())),
+            Ok(o) => {
+                eprintln!(
+                    "skipped: cannot mount a tmpfs: {}",
+                    String::from_utf8_lossy(&o.stderr)
+                );
+                None
+            }
+            Err(e) => {
+                eprintln!("skipped: cannot run mount: {e}");
+                None
+            }
+        }
+    }
+}
+
+impl Drop for Mount {
+    fn drop(&mut self) {
+        let _ = Command::new("umount").arg(&self.0).status();
+    }
+}
+
+#[test]
+fn full_disk_fails_clearly_and_what_was_written_resumes() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = dir.path().join("box.ply");
+    write_box_ply(&mesh);
+    let Some(mnt) = Mount::tmpfs(&dir.path().join("mnt"), "size=256k") else {
+        return;
+    };
+    let args = ["--frames", "300", "--image-size", "64,48", "--jobs", "1"];
+    let full = mnt.0.join("o");
+    let o = run(&mut render_cmd(&mesh, &full, &args));
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(err.contains("no space left on device"), "{err}");
+    assert!(err.contains(&full.display().to_string()), "{err}");
+    // Move what was written to a disk with room and finish it.
+    let moved = dir.path().join("moved");
+    let cp = Command::new("cp")
+        .arg("-a")
+        .arg(&full)
+        .arg(&moved)
+        .status()
+        .unwrap();
+    assert!(cp.success());
+    drop(mnt);
+    assert!(!moved.join("synthgen.json").exists());
+    let o = run(render_cmd(&mesh, &moved, &args).arg("--resume"));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let reference = dir.path().join("reference");
+    assert!(run(&mut render_cmd(&mesh, &reference, &args))
+        .status
+        .success());
+    assert_same_files(&reference, &moved);
+}
+
+#[test]
+fn read_only_output_fails_clearly() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = dir.path().join("box.ply");
+    write_box_ply(&mesh);
+    let Some(mnt) = Mount::tmpfs(&dir.path().join("ro"), "ro,size=64k") else {
+        return;
+    };
+    let out = mnt.0.join("o");
+    let o = run(&mut render_cmd(&mesh, &out, &[]));
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(err.contains("Read-only file system"), "{err}");
+    assert!(err.contains(&out.display().to_string()), "{err}");
+}
