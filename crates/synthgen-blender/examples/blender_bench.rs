@@ -74,16 +74,7 @@ fn main() -> anyhow::Result<()> {
     spec.camera.fy = Some(k.fy * s);
     spec.camera.cx = Some((k.cx + 0.5) * s - 0.5);
     spec.camera.cy = Some((k.cy + 0.5) * s - 0.5);
-    let objects = models
-        .iter()
-        .enumerate()
-        .map(|(i, m)| SceneObject {
-            model_index: i,
-            obj_id: i as u32 + 1,
-            name: m.name.clone(),
-            support_points_m: m.support_points(256),
-        })
-        .collect();
+    let objects = SceneObject::one_per_model(&models);
     let sampler = SceneSampler::new(spec, objects, 0)?;
     let scenes: Vec<_> = (0..frames)
         .map(|i| sampler.sample(i))

@@ -22,16 +22,7 @@ fn main() -> anyhow::Result<()> {
             .map(|l| l.model)
         })
         .collect::<Result<_, _>>()?;
-    let objects = models
-        .iter()
-        .enumerate()
-        .map(|(i, m)| SceneObject {
-            model_index: i,
-            obj_id: i as u32 + 1,
-            name: m.name.clone(),
-            support_points_m: m.support_points(256),
-        })
-        .collect();
+    let objects = SceneObject::one_per_model(&models);
     let sampler = SceneSampler::new(SceneSpec::default(), objects, seed)?;
     let scene = sampler.sample(0)?;
     let r = BlenderRenderer::new(

@@ -103,16 +103,8 @@ fn sampler(k: Intrinsics, seed: u64) -> SceneSampler {
     spec.camera.fy = Some(k.fy);
     spec.camera.cx = Some(k.cx);
     spec.camera.cy = Some(k.cy);
-    let objects = [driller(), Model::cuboid("box", Vec3::new(0.08, 0.06, 0.04))]
-        .iter()
-        .enumerate()
-        .map(|(i, m)| SceneObject {
-            model_index: i,
-            obj_id: i as u32 + 1,
-            name: m.name.clone(),
-            support_points_m: m.support_points(256),
-        })
-        .collect();
+    let objects =
+        SceneObject::one_per_model(&[driller(), Model::cuboid("box", Vec3::new(0.08, 0.06, 0.04))]);
     SceneSampler::new(spec, objects, seed).unwrap()
 }
 

@@ -26,6 +26,30 @@ pub struct SceneObject {
     pub support_points_m: Vec<Vec3>,
 }
 
+impl SceneObject {
+    /// How many extreme points placement uses per model (the CLI's choice too).
+    pub const SUPPORT_POINTS: usize = 256;
+
+    /// The instance of `model` (at `model_index` in the renderer's list) with BOP id `obj_id`.
+    pub fn new(model_index: usize, obj_id: u32, model: &crate::Model) -> SceneObject {
+        SceneObject {
+            model_index,
+            obj_id,
+            name: model.name.clone(),
+            support_points_m: model.support_points(Self::SUPPORT_POINTS),
+        }
+    }
+
+    /// One instance per model, with ids 1, 2, ... in order (examples, tests, benches).
+    pub fn one_per_model(models: &[crate::Model]) -> Vec<SceneObject> {
+        models
+            .iter()
+            .enumerate()
+            .map(|(i, m)| SceneObject::new(i, i as u32 + 1, m))
+            .collect()
+    }
+}
+
 /// A placed object in one frame.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ObjectInstance {

@@ -39,12 +39,7 @@ fn setup() -> (CpuRenderer, Vec<FrameScene>) {
     let objects = models
         .iter()
         .enumerate()
-        .map(|(i, m)| SceneObject {
-            model_index: i,
-            obj_id: IDS[i],
-            name: m.name.clone(),
-            support_points_m: m.support_points(256),
-        })
+        .map(|(i, m)| SceneObject::new(i, IDS[i], m))
         .collect();
     let sampler = SceneSampler::new(SceneSpec::default(), objects, 2024).unwrap();
     let scenes = (0..SCENES).map(|i| sampler.sample(i).unwrap()).collect();

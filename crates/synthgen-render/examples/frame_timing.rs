@@ -34,12 +34,7 @@ fn main() -> anyhow::Result<()> {
     let objects = models
         .iter()
         .enumerate()
-        .map(|(i, m)| SceneObject {
-            model_index: i,
-            obj_id: ids[i],
-            name: m.name.clone(),
-            support_points_m: m.support_points(256),
-        })
+        .map(|(i, m)| SceneObject::new(i, ids[i], m))
         .collect();
     let sampler = SceneSampler::new(SceneSpec::default(), objects, 2024)?;
     let scenes = (0..32)

@@ -31,16 +31,7 @@ fn main() -> anyhow::Result<()> {
         Model::cuboid("box", Vec3::new(0.1, 0.07, 0.12)),
         Model::cuboid("flat", Vec3::new(0.16, 0.12, 0.03)),
     ];
-    let objects = models
-        .iter()
-        .enumerate()
-        .map(|(i, m)| SceneObject {
-            model_index: i,
-            obj_id: i as u32 + 1,
-            name: m.name.clone(),
-            support_points_m: m.support_points(256),
-        })
-        .collect();
+    let objects = SceneObject::one_per_model(&models);
     let seed = 3;
     let sampler = SceneSampler::new(spec.clone(), objects, seed)?;
     let renderer = CpuRenderer::new(models, vec![])?;

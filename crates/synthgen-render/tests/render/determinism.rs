@@ -10,16 +10,7 @@ fn sampled() -> (CpuRenderer, Vec<synthgen_core::FrameScene>) {
         Model::cuboid("a", Vec3::new(0.08, 0.05, 0.06)),
         Model::cuboid("b", Vec3::new(0.04, 0.1, 0.05)),
     ];
-    let objects = models
-        .iter()
-        .enumerate()
-        .map(|(i, m)| SceneObject {
-            model_index: i,
-            obj_id: i as u32 + 1,
-            name: m.name.clone(),
-            support_points_m: m.support_points(64),
-        })
-        .collect();
+    let objects = SceneObject::one_per_model(&models);
     let sampler = SceneSampler::new(SceneSpec::default(), objects, 5).unwrap();
     let scenes = (0..6).map(|i| sampler.sample(i).unwrap()).collect();
     (CpuRenderer::new(models, vec![]).unwrap(), scenes)

@@ -30,12 +30,7 @@ fn linemod_frame_round_trip_and_check_images() {
     let objects: Vec<SceneObject> = models
         .iter()
         .enumerate()
-        .map(|(i, m)| SceneObject {
-            model_index: i,
-            obj_id: LMO_IDS[i],
-            name: m.name.clone(),
-            support_points_m: m.support_points(256),
-        })
+        .map(|(i, m)| SceneObject::new(i, LMO_IDS[i], m))
         .collect();
     let r = CpuRenderer::new(models.clone(), vec![]).unwrap();
     let sampler = SceneSampler::new(SceneSpec::default(), objects, 1).unwrap();
