@@ -19,12 +19,35 @@ use synthgen_core::{SceneSampler, SceneSpec};
 const DRILLER: usize = 0;
 const BOX: usize = 1;
 const RED_BOX: usize = 2;
+const TEXTURED_BOX: usize = 3;
 
 /// A box whose vertices are all sRGB (0.8, 0.1, 0.1).
 fn red_box() -> Model {
     let mut m = Model::cuboid("red_box", Vec3::new(0.08, 0.06, 0.04));
     for p in &mut m.primitives {
         p.colors = Some(vec![[0.8, 0.1, 0.1]; p.positions_m.len()]);
+    }
+    m
+}
+
+/// A white box whose colour comes only from a 4x4 green texture (as an OBJ's map_Kd loads).
+fn textured_box() -> Model {
+    let mut m = Model::cuboid("textured_box", Vec3::new(0.08, 0.06, 0.04));
+    let texture = std::sync::Arc::new(synthgen_core::Texture {
+        width: 4,
+        height: 4,
+        rgb: [30u8, 200, 40].repeat(16),
+        source: "green.png".into(),
+    });
+    for p in &mut m.primitives {
+        p.colors = None;
+        p.uvs = Some(
+            (0..p.positions_m.len())
+                .map(|i| synthgen_core::glam::Vec2::new((i % 2) as f32, ((i / 2) % 2) as f32))
+                .collect(),
+        );
+        p.material.base_color = [1.0, 1.0, 1.0];
+        p.material.texture = Some(texture.clone());
     }
     m
 }
@@ -56,6 +79,7 @@ fn renderer() -> Option<&'static BlenderRenderer> {
             driller(),
             Model::cuboid("box", Vec3::new(0.08, 0.06, 0.04)),
             red_box(),
+            textured_box(),
         ];
         let options = BlenderOptions {
             samples: 8,
@@ -301,7 +325,7 @@ fn anisotropic_focal_lengths_keep_annotations_right() {
 /// Vertex colours reach Cycles' principled material: a box with red vertices renders red
 /// (a material without them would be grey), like in the raster backend.
 #[test]
-fn vertex_colours_show_in_cycles() {
+fn vertex_colours_and_textures_show_in_cycles() {
     let renderer = renderer_or_skip!();
     let s = sampler(small_linemod(), 5);
     let mut scene = s.sample(0).unwrap();
@@ -329,6 +353,16 @@ fn vertex_colours_show_in_cycles() {
         );
     }
     let red = mean(&b, 2);
+    // The same pose with the textured box (same size) in the red box's place.
+    let mut textured = scene.clone();
+    textured.objects[1].model_index = TEXTURED_BOX;
+    let (bt, _) = renderer.render_with_raster(&textured).unwrap();
+    let green = mean(&bt, 2);
+    eprintln!("textured box mean sRGB: cycles {green:.1?}");
+    assert!(
+        green[1] > 2.0 * green[0] && green[1] > 2.0 * green[2],
+        "texture not shown: {green:?}"
+    );
     assert!(
         red[0] > 2.0 * red[1] && red[0] > 2.0 * red[2],
         "not red: {red:?}"
