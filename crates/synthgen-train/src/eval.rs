@@ -2,12 +2,13 @@
 //! accuracies and mean errors (conventions in docs/metrics.md).
 
 use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 use serde::Serialize;
 use synthgen_assets::Units;
-use synthgen_core::{NoProgress, Pose};
-use synthgen_dataset::bop::BopDataset;
+use synthgen_core::{Model, NoProgress, Pose};
+use synthgen_dataset::bop::{BopDataset, ModelInfo};
 
 use crate::error::{Error, Result};
 use crate::metrics::{is_5cm5deg, subsample_vertices, EvalObject, PoseErrors};
@@ -91,9 +92,26 @@ pub fn load_eval_objects(
     ds: &BopDataset,
     obj_ids: impl IntoIterator<Item = u32>,
 ) -> Result<BTreeMap<u32, EvalObject>> {
-    let info_path = ds.root.join("models").join("models_info.json");
-    let infos = ds.models_info.as_ref().ok_or_else(|| Error::NoModelsInfo {
-        path: info_path.clone(),
+    load_each_object(
+        ds.models_info.as_ref(),
+        &ds.root.join("models").join("models_info.json"),
+        &|id| ds.model_ply_path(id),
+        obj_ids,
+        eval_object,
+    )
+}
+
+/// Loads each distinct object of `obj_ids` once (its models_info entry and its model file,
+/// millimetres) and keeps what `f` makes of it.
+pub(crate) fn load_each_object<T>(
+    models_info: Option<&BTreeMap<u32, ModelInfo>>,
+    info_path: &Path,
+    model_path: &dyn Fn(u32) -> PathBuf,
+    obj_ids: impl IntoIterator<Item = u32>,
+    mut f: impl FnMut(&Model, &ModelInfo) -> T,
+) -> Result<BTreeMap<u32, T>> {
+    let infos = models_info.ok_or_else(|| Error::NoModelsInfo {
+        path: info_path.to_path_buf(),
     })?;
     let mut out = BTreeMap::new();
     for obj_id in obj_ids {
@@ -102,21 +120,22 @@ pub fn load_eval_objects(
         }
         let info = infos.get(&obj_id).ok_or_else(|| Error::UnknownObject {
             obj_id,
-            path: info_path.clone(),
+            path: info_path.to_path_buf(),
         })?;
-        let loaded =
-            synthgen_assets::load_model(&ds.model_ply_path(obj_id), Units::Mm, &NoProgress)
-                .map_err(|source| Error::Model { obj_id, source })?;
-        out.insert(
-            obj_id,
-            EvalObject {
-                points_m: subsample_vertices(&loaded.model, EVAL_MODEL_POINTS),
-                diameter_m: info.diameter / 1000.0,
-                symmetric: !info.symmetries.is_empty(),
-            },
-        );
+        let loaded = synthgen_assets::load_model(&model_path(obj_id), Units::Mm, &NoProgress)
+            .map_err(|source| Error::Model { obj_id, source })?;
+        out.insert(obj_id, f(&loaded.model, info));
     }
     Ok(out)
+}
+
+/// The evaluation model of an object: strided vertices, diameter, symmetric or not.
+pub(crate) fn eval_object(model: &Model, info: &ModelInfo) -> EvalObject {
+    EvalObject {
+        points_m: subsample_vertices(model, EVAL_MODEL_POINTS),
+        diameter_m: info.diameter / 1000.0,
+        symmetric: !info.symmetries.is_empty(),
+    }
 }
 
 /// Scores of one object (or of all objects pooled).

@@ -7,13 +7,13 @@ use std::path::Path;
 
 use candle_core::{DType, Device, Tensor};
 use candle_nn::{VarBuilder, VarMap};
-use synthgen_assets::Units;
 use synthgen_core::glam::{DMat3, DQuat, DVec3};
-use synthgen_core::{NoProgress, Pose};
+use synthgen_core::Pose;
 use synthgen_dataset::bop::ModelInfo;
 
 use crate::data::Instance;
 use crate::error::{Error, Result};
+use crate::eval::{eval_object, load_each_object};
 use crate::losses::{quaternion_confidence_loss, symmetric_targets, symmetry_poses};
 use crate::metrics::{subsample_vertices, EvalObject};
 use crate::models::full::{full_loss, Full};
@@ -44,34 +44,17 @@ pub fn load_objects(
     obj_ids: impl IntoIterator<Item = u32>,
     loss_points: usize,
 ) -> Result<Objects> {
-    let infos = models_info.ok_or_else(|| Error::NoModelsInfo {
-        path: info_path.to_path_buf(),
-    })?;
-    let mut out = BTreeMap::new();
-    for obj_id in obj_ids {
-        if out.contains_key(&obj_id) {
-            continue;
-        }
-        let info = infos.get(&obj_id).ok_or_else(|| Error::UnknownObject {
-            obj_id,
-            path: info_path.to_path_buf(),
-        })?;
-        let loaded = synthgen_assets::load_model(&model_path(obj_id), Units::Mm, &NoProgress)
-            .map_err(|source| Error::Model { obj_id, source })?;
-        out.insert(
-            obj_id,
-            TrainObject {
-                loss_points_m: subsample_vertices(&loaded.model, loss_points),
-                symmetries: symmetry_poses(&info.symmetries, CONTINUOUS_SYMMETRY_STEPS),
-                eval: EvalObject {
-                    points_m: subsample_vertices(&loaded.model, crate::eval::EVAL_MODEL_POINTS),
-                    diameter_m: info.diameter / 1000.0,
-                    symmetric: !info.symmetries.is_empty(),
-                },
-            },
-        );
-    }
-    Ok(out)
+    load_each_object(
+        models_info,
+        info_path,
+        model_path,
+        obj_ids,
+        |model, info| TrainObject {
+            loss_points_m: subsample_vertices(model, loss_points),
+            symmetries: symmetry_poses(&info.symmetries, CONTINUOUS_SYMMETRY_STEPS),
+            eval: eval_object(model, info),
+        },
+    )
 }
 
 /// Loads the objects of a dataset folder (its models_info.json and model files).
