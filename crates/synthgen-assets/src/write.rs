@@ -1,8 +1,6 @@
 //! Writing a model as one binary PLY, the way BOP's `models/obj_XXXXXX.ply` are stored.
 
-use std::io::Write;
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::path::Path;
 
 use synthgen_core::glam::Vec3;
 use synthgen_core::Model;
@@ -27,7 +25,7 @@ pub fn write_ply(path: &Path, model: &Model, scale: f32) -> Result<(), Error> {
         path: path.to_path_buf(),
         source: std::io::Error::new(std::io::ErrorKind::InvalidInput, reason),
     })?;
-    write_atomic(path, &bytes).map_err(|source| Error::Write {
+    synthgen_core::atomic::write_atomic(path, &bytes, true).map_err(|(_, source)| Error::Write {
         path: path.to_path_buf(),
         source,
     })
@@ -113,33 +111,4 @@ fn encode_ply(model: &Model, scale: f32) -> Result<Vec<u8>, String> {
 
 fn to_u8(x: f32) -> u8 {
     (x.clamp(0.0, 1.0) * 255.0).round() as u8
-}
-
-/// Writes `bytes` to a temporary sibling of `path`, then renames it over `path`.
-pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let name = path
-        .file_name()
-        .ok_or_else(|| std::io::Error::new(std::io::ErrorKind::InvalidInput, "no file name"))?;
-    // Process id and a counter: concurrent writers (threads or processes) never share a file.
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let tmp = dir.join(format!(
-        ".{}.tmp-{}-{}",
-        name.to_string_lossy(),
-        std::process::id(),
-        COUNTER.fetch_add(1, Ordering::Relaxed)
-    ));
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
 }

@@ -11,6 +11,7 @@
 //! ```
 
 pub mod annotate;
+pub mod atomic;
 pub mod camera;
 mod error;
 pub mod mesh;

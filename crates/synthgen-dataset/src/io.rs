@@ -1,31 +1,11 @@
 //! File output that never leaves a half-written file under its final name.
 
-use std::fs::File;
-use std::io::Write;
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::path::Path;
 
 use crate::error::{Error, Result};
 
-/// Suffix of the temporary files [`atomic_write`] creates next to their targets.
-pub const TEMP_SUFFIX: &str = ".synthgen-tmp";
-
-static TEMP_COUNTER: AtomicU64 = AtomicU64::new(0);
-
-/// Whether `name` is one of our temporary files (left behind only by a crash).
-pub fn is_temp_file(name: &str) -> bool {
-    name.starts_with('.') && name.ends_with(TEMP_SUFFIX)
-}
-
-fn temp_path(path: &Path) -> PathBuf {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    // Unique per process and call, so parallel writers of the same target never share one.
-    let n = TEMP_COUNTER.fetch_add(1, Ordering::Relaxed);
-    path.with_file_name(format!(".{name}.{}.{n}{TEMP_SUFFIX}", std::process::id()))
-}
+pub use synthgen_core::atomic::{is_temp_file, TEMP_SUFFIX};
+use synthgen_core::atomic::{write_atomic, Step};
 
 /// Writes `bytes` to `path` atomically: a temporary file in the same folder, then a rename.
 /// Readers see the old file or the new one, never a partial one.
@@ -36,24 +16,13 @@ pub fn atomic_write(path: &Path, bytes: &[u8]) -> Result<()> {
 /// [`atomic_write`], with `fsync` forcing the data to disk before the rename (slower; for
 /// files that must survive a power cut, such as the annotation JSON of a finished chunk).
 pub fn atomic_write_with(path: &Path, bytes: &[u8], fsync: bool) -> Result<()> {
-    let tmp = temp_path(path);
-    let written = (|| {
-        let mut f = File::create(&tmp)?;
-        f.write_all(bytes)?;
-        if fsync {
-            f.sync_all()?;
-        }
-        Ok(())
-    })();
-    if let Err(e) = written {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(Error::io("write", path, e));
-    }
-    if let Err(e) = std::fs::rename(&tmp, path) {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(Error::io("rename", path, e));
-    }
-    Ok(())
+    write_atomic(path, bytes, fsync).map_err(|(step, e)| {
+        let op = match step {
+            Step::Write => "write",
+            Step::Rename => "rename",
+        };
+        Error::io(op, path, e)
+    })
 }
 
 /// Checks that `name` (a split or folder name taken from a command line or a file) is one

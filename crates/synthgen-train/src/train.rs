@@ -190,9 +190,8 @@ pub fn centre_error_m(pred: [f32; 3], inst: &Instance) -> f64 {
 }
 
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let tmp = path.with_extension("tmp");
-    std::fs::write(&tmp, bytes).map_err(|e| Error::io("write", &tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| Error::io("rename", path, e))
+    synthgen_core::atomic::write_atomic(path, bytes, false)
+        .map_err(|(_, e)| Error::io("write", path, e))
 }
 
 fn read_json<T: serde::de::DeserializeOwned>(path: &Path, what: &'static str) -> Result<T> {
@@ -430,7 +429,7 @@ fn save_checkpoint(
     steps_done: usize,
 ) -> Result<()> {
     let path = out.join(MODEL_FILE);
-    let tmp = out.join("model.safetensors.tmp");
+    let tmp = synthgen_core::atomic::temp_path(&path);
     model.varmap.save(&tmp).map_err(|e| Error::Malformed {
         what: "checkpoint",
         message: e.to_string(),

@@ -37,8 +37,19 @@ fn assert_same_files(a: &Path, b: &Path) {
     let (mut x, mut y) = (tree(a), tree(b));
     x.remove(Path::new("synthgen.json"));
     y.remove(Path::new("synthgen.json"));
-    let names = |t: &BTreeMap<PathBuf, Vec<u8>>| t.keys().cloned().collect::<Vec<_>>();
-    assert_eq!(names(&x), names(&y), "file lists differ");
+    let only = |p: &BTreeMap<PathBuf, Vec<u8>>, q: &BTreeMap<PathBuf, Vec<u8>>| {
+        p.keys()
+            .filter(|k| !q.contains_key(*k))
+            .cloned()
+            .collect::<Vec<_>>()
+    };
+    let (only_a, only_b) = (only(&x, &y), only(&y, &x));
+    assert!(
+        only_a.is_empty() && only_b.is_empty(),
+        "file lists differ: only in {}: {only_a:?}; only in {}: {only_b:?}",
+        a.display(),
+        b.display()
+    );
     for (rel, bytes) in &x {
         assert!(y[rel] == *bytes, "{} differs", rel.display());
     }
