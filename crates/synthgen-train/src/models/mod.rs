@@ -1,5 +1,6 @@
 //! The pose models: TNet (centre), RNet (rotation) and Full (both), see docs/training.md.
 
+pub mod dense;
 pub mod full;
 pub mod rnet;
 pub mod tnet;

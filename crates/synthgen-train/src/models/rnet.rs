@@ -10,7 +10,9 @@
 //! pixel's quaternion.
 
 use candle_core::{DType, Device, Module, Result, Tensor, D};
-use candle_nn::{conv2d, linear, linear_no_bias, Conv2d, Conv2dConfig, Linear, VarBuilder};
+use candle_nn::{conv2d, Conv2d, Conv2dConfig, VarBuilder};
+
+use super::dense::{dense as linear, dense_no_bias as linear_no_bias, Dense as Linear};
 
 /// Default side of the square RGB crop, pixels.
 pub const DEFAULT_CROP: u32 = 48;

@@ -6,7 +6,9 @@
 //! matmul per cloud instead of one per point.
 
 use candle_core::{DType, Device, Module, Result, Tensor, D};
-use candle_nn::{linear, linear_no_bias, Linear, VarBuilder};
+use candle_nn::VarBuilder;
+
+use super::dense::{dense as linear, dense_no_bias as linear_no_bias, Dense as Linear};
 
 use super::rnet::PointStem;
 

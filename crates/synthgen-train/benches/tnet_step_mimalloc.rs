@@ -1,0 +1,18 @@
+//! One TNet training step (forward, L1 offset loss, backward, AdamW) on 32 clouds of 500
+//! points with width 128, with mimalloc as the global allocator (the peer is `tnet_step`,
+//! the system allocator).
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod tnet_common;
+
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
+use criterion::{criterion_group, criterion_main, Criterion};
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().sample_size(10);
+    targets = tnet_common::tnet_step
+}
+criterion_main!(benches);
