@@ -10,7 +10,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::camera::Intrinsics;
 use crate::color::kelvin_to_rgb;
-use crate::distractor::DistractorPool;
+use crate::distractor::{Chosen, DistractorPool};
 use crate::pose::Pose;
 use crate::rng::{derive_seed, frame_rng, Stream};
 use crate::scene::{BackgroundKind, Orientation, PlacementMode, Range, SceneSpec};
@@ -204,6 +204,9 @@ fn random_rotation(rng: &mut ChaCha8Rng) -> DMat3 {
     DMat3::from_quat(q.normalize())
 }
 
+/// Rounds of placement, the area growing by 25% after each failed one.
+const PLACE_ROUNDS: u32 = 4;
+
 /// A placed footprint: disc on the plane.
 struct Footprint {
     center: [f64; 2],
@@ -286,12 +289,16 @@ impl SceneSampler {
         } else {
             Vec::new()
         };
+        let (targets, mut footprints) = self.place_objects(frame_index)?;
+        let placed = self.place_distractors(chosen, &mut drng, &mut footprints);
+        let (chosen, distractor_poses): (Vec<Chosen>, Vec<Pose>) = placed.into_iter().unzip();
         let all: Vec<&SceneObject> = self
             .objects
             .iter()
             .chain(chosen.iter().map(|c| c.object))
             .collect();
-        let mut world_from_all = self.place_objects(frame_index, &all)?;
+        let mut world_from_all = targets;
+        world_from_all.extend(distractor_poses);
         if spec.placement.mode == PlacementMode::Physics {
             world_from_all = self.settle_objects(frame_index, &all, world_from_all)?;
         }
@@ -492,26 +499,28 @@ impl SceneSampler {
         }
     }
 
-    fn place_objects(
-        &self,
-        frame_index: u64,
-        objects: &[&SceneObject],
-    ) -> Result<Vec<Pose>, Error> {
+    /// Places the targets: each round that cannot fit every one widens the area by 25%; the
+    /// result stays a pure function of (seed, frame). Returns the poses and footprints.
+    fn place_objects(&self, frame_index: u64) -> Result<(Vec<Pose>, Vec<Footprint>), Error> {
         let p = &self.spec.placement;
         let mut rng = frame_rng(self.seed, frame_index, Stream::Placement);
-        // Each round that cannot fit every object widens the area by 25%; the result stays a
-        // pure function of (seed, frame).
-        const ROUNDS: u32 = 4;
         let mut area = p.area_m;
-        for round in 0..ROUNDS {
-            match self.try_place(objects, &mut rng, area) {
-                Some(poses) => return Ok(poses),
-                None if round + 1 < ROUNDS => area = [area[0] * 1.25, area[1] * 1.25],
+        for round in 0..PLACE_ROUNDS {
+            let mut placed = Vec::with_capacity(self.objects.len());
+            let poses: Option<Vec<Pose>> = self
+                .objects
+                .iter()
+                .map(|o| self.place_one(o, &mut rng, area, &mut placed))
+                .collect();
+            match poses {
+                Some(poses) => return Ok((poses, placed)),
+                None if round + 1 < PLACE_ROUNDS => area = [area[0] * 1.25, area[1] * 1.25],
                 None => {}
             }
         }
         Err(Error::Placement {
-            name: objects
+            name: self
+                .objects
                 .iter()
                 .map(|o| o.name.as_str())
                 .collect::<Vec<_>>()
@@ -521,62 +530,79 @@ impl SceneSampler {
         })
     }
 
-    fn try_place(
+    /// Places distractors around the placed targets (whose poses they never change): each
+    /// gets `max_tries` per area, the area growing by 25% up to three times; one that still
+    /// does not fit is left out of the frame.
+    fn place_distractors<'a>(
         &self,
-        objects: &[&SceneObject],
+        chosen: Vec<Chosen<'a>>,
+        rng: &mut ChaCha8Rng,
+        placed: &mut Vec<Footprint>,
+    ) -> Vec<(Chosen<'a>, Pose)> {
+        chosen
+            .into_iter()
+            .filter_map(|c| {
+                let mut area = self.spec.placement.area_m;
+                for _ in 0..PLACE_ROUNDS {
+                    if let Some(pose) = self.place_one(c.object, rng, area, placed) {
+                        return Some((c, pose));
+                    }
+                    area = [area[0] * 1.25, area[1] * 1.25];
+                }
+                None
+            })
+            .collect()
+    }
+
+    /// One object's footprint pose clear of `placed` within `area` (pushed onto it), or
+    /// None after `max_tries`.
+    fn place_one(
+        &self,
+        o: &SceneObject,
         rng: &mut ChaCha8Rng,
         area: [f64; 2],
-    ) -> Option<Vec<Pose>> {
+        placed: &mut Vec<Footprint>,
+    ) -> Option<Pose> {
         let p = &self.spec.placement;
-        let mut placed: Vec<Footprint> = Vec::with_capacity(objects.len());
-        let mut poses = Vec::with_capacity(objects.len());
-        for o in objects {
-            let mut ok = false;
-            for _ in 0..p.max_tries {
-                let rotation = match p.orientation {
-                    Orientation::Upright => {
-                        DMat3::from_rotation_z(rng.gen_range(0.0..std::f64::consts::TAU))
-                    }
-                    Orientation::Random => random_rotation(rng),
-                };
-                let pts: Vec<DVec3> = o
-                    .support_points_m
-                    .iter()
-                    .map(|v| rotation * v.as_dvec3())
-                    .collect();
-                let (lo, hi) = pts.iter().fold(
-                    (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-                    |(lo, hi), v| (lo.min(*v), hi.max(*v)),
-                );
-                let off = [(lo.x + hi.x) * 0.5, (lo.y + hi.y) * 0.5];
-                let radius = pts
-                    .iter()
-                    .map(|v| ((v.x - off[0]).powi(2) + (v.y - off[1]).powi(2)).sqrt())
-                    .fold(0.0, f64::max);
-                let center = [
-                    rng.gen_range(-0.5..=0.5) * area[0],
-                    rng.gen_range(-0.5..=0.5) * area[1],
-                ];
-                let clear = placed.iter().all(|f| {
-                    let d = ((f.center[0] - center[0]).powi(2) + (f.center[1] - center[1]).powi(2))
-                        .sqrt();
-                    d >= f.radius + radius + p.min_gap_m
-                });
-                if clear {
-                    placed.push(Footprint { center, radius });
-                    poses.push(Pose::new(
-                        rotation,
-                        DVec3::new(center[0] - off[0], center[1] - off[1], -lo.z),
-                    ));
-                    ok = true;
-                    break;
+        for _ in 0..p.max_tries {
+            let rotation = match p.orientation {
+                Orientation::Upright => {
+                    DMat3::from_rotation_z(rng.gen_range(0.0..std::f64::consts::TAU))
                 }
-            }
-            if !ok {
-                return None;
+                Orientation::Random => random_rotation(rng),
+            };
+            let pts: Vec<DVec3> = o
+                .support_points_m
+                .iter()
+                .map(|v| rotation * v.as_dvec3())
+                .collect();
+            let (lo, hi) = pts.iter().fold(
+                (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+                |(lo, hi), v| (lo.min(*v), hi.max(*v)),
+            );
+            let off = [(lo.x + hi.x) * 0.5, (lo.y + hi.y) * 0.5];
+            let radius = pts
+                .iter()
+                .map(|v| ((v.x - off[0]).powi(2) + (v.y - off[1]).powi(2)).sqrt())
+                .fold(0.0, f64::max);
+            let center = [
+                rng.gen_range(-0.5..=0.5) * area[0],
+                rng.gen_range(-0.5..=0.5) * area[1],
+            ];
+            let clear = placed.iter().all(|f| {
+                let d =
+                    ((f.center[0] - center[0]).powi(2) + (f.center[1] - center[1]).powi(2)).sqrt();
+                d >= f.radius + radius + p.min_gap_m
+            });
+            if clear {
+                placed.push(Footprint { center, radius });
+                return Some(Pose::new(
+                    rotation,
+                    DVec3::new(center[0] - off[0], center[1] - off[1], -lo.z),
+                ));
             }
         }
-        Some(poses)
+        None
     }
 
     /// The camera of view `attempt` (attempt 0 draws from the camera stream as frames
