@@ -248,7 +248,12 @@ def render_frame(frame_json, exr_path):
             obj.matrix_basis = _matrix(o["matrix"])
             nt = obj.material_slots[0].material.node_tree
             b = float(o["brightness"])
-            nt.nodes["tint"].outputs["Color"].default_value = (base[0] * b, base[1] * b, base[2] * b, 1.0)
+            t = o.get("tint", [1.0, 1.0, 1.0])
+            # Hue rotation (linear RGB, about the grey axis) of the material's base colour:
+            # exact for plain-coloured models; vertex colours and textures keep their hue.
+            m = o.get("hue_matrix", [[1, 0, 0], [0, 1, 0], [0, 0, 1]])
+            rb = [max(0.0, sum(m[i][j] * base[j] for j in range(3))) for i in range(3)]
+            nt.nodes["tint"].outputs["Color"].default_value = (rb[0] * b * t[0], rb[1] * b * t[1], rb[2] * b * t[2], 1.0)
             bsdf = nt.nodes["Principled BSDF"]
             bsdf.inputs["Roughness"].default_value = o["roughness"]
             bsdf.inputs["Specular IOR Level"].default_value = o["specular_ior_level"]

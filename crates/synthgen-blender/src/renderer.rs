@@ -117,6 +117,7 @@ impl BlenderRenderer {
         let raster = self.raster.render(scene)?;
         let background_only = FrameScene {
             objects: Vec::new(),
+            distractors: Vec::new(),
             ground: None,
             ..scene.clone()
         };
@@ -384,17 +385,25 @@ pub fn frame_json(scene: &FrameScene) -> String {
             .sum::<DVec3>()
             / scene.objects.len() as f64
     };
+    // Distractors render with pass index 0: no instance id, like the background.
+    let n = scene.objects.len();
     let objects: Vec<String> = scene
         .objects
         .iter()
+        .chain(&scene.distractors)
         .enumerate()
         .map(|(i, o)| {
+            let (tint, hue) = (o.tint, synthgen_core::color::hue_rotation(f64::from(o.hue_deg)));
             format!(
-                "{{\"model_index\": {}, \"pass_index\": {}, \"matrix\": {}, \"brightness\": {}, \"roughness\": {}, \"specular_ior_level\": {}}}",
+                "{{\"model_index\": {}, \"pass_index\": {}, \"matrix\": {}, \"brightness\": {}, \"tint\": [{}, {}, {}], \"hue_matrix\": {:?}, \"roughness\": {}, \"specular_ior_level\": {}}}",
                 o.model_index,
-                i + 1,
+                if i < n { i + 1 } else { 0 },
                 rows(&o.cam_from_obj.rotation, o.cam_from_obj.translation_m),
                 o.brightness,
+                tint[0],
+                tint[1],
+                tint[2],
+                hue,
                 roughness(o.shininess),
                 // The raster default specular 0.2 maps to Blender's default 0.5 (F0 = 4 %).
                 (f64::from(o.specular) * 2.5).clamp(0.0, 1.0),

@@ -22,4 +22,12 @@ pub enum Error {
         tries: u32,
         area_m: [f64; 2],
     },
+    #[error("no view of frame {frame} in {tries} tries has {what}; lower camera.min_visib_fract, set camera.allow_truncation = true, or raise camera.max_view_tries")]
+    View {
+        frame: u64,
+        tries: u32,
+        what: String,
+    },
+    #[error("view check failed: {0}")]
+    ViewCheck(String),
 }

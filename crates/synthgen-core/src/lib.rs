@@ -13,6 +13,9 @@
 pub mod annotate;
 pub mod atomic;
 pub mod camera;
+pub mod color;
+pub mod distractor;
+mod distractor_spec;
 mod error;
 pub mod mesh;
 pub mod pose;
@@ -22,6 +25,7 @@ pub mod sample;
 pub mod scene;
 mod sensor_spec;
 pub mod symmetry;
+pub mod view;
 
 pub use annotate::{annotate, AloneDepth, GtInfo, ObjectAnnotation, RenderedFrame};
 pub use camera::Intrinsics;
@@ -33,6 +37,7 @@ pub use progress::{NoProgress, Progress};
 pub use sample::{FrameScene, ObjectInstance, SceneObject, SceneSampler, Settle};
 pub use scene::SceneSpec;
 pub use symmetry::Symmetries;
+pub use view::{ViewCheck, Visibility};
 
 /// The synthgen version, written into every manifest.
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");

@@ -17,6 +17,7 @@ pub enum Stream {
     Background = 5,
     Ground = 6,
     Sensor = 7,
+    Distractors = 8,
 }
 
 /// SplitMix64 finalizer: a bijective 64-bit mix.

@@ -9,9 +9,12 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use crate::camera::Intrinsics;
+use crate::color::kelvin_to_rgb;
+use crate::distractor::{Chosen, DistractorPool};
 use crate::pose::Pose;
 use crate::rng::{derive_seed, frame_rng, Stream};
 use crate::scene::{BackgroundKind, Orientation, PlacementMode, Range, SceneSpec};
+use crate::view::{targets_inside_image, ViewCheck};
 use crate::Error;
 
 /// One object instance to place in every frame.
@@ -60,6 +63,34 @@ pub struct ObjectInstance {
     pub brightness: f32,
     pub specular: f32,
     pub shininess: f32,
+    /// Linear-light colour multiplier (distractor colours; 1, 1, 1 for targets).
+    #[serde(default = "white")]
+    pub tint: [f32; 3],
+    /// Hue rotation of the base colour about the grey axis, degrees
+    /// (`synthgen_core::color::hue_rotation`).
+    #[serde(default)]
+    pub hue_deg: f32,
+}
+
+fn white() -> [f32; 3] {
+    [1.0; 3]
+}
+
+impl ObjectInstance {
+    /// An instance with neutral material values (brightness 1, specular 0.2, shininess 32,
+    /// no tint or hue shift).
+    pub fn new(model_index: usize, obj_id: u32, cam_from_obj: Pose) -> ObjectInstance {
+        ObjectInstance {
+            model_index,
+            obj_id,
+            cam_from_obj,
+            brightness: 1.0,
+            specular: 0.2,
+            shininess: 32.0,
+            tint: white(),
+            hue_deg: 0.0,
+        }
+    }
 }
 
 /// A point light, position in the camera frame.
@@ -96,6 +127,9 @@ pub struct FrameScene {
     /// World: z up, ground plane at z = 0.
     pub world_from_cam: Pose,
     pub objects: Vec<ObjectInstance>,
+    /// Rendered and occluding, but not annotated (`obj_id` 0, instance id 0 in the output).
+    #[serde(default)]
+    pub distractors: Vec<ObjectInstance>,
     pub lights: Vec<PointLight>,
     pub ambient: f32,
     pub ground: Option<GroundInstance>,
@@ -124,6 +158,16 @@ impl std::fmt::Debug for SettleHook {
     }
 }
 
+/// A `ViewCheck` behind an `Arc`, with a `Debug` that names it only.
+#[derive(Clone)]
+struct ViewHook(Arc<dyn ViewCheck>);
+
+impl std::fmt::Debug for ViewHook {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("ViewCheck")
+    }
+}
+
 /// Samples frames of a scene spec deterministically.
 #[derive(Debug, Clone)]
 pub struct SceneSampler {
@@ -132,6 +176,8 @@ pub struct SceneSampler {
     pub objects: Vec<SceneObject>,
     pub seed: u64,
     settle: Option<SettleHook>,
+    view_check: Option<ViewHook>,
+    distractors: DistractorPool,
     /// Frames whose physics placement failed and fell back to the footprint poses, with why.
     fallbacks: Arc<Mutex<Vec<(u64, String)>>>,
 }
@@ -157,6 +203,9 @@ fn random_rotation(rng: &mut ChaCha8Rng) -> DMat3 {
     );
     DMat3::from_quat(q.normalize())
 }
+
+/// Rounds of placement, the area growing by 25% after each failed one.
+const PLACE_ROUNDS: u32 = 4;
 
 /// A placed footprint: disc on the plane.
 struct Footprint {
@@ -184,6 +233,8 @@ impl SceneSampler {
             objects,
             seed,
             settle: None,
+            view_check: None,
+            distractors: DistractorPool::default(),
             fallbacks: Arc::default(),
         })
     }
@@ -192,6 +243,24 @@ impl SceneSampler {
     pub fn with_settle(mut self, settle: Arc<dyn Settle>) -> SceneSampler {
         self.settle = Some(SettleHook(settle));
         self
+    }
+
+    /// Uses `check` to count target pixels when `camera.min_visib_fract > 0` (the view is
+    /// re-sampled until every target is visible enough).
+    pub fn with_view_check(mut self, check: Arc<dyn ViewCheck>) -> SceneSampler {
+        self.view_check = Some(ViewHook(check));
+        self
+    }
+
+    /// The objects `[distractors]` draws from (their `model_index` points into the
+    /// renderer's model list, after the targets' models).
+    pub fn with_distractors(mut self, pool: DistractorPool) -> SceneSampler {
+        self.distractors = pool;
+        self
+    }
+
+    pub fn distractor_pool(&self) -> &DistractorPool {
+        &self.distractors
     }
 
     /// Frames (index, reason) whose physics placement failed so far and used the footprint
@@ -207,41 +276,90 @@ impl SceneSampler {
 
     /// Samples frame `frame_index`. The same (seed, index) always gives the same frame.
     pub fn sample(&self, frame_index: u64) -> Result<FrameScene, Error> {
-        let mut world_from_objs = self.place_objects(frame_index)?;
-        if self.spec.placement.mode == PlacementMode::Physics {
-            world_from_objs = self.settle_objects(frame_index, world_from_objs)?;
-        }
-        let world_from_cam = self.sample_camera(frame_index, &world_from_objs);
-        let cam_from_world = world_from_cam.inverse();
-
-        let mut mat_rng = frame_rng(self.seed, frame_index, Stream::Materials);
-        let m = &self.spec.materials;
-        let objects = self
+        let spec = &self.spec;
+        let d = &spec.distractors;
+        let mut drng = frame_rng(self.seed, frame_index, Stream::Distractors);
+        let chosen = if d.count[1] > 0 {
+            if self.distractors.is_empty() {
+                return Err(Error::InvalidSpec(
+                    "distractors.count > 0 but the sampler was given no distractor objects (with_distractors)".into(),
+                ));
+            }
+            self.distractors.choose(d, &mut drng)
+        } else {
+            Vec::new()
+        };
+        let (targets, mut footprints) = self.place_objects(frame_index)?;
+        let placed = self.place_distractors(chosen, &mut drng, &mut footprints);
+        let (chosen, distractor_poses): (Vec<Chosen>, Vec<Pose>) = placed.into_iter().unzip();
+        let all: Vec<&SceneObject> = self
             .objects
             .iter()
-            .zip(&world_from_objs)
-            .map(|(o, w)| ObjectInstance {
-                model_index: o.model_index,
-                obj_id: o.obj_id,
-                cam_from_obj: cam_from_world.compose(w),
-                brightness: uniform(&mut mat_rng, m.brightness) as f32,
-                specular: uniform(&mut mat_rng, m.specular) as f32,
-                shininess: uniform(&mut mat_rng, m.shininess) as f32,
+            .chain(chosen.iter().map(|c| c.object))
+            .collect();
+        let mut world_from_all = targets;
+        world_from_all.extend(distractor_poses);
+        if spec.placement.mode == PlacementMode::Physics {
+            world_from_all = self.settle_objects(frame_index, &all, world_from_all)?;
+        }
+        let (world_from_objs, world_from_distractors) = world_from_all.split_at(self.objects.len());
+
+        let mut mat_rng = frame_rng(self.seed, frame_index, Stream::Materials);
+        let material = |rng: &mut ChaCha8Rng| {
+            let m = &spec.materials;
+            let brightness = uniform(rng, m.brightness) as f32;
+            let specular = uniform(rng, m.specular) as f32;
+            let shininess = match m.roughness {
+                // Beckmann alpha = r^2, Blinn-Phong n = 2 / alpha^2 - 2.
+                Some(r) => (2.0 / uniform(rng, r).powi(4) - 2.0).max(0.0) as f32,
+                None => uniform(rng, m.shininess) as f32,
+            };
+            let hue_deg = uniform(rng, m.hue_deg) as f32;
+            (brightness, specular, shininess, hue_deg)
+        };
+        // World-frame instances: cam_from_obj holds world_from_obj until the camera is known.
+        let world_objects: Vec<ObjectInstance> = self
+            .objects
+            .iter()
+            .zip(world_from_objs)
+            .map(|(o, w)| {
+                let (brightness, specular, shininess, hue_deg) = material(&mut mat_rng);
+                ObjectInstance {
+                    brightness,
+                    specular,
+                    shininess,
+                    hue_deg,
+                    ..ObjectInstance::new(o.model_index, o.obj_id, *w)
+                }
+            })
+            .collect();
+        let world_distractors: Vec<ObjectInstance> = chosen
+            .iter()
+            .zip(world_from_distractors)
+            .map(|(c, w)| {
+                let (brightness, specular, shininess, hue_deg) = material(&mut drng);
+                ObjectInstance {
+                    brightness,
+                    specular,
+                    shininess,
+                    hue_deg,
+                    tint: c.tint,
+                    ..ObjectInstance::new(c.object.model_index, 0, *w)
+                }
             })
             .collect();
 
-        let center = scene_center(&world_from_objs);
-        let (lights, ambient) = self.sample_lights(frame_index, center, &cam_from_world);
+        let center = scene_center(world_from_objs);
+        let (world_lights, ambient) = self.sample_lights(frame_index, center);
 
-        let g = &self.spec.ground;
+        let g = &spec.ground;
         let ground = g.visible.then(|| {
             let mut rng = frame_rng(self.seed, frame_index, Stream::Ground);
             let t: f32 = rng.gen();
             let color =
                 std::array::from_fn(|i| g.color_min[i] + t * (g.color_max[i] - g.color_min[i]));
-            let world_from_plane = Pose::new(DMat3::IDENTITY, DVec3::new(center.x, center.y, 0.0));
             GroundInstance {
-                cam_from_plane: cam_from_world.compose(&world_from_plane),
+                cam_from_plane: Pose::new(DMat3::IDENTITY, DVec3::new(center.x, center.y, 0.0)),
                 size_m: g.size_m,
                 color,
                 texture_strength: g.texture_strength,
@@ -249,7 +367,7 @@ impl SceneSampler {
             }
         });
 
-        let b = &self.spec.background;
+        let b = &spec.background;
         let mut rng = frame_rng(self.seed, frame_index, Stream::Background);
         let color = std::array::from_fn(|i| {
             let t: f32 = rng.gen();
@@ -261,21 +379,85 @@ impl SceneSampler {
             seed: derive_seed(self.seed, frame_index, Stream::Background) ^ rng.gen::<u64>(),
         };
 
-        Ok(FrameScene {
-            frame_index,
-            intrinsics: self.intrinsics,
-            world_from_cam,
-            objects,
-            lights,
-            ambient,
-            ground,
-            background,
+        let c = &spec.camera;
+        let check_visib = c.min_visib_fract > 0.0;
+        let hook = match (&self.view_check, check_visib) {
+            (Some(ViewHook(h)), true) => Some(h),
+            (None, true) => {
+                return Err(Error::InvalidSpec(
+                    "camera.min_visib_fract > 0 needs a view check (synthgen-render), which this program did not provide".into(),
+                ))
+            }
+            _ => None,
+        };
+        let to_cam = |cam_from_world: &Pose, v: &[ObjectInstance]| -> Vec<ObjectInstance> {
+            v.iter()
+                .map(|o| ObjectInstance {
+                    cam_from_obj: cam_from_world.compose(&o.cam_from_obj),
+                    ..o.clone()
+                })
+                .collect()
+        };
+        for attempt in 0..c.max_view_tries {
+            let world_from_cam = self.sample_camera(frame_index, attempt, world_from_objs);
+            let cam_from_world = world_from_cam.inverse();
+            let scene = FrameScene {
+                frame_index,
+                intrinsics: self.intrinsics,
+                world_from_cam,
+                objects: to_cam(&cam_from_world, &world_objects),
+                distractors: to_cam(&cam_from_world, &world_distractors),
+                lights: world_lights
+                    .iter()
+                    .map(|l| PointLight {
+                        position_cam_m: cam_from_world.transform_point(l.position_cam_m),
+                        ..l.clone()
+                    })
+                    .collect(),
+                ambient,
+                ground: ground.as_ref().map(|g| GroundInstance {
+                    cam_from_plane: cam_from_world.compose(&g.cam_from_plane),
+                    ..g.clone()
+                }),
+                background: background.clone(),
+            };
+            if !c.allow_truncation && !targets_inside_image(&scene, &self.objects) {
+                continue;
+            }
+            let Some(hook) = hook else {
+                return Ok(scene);
+            };
+            let vis = hook.visibility(&scene).map_err(Error::ViewCheck)?;
+            let ok = vis.iter().take(self.objects.len()).all(|v| {
+                v.visib_fract() >= c.min_visib_fract
+                    && (c.allow_truncation || v.px_in_image == v.px_all)
+            });
+            if ok {
+                return Ok(scene);
+            }
+        }
+        Err(Error::View {
+            frame: frame_index,
+            tries: c.max_view_tries,
+            what: match (check_visib, c.allow_truncation) {
+                (true, true) => format!("every target at least {} visible", c.min_visib_fract),
+                (true, false) => format!(
+                    "every target inside the image and at least {} visible",
+                    c.min_visib_fract
+                ),
+                _ => "every target inside the image".into(),
+            },
         })
     }
 
     /// Lifts the footprint poses by the drop heights and lets the physics engine settle them;
     /// on failure keeps the footprint poses and records the frame.
-    fn settle_objects(&self, frame_index: u64, placed: Vec<Pose>) -> Result<Vec<Pose>, Error> {
+    fn settle_objects(
+        &self,
+        frame_index: u64,
+        objects: &[&SceneObject],
+        placed: Vec<Pose>,
+    ) -> Result<Vec<Pose>, Error> {
         let Some(SettleHook(settle)) = &self.settle else {
             return Err(Error::InvalidSpec(
                 "placement.mode = \"physics\" needs the physics engine (synthgen-physics), which this program did not provide".into(),
@@ -293,7 +475,14 @@ impl SceneSampler {
                 p
             })
             .collect();
-        match settle.settle(&self.objects, &lifted) {
+        let owned: Vec<SceneObject>;
+        let objects: &[SceneObject] = if objects.len() == self.objects.len() {
+            &self.objects
+        } else {
+            owned = objects.iter().map(|o| (*o).clone()).collect();
+            &owned
+        };
+        match settle.settle(objects, &lifted) {
             Ok(poses) if poses.len() == placed.len() => Ok(poses),
             Ok(poses) => Err(Error::InvalidSpec(format!(
                 "physics returned {} poses for {} objects",
@@ -310,17 +499,22 @@ impl SceneSampler {
         }
     }
 
-    fn place_objects(&self, frame_index: u64) -> Result<Vec<Pose>, Error> {
+    /// Places the targets: each round that cannot fit every one widens the area by 25%; the
+    /// result stays a pure function of (seed, frame). Returns the poses and footprints.
+    fn place_objects(&self, frame_index: u64) -> Result<(Vec<Pose>, Vec<Footprint>), Error> {
         let p = &self.spec.placement;
         let mut rng = frame_rng(self.seed, frame_index, Stream::Placement);
-        // Each round that cannot fit every object widens the area by 25%; the result stays a
-        // pure function of (seed, frame).
-        const ROUNDS: u32 = 4;
         let mut area = p.area_m;
-        for round in 0..ROUNDS {
-            match self.try_place(&mut rng, area) {
-                Some(poses) => return Ok(poses),
-                None if round + 1 < ROUNDS => area = [area[0] * 1.25, area[1] * 1.25],
+        for round in 0..PLACE_ROUNDS {
+            let mut placed = Vec::with_capacity(self.objects.len());
+            let poses: Option<Vec<Pose>> = self
+                .objects
+                .iter()
+                .map(|o| self.place_one(o, &mut rng, area, &mut placed))
+                .collect();
+            match poses {
+                Some(poses) => return Ok((poses, placed)),
+                None if round + 1 < PLACE_ROUNDS => area = [area[0] * 1.25, area[1] * 1.25],
                 None => {}
             }
         }
@@ -336,62 +530,89 @@ impl SceneSampler {
         })
     }
 
-    fn try_place(&self, rng: &mut ChaCha8Rng, area: [f64; 2]) -> Option<Vec<Pose>> {
-        let p = &self.spec.placement;
-        let mut placed: Vec<Footprint> = Vec::with_capacity(self.objects.len());
-        let mut poses = Vec::with_capacity(self.objects.len());
-        for o in &self.objects {
-            let mut ok = false;
-            for _ in 0..p.max_tries {
-                let rotation = match p.orientation {
-                    Orientation::Upright => {
-                        DMat3::from_rotation_z(rng.gen_range(0.0..std::f64::consts::TAU))
+    /// Places distractors around the placed targets (whose poses they never change): each
+    /// gets `max_tries` per area, the area growing by 25% up to three times; one that still
+    /// does not fit is left out of the frame.
+    fn place_distractors<'a>(
+        &self,
+        chosen: Vec<Chosen<'a>>,
+        rng: &mut ChaCha8Rng,
+        placed: &mut Vec<Footprint>,
+    ) -> Vec<(Chosen<'a>, Pose)> {
+        chosen
+            .into_iter()
+            .filter_map(|c| {
+                let mut area = self.spec.placement.area_m;
+                for _ in 0..PLACE_ROUNDS {
+                    if let Some(pose) = self.place_one(c.object, rng, area, placed) {
+                        return Some((c, pose));
                     }
-                    Orientation::Random => random_rotation(rng),
-                };
-                let pts: Vec<DVec3> = o
-                    .support_points_m
-                    .iter()
-                    .map(|v| rotation * v.as_dvec3())
-                    .collect();
-                let (lo, hi) = pts.iter().fold(
-                    (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-                    |(lo, hi), v| (lo.min(*v), hi.max(*v)),
-                );
-                let off = [(lo.x + hi.x) * 0.5, (lo.y + hi.y) * 0.5];
-                let radius = pts
-                    .iter()
-                    .map(|v| ((v.x - off[0]).powi(2) + (v.y - off[1]).powi(2)).sqrt())
-                    .fold(0.0, f64::max);
-                let center = [
-                    rng.gen_range(-0.5..=0.5) * area[0],
-                    rng.gen_range(-0.5..=0.5) * area[1],
-                ];
-                let clear = placed.iter().all(|f| {
-                    let d = ((f.center[0] - center[0]).powi(2) + (f.center[1] - center[1]).powi(2))
-                        .sqrt();
-                    d >= f.radius + radius + p.min_gap_m
-                });
-                if clear {
-                    placed.push(Footprint { center, radius });
-                    poses.push(Pose::new(
-                        rotation,
-                        DVec3::new(center[0] - off[0], center[1] - off[1], -lo.z),
-                    ));
-                    ok = true;
-                    break;
+                    area = [area[0] * 1.25, area[1] * 1.25];
                 }
-            }
-            if !ok {
-                return None;
-            }
-        }
-        Some(poses)
+                None
+            })
+            .collect()
     }
 
-    fn sample_camera(&self, frame_index: u64, world_from_objs: &[Pose]) -> Pose {
+    /// One object's footprint pose clear of `placed` within `area` (pushed onto it), or
+    /// None after `max_tries`.
+    fn place_one(
+        &self,
+        o: &SceneObject,
+        rng: &mut ChaCha8Rng,
+        area: [f64; 2],
+        placed: &mut Vec<Footprint>,
+    ) -> Option<Pose> {
+        let p = &self.spec.placement;
+        for _ in 0..p.max_tries {
+            let rotation = match p.orientation {
+                Orientation::Upright => {
+                    DMat3::from_rotation_z(rng.gen_range(0.0..std::f64::consts::TAU))
+                }
+                Orientation::Random => random_rotation(rng),
+            };
+            let pts: Vec<DVec3> = o
+                .support_points_m
+                .iter()
+                .map(|v| rotation * v.as_dvec3())
+                .collect();
+            let (lo, hi) = pts.iter().fold(
+                (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+                |(lo, hi), v| (lo.min(*v), hi.max(*v)),
+            );
+            let off = [(lo.x + hi.x) * 0.5, (lo.y + hi.y) * 0.5];
+            let radius = pts
+                .iter()
+                .map(|v| ((v.x - off[0]).powi(2) + (v.y - off[1]).powi(2)).sqrt())
+                .fold(0.0, f64::max);
+            let center = [
+                rng.gen_range(-0.5..=0.5) * area[0],
+                rng.gen_range(-0.5..=0.5) * area[1],
+            ];
+            let clear = placed.iter().all(|f| {
+                let d =
+                    ((f.center[0] - center[0]).powi(2) + (f.center[1] - center[1]).powi(2)).sqrt();
+                d >= f.radius + radius + p.min_gap_m
+            });
+            if clear {
+                placed.push(Footprint { center, radius });
+                return Some(Pose::new(
+                    rotation,
+                    DVec3::new(center[0] - off[0], center[1] - off[1], -lo.z),
+                ));
+            }
+        }
+        None
+    }
+
+    /// The camera of view `attempt` (attempt 0 draws from the camera stream as frames
+    /// without rejection always did; later attempts from their own ChaCha streams).
+    fn sample_camera(&self, frame_index: u64, attempt: u32, world_from_objs: &[Pose]) -> Pose {
         let c = &self.spec.camera_pose;
         let mut rng = frame_rng(self.seed, frame_index, Stream::Camera);
+        if attempt > 0 {
+            rng.set_stream(u64::from(attempt));
+        }
         let j = c.look_at_jitter_m;
         let mut target = scene_center(world_from_objs);
         if j > 0.0 {
@@ -409,12 +630,9 @@ impl SceneSampler {
         world_from_cam
     }
 
-    fn sample_lights(
-        &self,
-        frame_index: u64,
-        center: DVec3,
-        cam_from_world: &Pose,
-    ) -> (Vec<PointLight>, f32) {
+    /// Lights with their positions in the world frame (in `position_cam_m`, moved to the
+    /// camera frame once the view is chosen).
+    fn sample_lights(&self, frame_index: u64, center: DVec3) -> (Vec<PointLight>, f32) {
         let l = &self.spec.lights;
         let mut rng = frame_rng(self.seed, frame_index, Stream::Lights);
         let n = rng.gen_range(l.count[0]..=l.count[1]);
@@ -425,11 +643,14 @@ impl SceneSampler {
                 let a = rng.gen_range(0.0..std::f64::consts::TAU);
                 let p_world =
                     center + d * DVec3::new(e.cos() * a.cos(), e.cos() * a.sin(), e.sin());
-                let color = std::array::from_fn(|_| {
-                    (1.0 - l.color_jitter * rng.gen::<f64>()).clamp(0.0, 1.0) as f32
-                });
+                let color = match l.temperature_k {
+                    Some(t) => kelvin_to_rgb(uniform(&mut rng, t)),
+                    None => std::array::from_fn(|_| {
+                        (1.0 - l.color_jitter * rng.gen::<f64>()).clamp(0.0, 1.0) as f32
+                    }),
+                };
                 PointLight {
-                    position_cam_m: cam_from_world.transform_point(p_world),
+                    position_cam_m: p_world,
                     color,
                     intensity: uniform(&mut rng, l.intensity) as f32,
                 }

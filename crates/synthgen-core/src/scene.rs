@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::camera::Intrinsics;
+pub use crate::distractor_spec::{DistractorShape, DistractorSpec};
 pub use crate::sensor_spec::{D455Spec, DepthModel, RgbNoiseSpec, SensorSpec, TofSpec};
 use crate::Error;
 
@@ -24,6 +25,8 @@ pub struct SceneSpec {
     pub materials: MaterialSpec,
     /// Sensor models applied after rendering (depth noise, RGB noise). Default: none.
     pub sensor: SensorSpec,
+    /// Objects rendered around the targets that get no annotations. Default: none.
+    pub distractors: DistractorSpec,
     /// Objects declared in the spec (in addition to `--objects` on the command line).
     pub objects: Vec<ObjectSpec>,
 }
@@ -40,6 +43,15 @@ pub struct CameraSpec {
     pub fy: Option<f64>,
     pub cx: Option<f64>,
     pub cy: Option<f64>,
+    /// A view is re-sampled when any target's visible fraction (BOP `visib_fract`, with the
+    /// distractors and other targets as occluders) is below this, 0..1. Default 0 (off).
+    pub min_visib_fract: f64,
+    /// Views tried per frame before the frame fails. Default 50.
+    pub max_view_tries: u32,
+    /// Keep views where a target's silhouette leaves the image (BOP semantics: its
+    /// `visib_fract` counts the pixels outside as not visible). Default false: such views
+    /// are re-sampled.
+    pub allow_truncation: bool,
 }
 
 impl Default for CameraSpec {
@@ -52,6 +64,9 @@ impl Default for CameraSpec {
             fy: None,
             cx: None,
             cy: None,
+            min_visib_fract: 0.0,
+            max_view_tries: 50,
+            allow_truncation: false,
         }
     }
 }
@@ -237,8 +252,13 @@ pub struct LightSpec {
     pub elevation_deg: Range,
     /// Intensity multiplier. Default 0.6..1.2.
     pub intensity: Range,
-    /// Max per-channel deviation from white. Default 0.15.
+    /// Max per-channel deviation from white. Default 0.15. Ignored when `temperature_k` is
+    /// set.
     pub color_jitter: f64,
+    /// Colour temperature range, kelvin (e.g. [2700, 6500]); each light's colour is the
+    /// black-body colour of a uniform draw (`color::kelvin_to_rgb`). Default: unset (white
+    /// with `color_jitter`).
+    pub temperature_k: Option<Range>,
     /// Ambient light level. Default 0.15..0.35.
     pub ambient: Range,
 }
@@ -251,6 +271,7 @@ impl Default for LightSpec {
             elevation_deg: [30.0, 85.0],
             intensity: [0.6, 1.2],
             color_jitter: 0.15,
+            temperature_k: None,
             ambient: [0.15, 0.35],
         }
     }
@@ -298,8 +319,13 @@ pub struct MaterialSpec {
     pub brightness: Range,
     /// Specular weight range. Default 0.05..0.4.
     pub specular: Range,
-    /// Blinn-Phong exponent range. Default 8..64.
+    /// Blinn-Phong exponent range. Default 8..64. Ignored when `roughness` is set.
     pub shininess: Range,
+    /// Principled roughness range 0..1; when set, the Blinn-Phong exponent is
+    /// n = 2 / r⁴ − 2 (Beckmann α = r², n = 2/α² − 2). Default: unset (use `shininess`).
+    pub roughness: Option<Range>,
+    /// Hue rotation per object, degrees (about the grey axis in linear RGB). Default 0..0.
+    pub hue_deg: Range,
 }
 
 impl Default for MaterialSpec {
@@ -308,6 +334,8 @@ impl Default for MaterialSpec {
             brightness: [0.85, 1.15],
             specular: [0.05, 0.4],
             shininess: [8.0, 64.0],
+            roughness: None,
+            hue_deg: [0.0, 0.0],
         }
     }
 }
@@ -349,6 +377,11 @@ impl SceneSpec {
         for o in &mut spec.objects {
             if o.path.is_relative() {
                 o.path = base.join(&o.path);
+            }
+        }
+        for m in &mut spec.distractors.meshes {
+            if m.is_relative() {
+                *m = base.join(&*m);
             }
         }
         if let Some(dir) = &mut spec.background.images_dir {
@@ -454,6 +487,7 @@ impl SceneSpec {
                 "placement.max_tries must be >= 1".into(),
             ));
         }
+        self.validate_scene_extras()?;
         self.sensor.validate()?;
         if self.background.kind == BackgroundKind::Images && self.background.images_dir.is_none() {
             return Err(Error::InvalidSpec(

@@ -224,6 +224,8 @@ fn full_frames(
             brightness: 1.0,
             specular: 0.0,
             shininess: 1.0,
+            tint: [1.0; 3],
+            hue_deg: 0.0,
         })
         .collect();
     let ann: Vec<ObjectAnnotation> = (0..5)
@@ -255,6 +257,7 @@ fn full_frames(
             intrinsics: k,
             world_from_cam: Pose::IDENTITY,
             objects: objects.clone(),
+            distractors: vec![],
             lights: vec![],
             ambient: 0.3,
             ground: None,

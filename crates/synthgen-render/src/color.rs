@@ -44,6 +44,7 @@ pub(crate) fn srgb_index32(v: f32) -> u32 {
 pub(crate) const MAGIC: f32 = 12_582_912.0;
 
 /// Both conversion tables, built once per renderer.
+#[derive(Clone)]
 pub(crate) struct ColorLuts {
     /// sRGB byte -> linear 0..1.
     pub to_linear: [f32; 256],

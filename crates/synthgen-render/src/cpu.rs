@@ -31,6 +31,7 @@ impl Default for CpuOptions {
 
 /// The embedded rasterizer. Immutable after construction, so one renderer can serve all
 /// threads (`render_frames` renders frames in parallel).
+#[derive(Clone)]
 pub struct CpuRenderer {
     models: Arc<[PreparedModel]>,
     backgrounds: Vec<Arc<Texture>>,
@@ -43,6 +44,8 @@ pub struct CpuRenderer {
 #[derive(Default)]
 struct Scratch {
     objs: Vec<ObjScratch>,
+    /// Depth of each distractor on the image (not the 3x canvas: they get no annotations).
+    distractor_alone: Vec<AloneDepth>,
     xmap: Vec<u32>,
     ymap: Vec<u32>,
     cam_lights: Vec<Light>,
@@ -99,18 +102,34 @@ impl CpuRenderer {
         self.models.len()
     }
 
-    fn validate(&self, scene: &FrameScene) -> Result<(), Error> {
+    pub(crate) fn prepared(&self, model_index: usize) -> &PreparedModel {
+        &self.models[model_index]
+    }
+
+    pub(crate) fn projection(&self, k: &synthgen_core::Intrinsics) -> Projection {
+        Projection {
+            fx: k.fx as f32,
+            fy: k.fy as f32,
+            cx: k.cx as f32,
+            cy: k.cy as f32,
+            near_m: self.options.near_m,
+        }
+    }
+
+    pub(crate) fn validate(&self, scene: &FrameScene) -> Result<(), Error> {
         let k = &scene.intrinsics;
         k.validate().map_err(|e| Error::InvalidIntrinsics {
             reason: e.to_string(),
         })?;
-        if scene.objects.len() > MAX_OBJECTS {
+        let count = scene.objects.len() + scene.distractors.len();
+        if count > MAX_OBJECTS {
             return Err(Error::TooManyObjects {
-                count: scene.objects.len(),
+                count,
                 max: MAX_OBJECTS,
             });
         }
-        for (i, o) in scene.objects.iter().enumerate() {
+        // Distractors are numbered after the objects in errors.
+        for (i, o) in scene.objects.iter().chain(&scene.distractors).enumerate() {
             if o.model_index >= self.models.len() {
                 return Err(Error::UnknownModel {
                     object: i,
@@ -174,11 +193,14 @@ impl CpuRenderer {
         reset(&mut out.instance, n, 0);
         out.alone
             .resize_with(scene.objects.len(), AloneDepth::default);
-        if scratch.objs.len() < scene.objects.len() {
-            scratch
-                .objs
-                .resize_with(scene.objects.len(), ObjScratch::default);
+        let n_obj = scene.objects.len();
+        let n_all = n_obj + scene.distractors.len();
+        if scratch.objs.len() < n_all {
+            scratch.objs.resize_with(n_all, ObjScratch::default);
         }
+        scratch
+            .distractor_alone
+            .resize_with(scene.distractors.len(), AloneDepth::default);
 
         let ground = scene.ground.as_ref().map(Ground::new);
 
@@ -211,8 +233,39 @@ impl CpuRenderer {
             alone.width = win.width() as u32;
             alone.height = win.height() as u32;
         }
+        for ((inst, alone), os) in scene
+            .distractors
+            .iter()
+            .zip(scratch.distractor_alone.iter_mut())
+            .zip(scratch.objs[n_obj..].iter_mut())
+        {
+            raster_into(
+                &self.models[inst.model_index],
+                inst,
+                &proj,
+                image,
+                os,
+                alone,
+            );
+        }
 
-        composite(&out.alone, &image, w, &mut out.depth_m, &mut out.instance);
+        composite(
+            &out.alone,
+            1,
+            &image,
+            w,
+            &mut out.depth_m,
+            &mut out.instance,
+        );
+        // Distractors take the ids after the objects while shading, 0 in the output.
+        composite(
+            &scratch.distractor_alone,
+            n_obj as u16 + 1,
+            &image,
+            w,
+            &mut out.depth_m,
+            &mut out.instance,
+        );
 
         let params = ShadeParams {
             ambient: scene.ambient.max(0.0),
@@ -240,7 +293,13 @@ impl CpuRenderer {
             out,
             &mut scratch.ground_row,
         );
-        for (i, (inst, os)) in scene.objects.iter().zip(&scratch.objs).enumerate() {
+        for (i, (inst, os)) in scene
+            .objects
+            .iter()
+            .chain(&scene.distractors)
+            .zip(&scratch.objs)
+            .enumerate()
+        {
             shade_object(
                 &self.models[inst.model_index],
                 inst,
@@ -254,22 +313,56 @@ impl CpuRenderer {
                 out,
             );
         }
+        if n_all > n_obj {
+            let last = n_obj as u16;
+            for v in out.instance.iter_mut() {
+                *v = select_u16(*v > last, 0, *v);
+            }
+        }
         Ok(())
     }
+}
+
+#[inline(always)]
+fn select_u16(c: bool, a: u16, b: u16) -> u16 {
+    if c {
+        a
+    } else {
+        b
+    }
+}
+
+/// Rasterizes `inst` alone on `canvas` into `alone` (and the scratch's triangle ids).
+pub(crate) fn raster_into(
+    model: &PreparedModel,
+    inst: &ObjectInstance,
+    proj: &Projection,
+    canvas: Rect,
+    os: &mut ObjScratch,
+    alone: &mut AloneDepth,
+) {
+    let rot = inst.cam_from_obj.rotation.as_mat3();
+    let t = inst.cam_from_obj.translation_m.as_vec3();
+    let win = raster_object(model, &rot, t, proj, canvas, os, &mut alone.depth_m);
+    alone.x0 = win.x0;
+    alone.y0 = win.y0;
+    alone.width = win.width() as u32;
+    alone.height = win.height() as u32;
 }
 
 /// Nearest object per pixel from the objects' alone depths (ties to the lower index); the
 /// ground is tested against the result afterwards.
 #[inline(never)]
-fn composite(
+pub(crate) fn composite(
     alone: &[AloneDepth],
+    first_id: u16,
     image: &Rect,
     w: usize,
     depth: &mut [f32],
     instance: &mut [u16],
 ) {
     for (i, a) in alone.iter().enumerate() {
-        let id = i as u16 + 1;
+        let id = i as u16 + first_id;
         let win = Rect {
             x0: a.x0,
             y0: a.y0,

@@ -22,6 +22,7 @@ const TILE_MASK: i32 = TILES as i32 - 1;
 
 /// The tile pattern, built once per renderer: per fine tile 0.7 x its coarse tile's random
 /// value + 0.3 x its own, quantized to a byte.
+#[derive(Clone)]
 pub(crate) struct TileTables {
     pattern: Vec<u8>,
 }
@@ -180,7 +181,6 @@ impl Ground {
     /// The plane's depth (z along the optical axis) at the centres of pixels `x0..` of row
     /// `y`: the ray-plane intersection where it lies beyond the near plane and inside the
     /// square, else 0.
-    #[cfg(test)]
     pub fn plane_depths(&self, y: usize, proj: &Projection, x0: usize, t: &mut [f32]) {
         let c = self.row_coeffs(y, proj);
         for (i, tv) in t.iter_mut().enumerate() {

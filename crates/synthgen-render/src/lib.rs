@@ -20,7 +20,10 @@
 //!         brightness: 1.0,
 //!         specular: 0.2,
 //!         shininess: 32.0,
+//!         tint: [1.0; 3],
+//!         hue_deg: 0.0,
 //!     }],
+//!     distractors: vec![],
 //!     lights: vec![],
 //!     ambient: 1.0,
 //!     ground: None,
@@ -119,10 +122,12 @@ mod prepare;
 mod raster;
 pub mod sensor;
 mod shade;
+mod view_check;
 
 pub use cpu::{render_frames, CpuOptions, CpuRenderer};
 pub use error::Error;
 pub use sensor::SensorModel;
+pub use view_check::ViewChecker;
 
 use synthgen_core::{FrameScene, RenderedFrame};
 

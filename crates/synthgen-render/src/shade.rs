@@ -110,6 +110,10 @@ pub(crate) fn shade_pixels(
     let dir_y = r1 / proj.fy;
     let dir_0 = r2 - r0 * (proj.cx / proj.fx) - r1 * (proj.cy / proj.fy);
     let brightness = inst.brightness.max(0.0);
+    // Base colour transform: brightness x tint x hue rotation (linear light).
+    let tint = inst.tint.map(|t| t.max(0.0) * brightness);
+    let hue =
+        (inst.hue_deg != 0.0).then(|| synthgen_core::color::hue_rotation(f64::from(inst.hue_deg)));
     let specular = inst.specular.max(0.0);
     let shininess = inst.shininess.max(0.0);
 
@@ -207,9 +211,15 @@ pub(crate) fn shade_pixels(
         ny[k] = nv.y;
         nz[k] = nv.z;
         let a = albedo_at(prim, vi, sv, w, luts);
-        ar[k] = a[0] * brightness;
-        ag[k] = a[1] * brightness;
-        ab[k] = a[2] * brightness;
+        let a = match &hue {
+            None => a,
+            Some(m) => {
+                std::array::from_fn(|i| (m[i][0] * a[0] + m[i][1] * a[1] + m[i][2] * a[2]).max(0.0))
+            }
+        };
+        ar[k] = a[0] * tint[0];
+        ag[k] = a[1] * tint[1];
+        ab[k] = a[2] * tint[2];
     }
 
     // D: lighting, one vectorizable pass per light, after normalizing the normals.

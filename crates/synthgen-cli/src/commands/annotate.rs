@@ -136,6 +136,8 @@ fn annotate_frame(
             brightness: 1.0,
             specular: 0.0,
             shininess: 1.0,
+            tint: [1.0; 3],
+            hue_deg: 0.0,
         })
         .collect();
     let frame_scene = FrameScene {
@@ -143,6 +145,7 @@ fn annotate_frame(
         intrinsics: camera.intrinsics(w, h),
         world_from_cam: Pose::IDENTITY,
         objects,
+        distractors: vec![],
         lights: vec![],
         ambient: 1.0,
         ground: None,

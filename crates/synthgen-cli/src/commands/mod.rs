@@ -8,6 +8,7 @@ pub mod merge;
 pub mod mix;
 pub mod preview;
 pub mod render;
+mod render_extras;
 mod render_resume;
 mod render_sink;
 pub mod stats;

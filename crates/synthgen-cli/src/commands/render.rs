@@ -12,12 +12,12 @@ use synthgen_core::sample::SceneObject;
 use synthgen_core::scene::{BackgroundKind, Orientation, PlacementMode};
 use synthgen_core::{Model, Progress, SceneSampler, SceneSpec, Symmetries, Texture};
 use synthgen_dataset::manifest::{write_manifest, Manifest};
-use synthgen_render::{CpuRenderer, Renderer, SensorModel};
+use synthgen_render::{CpuRenderer, Renderer, SensorModel, ViewChecker};
 
 use crate::cli::{Backend, BackgroundArg, FormatArg, OrientationArg, RenderArgs, UnitsArg};
-use crate::commands::render_resume;
 use crate::commands::render_sink::{self, Sink};
 use crate::commands::user_error;
+use crate::commands::{render_extras, render_resume};
 use crate::{ExitStatus, Printer};
 
 /// One mesh to load, with where it came from.
@@ -51,6 +51,9 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     }
     let ids = assign_obj_ids(&sources, &args.obj_ids)?;
     let scene_objects = scene_objects(&models, &ids, &sources);
+    let n_targets = models.len();
+    // Distractor models go after the targets' in the renderer's list.
+    let distractors = render_extras::distractor_pool(&spec, &mut models, printer)?;
 
     let backgrounds = load_backgrounds(&spec, printer)?;
     let pool = rayon::ThreadPoolBuilder::new()
@@ -66,19 +69,45 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
         .iter()
         .map(|s| source_symmetries(&s.path, printer))
         .collect::<Result<_>>()?;
-    writer.write_models(&models, &ids, &symmetries)?;
+    writer.write_models(&models[..n_targets], &ids, &symmetries)?;
 
-    let mut sampler = SceneSampler::new(spec.clone(), scene_objects, args.seed)?;
+    let mut sampler =
+        SceneSampler::new(spec.clone(), scene_objects, args.seed)?.with_distractors(distractors);
     if spec.placement.mode == PlacementMode::Physics {
-        let settler = synthgen_physics::PhysicsSettler::new(
-            &sampler.objects,
-            spec.placement.physics.clone(),
-        )?;
+        let p = sampler.distractor_pool();
+        let all: Vec<SceneObject> = sampler
+            .objects
+            .iter()
+            .chain(&p.primitives)
+            .chain(&p.meshes)
+            .cloned()
+            .collect();
+        let settler = synthgen_physics::PhysicsSettler::new(&all, spec.placement.physics.clone())?;
         sampler = sampler.with_settle(Arc::new(settler));
     }
     // The summary needs only the names: the meshes move into the renderer, not a copy.
-    let names: Vec<String> = models.iter().map(|m| m.name.clone()).collect();
-    let renderer = make_renderer(&args, models, backgrounds, printer)?;
+    let names: Vec<String> = models[..n_targets].iter().map(|m| m.name.clone()).collect();
+    let renderer: Box<dyn Renderer + Sync> = match args.backend {
+        Backend::Cpu => {
+            let cpu = CpuRenderer::new(models, backgrounds)?;
+            if spec.camera.min_visib_fract > 0.0 {
+                // A clone shares the prepared models.
+                let check = ViewChecker::new(cpu.clone(), args.visib_delta_m as f32);
+                sampler = sampler.with_view_check(Arc::new(check));
+            }
+            Box::new(cpu)
+        }
+        Backend::Blender => {
+            if spec.camera.min_visib_fract > 0.0 {
+                // The raster's depth-only pass: the Blender backend's alone depths come from
+                // the same raster.
+                let cpu = CpuRenderer::new(models.clone(), Vec::new())?;
+                let check = ViewChecker::new(cpu, args.visib_delta_m as f32);
+                sampler = sampler.with_view_check(Arc::new(check));
+            }
+            blender_renderer(&args, models, backgrounds, printer)?
+        }
+    };
     // Applied after the annotations, so masks and GT come from the clean render.
     let sensor = SensorModel::new(spec.sensor.clone(), args.seed)?;
     let delta_m = args.visib_delta_m as f32;
@@ -289,20 +318,6 @@ fn source_symmetries(path: &Path, printer: &Printer) -> Result<Option<Symmetries
         }
     }
     Ok(sym)
-}
-
-/// The renderer of `--backend`. Both are `Sync`: frames render on the worker threads; the
-/// Blender renderer queues them to its one bpy thread.
-fn make_renderer(
-    args: &RenderArgs,
-    models: Vec<Model>,
-    backgrounds: Vec<Arc<Texture>>,
-    printer: &Printer,
-) -> Result<Box<dyn Renderer + Sync>> {
-    match args.backend {
-        Backend::Cpu => Ok(Box::new(CpuRenderer::new(models, backgrounds)?)),
-        Backend::Blender => blender_renderer(args, models, backgrounds, printer),
-    }
 }
 
 #[cfg(feature = "blender")]

@@ -14,5 +14,6 @@ mod linemod;
 mod mix;
 mod render;
 mod scale;
+mod scene_extras;
 mod scenes;
 mod train;

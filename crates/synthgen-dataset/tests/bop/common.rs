@@ -54,6 +54,7 @@ pub fn scene(frame_index: u64, objects: Vec<ObjectInstance>) -> FrameScene {
             DVec3::Z,
         ),
         objects,
+        distractors: vec![],
         lights: vec![],
         ambient: 0.3,
         ground: None,
@@ -73,6 +74,8 @@ pub fn instance(obj_id: u32, cam_from_obj: Pose) -> ObjectInstance {
         brightness: 1.0,
         specular: 0.0,
         shininess: 1.0,
+        tint: [1.0; 3],
+        hue_deg: 0.0,
     }
 }
 

@@ -15,6 +15,8 @@ pub fn instance(model_index: usize, cam_from_obj: Pose) -> ObjectInstance {
         brightness: 1.0,
         specular: 0.3,
         shininess: 24.0,
+        tint: [1.0; 3],
+        hue_deg: 0.0,
     }
 }
 
@@ -24,6 +26,7 @@ pub fn scene(intrinsics: Intrinsics, objects: Vec<ObjectInstance>) -> FrameScene
         intrinsics,
         world_from_cam: Pose::IDENTITY,
         objects,
+        distractors: vec![],
         lights: vec![PointLight {
             position_cam_m: DVec3::new(0.3, -0.5, 0.0),
             color: [1.0, 0.95, 0.9],
