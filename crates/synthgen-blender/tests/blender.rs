@@ -378,3 +378,62 @@ fn vertex_colours_and_textures_show_in_cycles() {
         "{db:?} vs {dr:?}"
     );
 }
+
+/// A distractor in front of the target shows in Cycles' depth, hides the target there, and
+/// has no instance id (pass index 0).
+#[test]
+fn distractors_render_in_cycles_without_an_instance_id() {
+    let renderer = renderer_or_skip!();
+    let k = Intrinsics {
+        width: 96,
+        height: 72,
+        fx: 120.0,
+        fy: 120.0,
+        cx: 48.0,
+        cy: 36.0,
+    };
+    let target = ObjectInstance::new(
+        BOX,
+        1,
+        Pose::new(DMat3::IDENTITY, DVec3::new(0.0, 0.0, 0.8)),
+    );
+    let distractor = ObjectInstance {
+        tint: [0.1, 0.8, 0.1],
+        ..ObjectInstance::new(
+            BOX,
+            0,
+            Pose::new(DMat3::IDENTITY, DVec3::new(0.03, 0.0, 0.5)),
+        )
+    };
+    let scene = FrameScene {
+        frame_index: 0,
+        intrinsics: k,
+        world_from_cam: Pose::IDENTITY,
+        objects: vec![target],
+        distractors: vec![distractor],
+        lights: vec![],
+        ambient: 1.0,
+        ground: None,
+        background: BackgroundSample {
+            kind: BackgroundKind::Color,
+            color: [0.0; 3],
+            seed: 0,
+        },
+    };
+    let (b, r) = renderer.render_with_raster(&scene).unwrap();
+    assert!(b.instance.iter().all(|&i| i <= 1));
+    let (u, v) = k.project(DVec3::new(0.03, 0.0, 0.5)).unwrap();
+    let p = v.round() as usize * k.width as usize + u.round() as usize;
+    assert_eq!(
+        b.instance[p], 0,
+        "the distractor hides the target at its centre"
+    );
+    assert!(
+        (b.depth_m[p] - r.depth_m[p]).abs() < 2e-3,
+        "{} vs {}",
+        b.depth_m[p],
+        r.depth_m[p]
+    );
+    let (iou, _) = iou(&b.instance, &r.instance, 1);
+    assert!(iou > 0.9, "visible target IoU with the raster {iou}");
+}

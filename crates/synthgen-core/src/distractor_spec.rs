@@ -135,3 +135,43 @@ impl SceneSpec {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::scene::{DistractorShape, SceneSpec};
+
+    #[test]
+    fn new_sections_parse_and_bad_values_name_the_field() {
+        let s = SceneSpec::from_toml_str(
+            "[camera]\nmin_visib_fract = 0.3\nallow_truncation = false\n[distractors]\ncount = [1, 3]\nshapes = [\"sphere\"]\n[lights]\ntemperature_k = [3000.0, 6500.0]\n[materials]\nroughness = [0.2, 0.6]\nhue_deg = [-20.0, 20.0]\n",
+        )
+        .unwrap();
+        assert_eq!(s.distractors.shapes, vec![DistractorShape::Sphere]);
+        assert!(!s.camera.allow_truncation);
+        assert_eq!(SceneSpec::from_toml_str(&s.to_toml()).unwrap(), s);
+        for (bad, field) in [
+            (
+                "[camera]\nmin_visib_fract = 1.5\n",
+                "camera.min_visib_fract",
+            ),
+            ("[camera]\nmax_view_tries = 0\n", "camera.max_view_tries"),
+            ("[distractors]\ncount = [3, 1]\n", "distractors.count"),
+            ("[distractors]\nsize_m = [0.0, 0.1]\n", "distractors.size_m"),
+            (
+                "[lights]\ntemperature_k = [500.0, 6500.0]\n",
+                "lights.temperature_k",
+            ),
+            (
+                "[materials]\nroughness = [0.5, 2.0]\n",
+                "materials.roughness",
+            ),
+            (
+                "[distractors]\ncount = [1, 2]\nshapes = []\n",
+                "distractors.count",
+            ),
+        ] {
+            let e = SceneSpec::from_toml_str(bad).unwrap_err().to_string();
+            assert!(e.contains(field), "{bad}: {e}");
+        }
+    }
+}

@@ -49,8 +49,8 @@ pub struct CameraSpec {
     /// Views tried per frame before the frame fails. Default 50.
     pub max_view_tries: u32,
     /// Keep views where a target's silhouette leaves the image (BOP semantics: its
-    /// `visib_fract` counts the pixels outside as not visible). Default false: such views
-    /// are re-sampled.
+    /// `visib_fract` counts the pixels outside as not visible). Default true (the behaviour
+    /// before this knob existed); false re-samples such views.
     pub allow_truncation: bool,
 }
 
@@ -66,7 +66,7 @@ impl Default for CameraSpec {
             cy: None,
             min_visib_fract: 0.0,
             max_view_tries: 50,
-            allow_truncation: false,
+            allow_truncation: true,
         }
     }
 }

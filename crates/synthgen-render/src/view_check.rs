@@ -149,6 +149,7 @@ mod tests {
         spec.camera.cy = Some(60.0);
         spec.camera.min_visib_fract = min_visib;
         spec.camera.max_view_tries = 200;
+        spec.camera.allow_truncation = false;
         spec.placement.area_m = [0.2, 0.2];
         spec.placement.min_gap_m = 0.0;
         spec.camera_pose.elevation_deg = [10.0, 40.0];

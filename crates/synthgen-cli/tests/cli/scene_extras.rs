@@ -27,7 +27,14 @@ fn render(dir: &Path, name: &str, spec: &str, frames: u32) -> std::path::PathBuf
         .arg(&spec_path)
         .arg("--objects")
         .args([&mesh, &mesh, &mesh])
-        .args(["--frames", &frames.to_string(), "--seed", "5", "--jobs", "2"])
+        .args([
+            "--frames",
+            &frames.to_string(),
+            "--seed",
+            "5",
+            "--jobs",
+            "2",
+        ])
         .arg("--out")
         .arg(&out));
     assert!(o.status.success(), "{name}: {}", stderr(&o));
@@ -67,7 +74,10 @@ fn min_visib_fract_rejects_views_where_a_target_is_hidden() {
     let tmp = tempfile::tempdir().unwrap();
     let free = render(tmp.path(), "free", &format!("{CLUTTER}{DISTRACTORS}"), 10);
     let hidden = visib(&free).iter().flatten().filter(|&&v| v < 0.7).count();
-    assert!(hidden > 0, "no target below 0.7 without rejection: the test shows nothing");
+    assert!(
+        hidden > 0,
+        "no target below 0.7 without rejection: the test shows nothing"
+    );
     let spec = format!("min_visib_fract = 0.7\nmax_view_tries = 400\n{CLUTTER}{DISTRACTORS}");
     let kept = render(tmp.path(), "kept", &spec, 10);
     let v = visib(&kept);
@@ -104,7 +114,10 @@ fn distractors_occlude_targets_but_are_never_annotated() {
     let mut lower = 0;
     for (fa, fb) in a.iter().zip(&b) {
         for (x, y) in fa.iter().zip(fb) {
-            assert!(y <= x, "a distractor made a target more visible ({x} -> {y})");
+            assert!(
+                y <= x,
+                "a distractor made a target more visible ({x} -> {y})"
+            );
             lower += usize::from(y < x);
         }
     }
@@ -119,7 +132,10 @@ fn distractors_occlude_targets_but_are_never_annotated() {
         v
     };
     assert_eq!(files(&plain.join("mask")), files(&busy.join("mask")));
-    assert_ne!(files(&plain.join("mask_visib")), files(&busy.join("mask_visib")));
+    assert_ne!(
+        files(&plain.join("mask_visib")),
+        files(&busy.join("mask_visib"))
+    );
 }
 
 /// True when some object's silhouette (bbox_obj, on the 3x canvas) leaves the 160x120 image.
@@ -145,17 +161,21 @@ fn truncated(scene: &Path) -> usize {
 fn truncation_is_rejected_unless_allowed() {
     let tmp = tempfile::tempdir().unwrap();
     let close = "[camera_pose]\ndistance_m = [0.3, 0.5]\n[placement]\narea_m = [0.3, 0.3]\n";
-    let allowed = render(
-        tmp.path(),
-        "allowed",
-        &format!("allow_truncation = true\n{close}"),
-        10,
+    // allow_truncation = true is the default.
+    let allowed = render(tmp.path(), "allowed", close, 10);
+    assert!(
+        truncated(&allowed) > 0,
+        "no truncated object: the test shows nothing"
     );
-    assert!(truncated(&allowed) > 0, "no truncated object: the test shows nothing");
     // BOP semantics: a truncated object's pixels outside the image count as not visible.
     let v = visib(&allowed);
     assert!(v.iter().flatten().any(|&x| x < 1.0));
-    let strict = render(tmp.path(), "strict", &format!("max_view_tries = 200\n{close}"), 10);
+    let strict = render(
+        tmp.path(),
+        "strict",
+        &format!("allow_truncation = false\nmax_view_tries = 200\n{close}"),
+        10,
+    );
     // bbox_obj spans the silhouette on the 3x canvas: inside the image means no pixel out.
     assert_eq!(truncated(&strict), 0);
     assert_eq!(visib(&strict).len(), 10);
