@@ -168,6 +168,7 @@ pub fn new_model(cfg: &TrainConfig, device: &Device) -> Result<PoseModel> {
         cfg.width,
         cfg.normalization_scale,
         cfg.crop_size,
+        cfg.seed,
         device,
     )
 }

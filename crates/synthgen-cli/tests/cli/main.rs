@@ -16,3 +16,4 @@ mod render;
 mod scale;
 mod scenes;
 mod train;
+mod train_linemod;
