@@ -101,6 +101,11 @@ pub struct TrainArgs {
     #[arg(long, default_value_t = 100)]
     pub loss_points: usize,
 
+    /// Full: train with the plain ADD loss even for objects with symmetries in models_info
+    /// (an ablation; eval still scores them with ADD-S).
+    #[arg(long)]
+    pub no_symmetric_loss: bool,
+
     /// Initialize the variables this checkpoint shares with the model (same names and
     /// shapes), e.g. a TNet or RNet run's model.safetensors for --model full. Repeatable.
     #[arg(long, value_name = "CKPT")]

@@ -144,6 +144,7 @@ pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
             crop_size: if model.needs_rgb() { args.crop_size } else { 0 },
             loss_points: args.loss_points,
             init: args.init.clone(),
+            plain_add_loss: args.no_symmetric_loss,
         }
     };
     if cfg.model.needs_rgb() && (cfg.crop_size < 2 || cfg.crop_size % 2 != 0) {
