@@ -1,7 +1,7 @@
 //! Conversion between the BOP and Linemod layouts, lossless for what both can express (poses,
 //! K, RGB, depth, visible masks); docs/formats.md lists what maps to what and what is lost.
 
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use synthgen_core::annotate::mask_bbox;
@@ -13,9 +13,10 @@ use crate::bop::reader::ROTATION_TOLERANCE;
 use crate::bop::{BopDataset, CameraInfo, GtEntry, PngCompression, SceneCamera};
 use crate::error::{Error, Result};
 use crate::io::{self, atomic_write, create_dir_all};
+use crate::linemod::images::{image_gts, plan_images};
 use crate::linemod::{
-    LinemodDataset, LinemodFolder, LinemodFrame, LinemodGt, LinemodObject, LinemodWriter,
-    LinemodWriterOptions, ListFile, DEFAULT_MIN_VISIB_FRACT,
+    LinemodDataset, LinemodFrame, LinemodGt, LinemodObject, LinemodWriter, LinemodWriterOptions,
+    ListFile, DEFAULT_MIN_VISIB_FRACT,
 };
 
 /// Options of [`bop_to_linemod`] and [`linemod_to_bop`].
@@ -210,46 +211,7 @@ pub fn bop_to_linemod(
     Ok(summary)
 }
 
-/// Whether the folders share frame ids for the same images (as synthgen writes them): every
-/// frame id found in several folders has the same objects and poses there. Real
-/// Linemod_preprocessed folders are separate sequences whose ids overlap with other content.
-pub fn folders_share_frames(folders: &[LinemodFolder]) -> bool {
-    let canonical = |v: &[LinemodGt]| {
-        let mut v = v.to_vec();
-        v.sort_by(|a, b| {
-            a.obj_id.cmp(&b.obj_id).then(
-                a.cam_t_m2c
-                    .partial_cmp(&b.cam_t_m2c)
-                    .unwrap_or(std::cmp::Ordering::Equal),
-            )
-        });
-        v
-    };
-    let mut seen: BTreeMap<u64, Vec<LinemodGt>> = BTreeMap::new();
-    for f in folders {
-        for (&frame, gts) in &f.gt {
-            let c = canonical(gts);
-            match seen.get(&frame) {
-                Some(prev) if *prev != c => return false,
-                Some(_) => {}
-                None => {
-                    seen.insert(frame, c);
-                }
-            }
-        }
-    }
-    true
-}
-
-/// One BOP image to write: where it goes and which folders hold it.
-struct Target {
-    split: &'static str,
-    scene_id: u32,
-    im_id: u32,
-    frame_id: u64,
-    /// Indices into the folder list; the first provides rgb, depth and the gt list.
-    folders: Vec<usize>,
-}
+pub use crate::linemod::images::folders_share_frames;
 
 /// Converts a Linemod dataset into BOP at `dst`: split `train` (frames of `train.txt` or no
 /// list) and `test` (`test.txt`). Folders that share frame ids (synthgen's) become one scene
@@ -292,49 +254,7 @@ pub fn linemod_to_bop(
         }
     }
 
-    let shared = folders_share_frames(&folders);
-    let split_of = |f: &LinemodFolder, frame: u64| {
-        if f.test.contains(&frame) {
-            "test"
-        } else {
-            "train"
-        }
-    };
-    let mut targets: Vec<Target> = Vec::new();
-    if shared {
-        let mut by_frame: BTreeMap<u64, Vec<usize>> = BTreeMap::new();
-        for (i, f) in folders.iter().enumerate() {
-            for &frame in f.gt.keys() {
-                by_frame.entry(frame).or_default().push(i);
-            }
-        }
-        for (frame, idx) in by_frame {
-            let test = idx.iter().any(|&i| split_of(&folders[i], frame) == "test");
-            let scene_id = u32::try_from(frame / 1000)
-                .map_err(|_| Error::InvalidOptions(format!("frame id {frame} too large")))?;
-            targets.push(Target {
-                split: if test { "test" } else { "train" },
-                scene_id,
-                im_id: (frame % 1000) as u32,
-                frame_id: frame,
-                folders: idx,
-            });
-        }
-    } else {
-        for (i, f) in folders.iter().enumerate() {
-            for &frame in f.gt.keys() {
-                let im_id = u32::try_from(frame)
-                    .map_err(|_| Error::InvalidOptions(format!("frame id {frame} too large")))?;
-                targets.push(Target {
-                    split: split_of(f, frame),
-                    scene_id: f.obj_id,
-                    im_id,
-                    frame_id: frame,
-                    folders: vec![i],
-                });
-            }
-        }
-    }
+    let (shared, targets) = plan_images(&folders)?;
 
     progress.start("converting", targets.len() as u64);
     type SceneFiles = (BTreeMap<u32, SceneCamera>, BTreeMap<u32, Vec<GtEntry>>);
@@ -372,27 +292,13 @@ pub fn linemod_to_bop(
                 encode_gray16_png(&v, raw.width, raw.height, PngCompression::Fast, &depth_dst)?;
             atomic_write(&depth_dst, &png)?;
         }
-        let mut gts: Vec<LinemodGt> = first.gt.get(&frame).cloned().unwrap_or_default();
-        if shared {
-            gts.sort_by_key(|g| g.obj_id);
-        }
-        // Which folder's mask belongs to which entry: the folder's own entry (same id, pose).
-        let mut used = BTreeSet::new();
-        for (gt_id, g) in gts.iter().enumerate() {
+        let gts = image_gts(&folders, t, shared);
+        for (gt_id, (_, owner)) in gts.iter().enumerate() {
             let mask_dst = scene_dir
                 .join("mask_visib")
                 .join(format!("{:06}_{gt_id:06}.png", t.im_id));
-            let owner = t.folders.iter().copied().find(|&i| {
-                !used.contains(&i)
-                    && folders[i]
-                        .folder_gt(frame)
-                        .is_some_and(|fg| fg.obj_id == g.obj_id && fg.cam_t_m2c == g.cam_t_m2c)
-            });
             match owner {
-                Some(i) => {
-                    used.insert(i);
-                    copy_file(&folders[i].mask_path(frame), &mask_dst)?;
-                }
+                Some(i) => copy_file(&folders[*i].mask_path(frame), &mask_dst)?,
                 None => {
                     let empty = vec![0u8; w as usize * h as usize];
                     let png = encode_gray8_png(&empty, w, h, PngCompression::Fast, &mask_dst)?;
@@ -419,7 +325,7 @@ pub fn linemod_to_bop(
         entry.1.insert(
             t.im_id,
             gts.iter()
-                .map(|g| GtEntry {
+                .map(|(g, _)| GtEntry {
                     cam_r_m2c: g.cam_r_m2c,
                     cam_t_m2c: g.cam_t_m2c,
                     obj_id: g.obj_id,

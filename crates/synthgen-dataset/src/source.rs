@@ -1,6 +1,6 @@
 //! Frames of a dataset on disk, independent of its layout: what `mix`, `stats` and `preview`
-//! read. BOP is implemented here; another layout (Linemod) plugs in by implementing
-//! [`FrameSource`].
+//! read, and what `train` and `eval` learn from. BOP is implemented here, Linemod in
+//! [`crate::linemod::source`]; [`open_source`] tells them apart.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -9,6 +9,8 @@ use synthgen_core::GtInfo;
 
 use crate::bop::{BopDataset, CameraInfo, GtEntry, ModelInfo, SceneCamera};
 use crate::error::Result;
+use crate::linemod::source::LinemodSource;
+use crate::validate::{detect_layout, Layout};
 
 /// Where a frame lives in its dataset.
 #[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize)]
@@ -46,14 +48,23 @@ impl SourceFrame {
 }
 
 /// A dataset as a list of frames plus its camera and models.
-pub trait FrameSource {
+pub trait FrameSource: Send + Sync {
     fn root(&self) -> &Path;
     /// `camera.json`-level camera (image size, default intrinsics).
     fn camera(&self) -> CameraInfo;
+    /// The split names (BOP: the split folders with scenes; Linemod: `train`, `test`).
+    fn splits(&self) -> Vec<String>;
     /// Model info by object id, when the dataset has it.
     fn models_info(&self) -> Option<&BTreeMap<u32, ModelInfo>>;
-    /// The model file of an object (millimetres), when present.
-    fn model_path(&self, obj_id: u32) -> Option<PathBuf>;
+    /// Where `models_info` is read from (present or not).
+    fn models_info_path(&self) -> PathBuf;
+    /// Where the model file of an object (millimetres) belongs (present or not).
+    fn model_file(&self, obj_id: u32) -> PathBuf;
+    /// The model file of an object, when present.
+    fn model_path(&self, obj_id: u32) -> Option<PathBuf> {
+        let p = self.model_file(obj_id);
+        p.is_file().then_some(p)
+    }
     /// Every frame, sorted by location. `splits` limits the splits read (all when empty).
     fn frames(&self, splits: &[String]) -> Result<Vec<SourceFrame>>;
 }
@@ -67,13 +78,20 @@ impl FrameSource for BopDataset {
         self.camera
     }
 
+    fn splits(&self) -> Vec<String> {
+        self.splits.clone()
+    }
+
     fn models_info(&self) -> Option<&BTreeMap<u32, ModelInfo>> {
         self.models_info.as_ref()
     }
 
-    fn model_path(&self, obj_id: u32) -> Option<PathBuf> {
-        let p = self.model_ply_path(obj_id);
-        p.is_file().then_some(p)
+    fn models_info_path(&self) -> PathBuf {
+        self.root.join("models").join("models_info.json")
+    }
+
+    fn model_file(&self, obj_id: u32) -> PathBuf {
+        self.model_ply_path(obj_id)
     }
 
     fn frames(&self, splits: &[String]) -> Result<Vec<SourceFrame>> {
@@ -121,7 +139,11 @@ impl FrameSource for BopDataset {
     }
 }
 
-/// Opens a dataset folder in whichever layout it has (BOP for now).
+/// Opens a dataset folder in whichever layout it has: Linemod when it has no `camera.json`
+/// but `data/NN/gt.yml` folders, else BOP (whose errors then name what is missing).
 pub fn open_source(root: &Path) -> Result<Box<dyn FrameSource>> {
+    if detect_layout(root) == Some(Layout::Linemod) {
+        return Ok(Box::new(LinemodSource::open(root)?));
+    }
     Ok(Box::new(BopDataset::open(root)?))
 }

@@ -1,6 +1,7 @@
-//! From a BOP dataset to training instances: per annotated object, N points sampled from
-//! the visible mask's valid depth and back-projected to metres (camera frame), an optional
-//! RGB crop around `bbox_visib`, and the GT pose. Loaded in parallel, kept in memory.
+//! From a dataset (BOP or Linemod, through [`FrameSource`]) to training instances: per
+//! annotated object, N points sampled from the visible mask's valid depth and back-projected
+//! to metres (camera frame), an optional RGB crop around `bbox_visib`, and the GT pose.
+//! Loaded in parallel, kept in memory.
 
 use std::collections::BTreeSet;
 use std::path::Path;
@@ -11,7 +12,8 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use synthgen_core::rng::splitmix64;
 use synthgen_core::{GtInfo, Pose, Progress};
-use synthgen_dataset::bop::{read_mask, read_rgb, BopDataset, BopScene};
+use synthgen_dataset::bop::{read_depth_m, read_mask, read_rgb};
+use synthgen_dataset::source::{open_source, FrameSource, SourceFrame};
 
 use crate::error::{Error, Result};
 use crate::eval::pick_split;
@@ -132,17 +134,15 @@ enum Outcome {
     FewPixels,
 }
 
-fn load_frame(scene: &BopScene, im_id: u32, opts: &DataOptions) -> Result<Vec<Outcome>> {
-    let Some(gts) = scene.gt.get(&im_id) else {
+fn load_frame(frame: &SourceFrame, opts: &DataOptions) -> Result<Vec<Outcome>> {
+    let gts = &frame.gt;
+    if gts.is_empty() {
         return Ok(Vec::new());
-    };
-    let cam = scene.camera.get(&im_id).ok_or_else(|| Error::Malformed {
-        what: "scene_camera.json",
-        message: format!("no camera for image {im_id}"),
-        path: scene.dir.join("scene_camera.json"),
-    })?;
+    }
+    let (scene_id, im_id) = (frame.location.scene_id, frame.location.im_id);
+    let cam = &frame.camera;
     let [fx, _, cx, _, fy, cy, ..] = cam.cam_k;
-    let infos: Option<&Vec<GtInfo>> = scene.gt_info.as_ref().and_then(|i| i.get(&im_id));
+    let infos: Option<&Vec<GtInfo>> = frame.gt_info.as_ref();
     let wanted: Vec<usize> = (0..gts.len())
         .filter(|&g| {
             infos.and_then(|i| i.get(g)).map_or(1.0, |i| i.visib_fract) >= opts.min_visib_fract
@@ -154,19 +154,25 @@ fn load_frame(scene: &BopScene, im_id: u32, opts: &DataOptions) -> Result<Vec<Ou
     if wanted.is_empty() {
         return Ok(out);
     }
-    let depth = scene.read_depth_m(im_id)?;
+    let depth_path = frame.depth.as_ref().ok_or_else(|| Error::Malformed {
+        what: "dataset",
+        message: format!("image {im_id} of scene {scene_id} has no depth image"),
+        path: frame.rgb.clone(),
+    })?;
+    let depth = read_depth_m(depth_path, cam.depth_scale)?;
     let rgb = if opts.crop_size > 0 {
-        let path = scene.rgb_path(im_id).ok_or_else(|| Error::Malformed {
-            what: "scene folder",
-            message: format!("no rgb image for image {im_id}"),
-            path: scene.dir.clone(),
-        })?;
-        Some(read_rgb(path)?)
+        Some(read_rgb(&frame.rgb)?)
     } else {
         None
     };
     for gt_id in wanted {
-        let mask = read_mask(&scene.mask_visib_path(im_id, gt_id))?;
+        // No visible mask (a Linemod object without a folder entry for the frame): no
+        // visible pixels.
+        let Some(mask_path) = frame.masks_visib.get(gt_id).and_then(Option::as_ref) else {
+            out.push(Outcome::FewPixels);
+            continue;
+        };
+        let mask = read_mask(mask_path)?;
         if mask.width != depth.width || mask.height != depth.height {
             return Err(Error::Malformed {
                 what: "mask",
@@ -174,7 +180,7 @@ fn load_frame(scene: &BopScene, im_id: u32, opts: &DataOptions) -> Result<Vec<Ou
                     "size {}x{} differs from the depth image's {}x{}",
                     mask.width, mask.height, depth.width, depth.height
                 ),
-                path: scene.mask_visib_path(im_id, gt_id),
+                path: mask_path.clone(),
             });
         }
         let valid: Vec<usize> = (0..mask.data.len())
@@ -184,7 +190,7 @@ fn load_frame(scene: &BopScene, im_id: u32, opts: &DataOptions) -> Result<Vec<Ou
             out.push(Outcome::FewPixels);
             continue;
         }
-        let mut rng = instance_rng(opts.seed, scene.scene_id, im_id, gt_id);
+        let mut rng = instance_rng(opts.seed, scene_id, im_id, gt_id);
         let picks = sample_indices(&mut rng, valid.len(), opts.n_points);
         let w = depth.width as usize;
         let uv: Vec<(f64, f64, usize)> = picks
@@ -239,7 +245,7 @@ fn load_frame(scene: &BopScene, im_id: u32, opts: &DataOptions) -> Result<Vec<Ou
             None => (Vec::new(), Vec::new()),
         };
         out.push(Outcome::Instance(Box::new(Instance {
-            scene_id: scene.scene_id,
+            scene_id,
             im_id,
             gt_id,
             obj_id: gts[gt_id].obj_id,
@@ -252,9 +258,20 @@ fn load_frame(scene: &BopScene, im_id: u32, opts: &DataOptions) -> Result<Vec<Ou
     Ok(out)
 }
 
-/// Loads every instance of a split (frames in parallel), in (scene, image, gt) order.
+/// Loads every instance of a split (frames in parallel), in (scene, image, gt) order, from a
+/// dataset folder in either layout (BOP or Linemod, detected).
 pub fn load_instances(
     root: &Path,
+    opts: &DataOptions,
+    progress: &dyn Progress,
+) -> Result<InstanceSet> {
+    let source = open_source(root)?;
+    load_source_instances(source.as_ref(), opts, progress)
+}
+
+/// [`load_instances`] from an opened dataset.
+pub fn load_source_instances(
+    source: &dyn FrameSource,
     opts: &DataOptions,
     progress: &dyn Progress,
 ) -> Result<InstanceSet> {
@@ -263,22 +280,13 @@ pub fn load_instances(
             "the number of points must be positive".into(),
         ));
     }
-    let ds = BopDataset::open(root)?;
-    let split = pick_split(&ds, opts.split.as_deref())?;
-    let scenes: Vec<BopScene> = ds
-        .scene_ids(&split)?
-        .into_iter()
-        .map(|id| ds.read_scene(&split, id))
-        .collect::<std::result::Result<_, _>>()?;
-    let jobs: Vec<(&BopScene, u32)> = scenes
-        .iter()
-        .flat_map(|s| s.im_ids().map(move |im| (s, im)))
-        .collect();
+    let split = pick_split(source, opts.split.as_deref())?;
+    let jobs = source.frames(std::slice::from_ref(&split))?;
     progress.start("loading", jobs.len() as u64);
     let per_frame: Vec<Vec<Outcome>> = jobs
         .par_iter()
-        .map(|&(scene, im)| {
-            let r = load_frame(scene, im, opts);
+        .map(|frame| {
+            let r = load_frame(frame, opts);
             progress.advance(1);
             r
         })

@@ -1,4 +1,4 @@
-//! Scoring pose estimates against a BOP dataset's ground truth: matching, per-object
+//! Scoring pose estimates against a dataset's ground truth (BOP or Linemod): matching, per-object
 //! accuracies and mean errors (conventions in docs/metrics.md).
 
 use std::collections::BTreeMap;
@@ -8,7 +8,8 @@ use rayon::prelude::*;
 use serde::Serialize;
 use synthgen_assets::Units;
 use synthgen_core::{Model, NoProgress, Pose};
-use synthgen_dataset::bop::{BopDataset, ModelInfo};
+use synthgen_dataset::bop::ModelInfo;
+use synthgen_dataset::source::{FrameLocation, FrameSource};
 
 use crate::error::{Error, Result};
 use crate::metrics::{is_5cm5deg, subsample_vertices, EvalObject, PoseErrors};
@@ -29,25 +30,26 @@ pub struct GtInstance {
 }
 
 /// The split to evaluate: `wanted`, else `test` when present, else the only split.
-pub fn pick_split(ds: &BopDataset, wanted: Option<&str>) -> Result<String> {
+pub fn pick_split(ds: &dyn FrameSource, wanted: Option<&str>) -> Result<String> {
+    let splits = ds.splits();
     if let Some(w) = wanted {
-        if ds.splits.iter().any(|s| s == w) {
+        if splits.iter().any(|s| s == w) {
             return Ok(w.to_string());
         }
         return Err(Error::InvalidOption(format!(
             "split {w:?} not found in {} (splits: {})",
-            ds.root.display(),
-            ds.splits.join(", ")
+            ds.root().display(),
+            splits.join(", ")
         )));
     }
-    if ds.splits.iter().any(|s| s == "test") {
+    if splits.iter().any(|s| s == "test") {
         return Ok("test".into());
     }
-    match ds.splits.as_slice() {
+    match splits.as_slice() {
         [only] => Ok(only.clone()),
         [] => Err(Error::NoInstances {
-            reason: "no split folder with scenes".into(),
-            path: ds.root.clone(),
+            reason: "no split with frames".into(),
+            path: ds.root().to_path_buf(),
         }),
         many => Err(Error::InvalidOption(format!(
             "dataset has several splits ({}); choose one with --split",
@@ -58,30 +60,29 @@ pub fn pick_split(ds: &BopDataset, wanted: Option<&str>) -> Result<String> {
 
 /// All GT instances of a split with `visib_fract >= min_visib_fract` (all of them when the
 /// scene has no `scene_gt_info.json`).
-pub fn read_gt(ds: &BopDataset, split: &str, min_visib_fract: f64) -> Result<Vec<GtInstance>> {
+pub fn read_gt(ds: &dyn FrameSource, split: &str, min_visib_fract: f64) -> Result<Vec<GtInstance>> {
     let mut out = Vec::new();
-    for scene_id in ds.scene_ids(split)? {
-        let scene = ds.read_scene(split, scene_id)?;
-        for (&im_id, gts) in &scene.gt {
-            for (gt_id, g) in gts.iter().enumerate() {
-                let visib_fract = scene
-                    .gt_info
-                    .as_ref()
-                    .and_then(|i| i.get(&im_id))
-                    .and_then(|v| v.get(gt_id))
-                    .map_or(1.0, |i| i.visib_fract);
-                if visib_fract < min_visib_fract {
-                    continue;
-                }
-                out.push(GtInstance {
-                    scene_id,
-                    im_id,
-                    gt_id,
-                    obj_id: g.obj_id,
-                    pose: g.cam_from_obj(),
-                    visib_fract,
-                });
+    for frame in ds.frames(&[split.to_string()])? {
+        let FrameLocation {
+            scene_id, im_id, ..
+        } = frame.location;
+        for (gt_id, g) in frame.gt.iter().enumerate() {
+            let visib_fract = frame
+                .gt_info
+                .as_ref()
+                .and_then(|v| v.get(gt_id))
+                .map_or(1.0, |i| i.visib_fract);
+            if visib_fract < min_visib_fract {
+                continue;
             }
+            out.push(GtInstance {
+                scene_id,
+                im_id,
+                gt_id,
+                obj_id: g.obj_id,
+                pose: g.cam_from_obj(),
+                visib_fract,
+            });
         }
     }
     Ok(out)
@@ -89,13 +90,13 @@ pub fn read_gt(ds: &BopDataset, split: &str, min_visib_fract: f64) -> Result<Vec
 
 /// Loads the evaluation model (points, diameter, symmetric) of each object id.
 pub fn load_eval_objects(
-    ds: &BopDataset,
+    ds: &dyn FrameSource,
     obj_ids: impl IntoIterator<Item = u32>,
 ) -> Result<BTreeMap<u32, EvalObject>> {
     load_each_object(
-        ds.models_info.as_ref(),
-        &ds.root.join("models").join("models_info.json"),
-        &|id| ds.model_ply_path(id),
+        ds.models_info(),
+        &ds.models_info_path(),
+        &|id| ds.model_file(id),
         obj_ids,
         eval_object,
     )

@@ -14,6 +14,7 @@
 pub mod data;
 mod error;
 pub mod eval;
+pub mod init;
 pub mod losses;
 pub mod metrics;
 pub mod models;

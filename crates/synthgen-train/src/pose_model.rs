@@ -6,14 +6,16 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use candle_core::{DType, Device, Tensor};
-use candle_nn::{VarBuilder, VarMap};
+use candle_nn::VarMap;
 use synthgen_core::glam::{DMat3, DQuat, DVec3};
 use synthgen_core::Pose;
 use synthgen_dataset::bop::ModelInfo;
+use synthgen_dataset::source::FrameSource;
 
 use crate::data::Instance;
 use crate::error::{Error, Result};
 use crate::eval::{eval_object, load_each_object};
+use crate::init::seeded_var_builder;
 use crate::losses::{quaternion_confidence_loss, symmetric_targets, symmetry_poses};
 use crate::metrics::{subsample_vertices, EvalObject};
 use crate::models::full::{full_loss, Full};
@@ -57,17 +59,16 @@ pub fn load_objects(
     )
 }
 
-/// Loads the objects of a dataset folder (its models_info.json and model files).
+/// Loads the objects of a dataset (its models_info and model files; BOP or Linemod).
 pub fn load_dataset_objects(
-    root: &Path,
+    ds: &dyn FrameSource,
     obj_ids: impl IntoIterator<Item = u32>,
     loss_points: usize,
 ) -> Result<Objects> {
-    let ds = synthgen_dataset::bop::BopDataset::open(root)?;
     load_objects(
-        ds.models_info.as_ref(),
-        &root.join("models").join("models_info.json"),
-        &|id| ds.model_ply_path(id),
+        ds.models_info(),
+        &ds.models_info_path(),
+        &|id| ds.model_file(id),
         obj_ids,
         loss_points,
     )
@@ -147,6 +148,7 @@ impl PoseModel {
         width: usize,
         scale: f32,
         crop_size: u32,
+        seed: u64,
         device: &Device,
     ) -> Result<PoseModel> {
         if kind.needs_rgb() && (crop_size < 2 || crop_size % 2 != 0) {
@@ -155,7 +157,7 @@ impl PoseModel {
             )));
         }
         let varmap = VarMap::new();
-        let vb = VarBuilder::from_varmap(&varmap, DType::F32, device);
+        let vb = seeded_var_builder(&varmap, seed, device);
         let net = match kind {
             ModelKind::Tnet => Net::T(TNet::new(width, vb)?),
             ModelKind::Rnet => Net::R(RNet::new(width, vb)?),
@@ -461,7 +463,7 @@ mod tests {
 
     fn loss_after(kind: ModelKind, steps: usize) -> (f32, f32, PoseModel, Vec<Instance>) {
         let dev = Device::Cpu;
-        let model = PoseModel::new(kind, 32, 10.0, 8, &dev).unwrap();
+        let model = PoseModel::new(kind, 32, 10.0, 8, 0, &dev).unwrap();
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
         let insts: Vec<Instance> = (0..6).map(|i| instance(&mut rng, i, 8, 40)).collect();
         let refs: Vec<&Instance> = insts.iter().collect();
@@ -519,13 +521,13 @@ mod tests {
         full.varmap.save(&path).unwrap();
         let refs: Vec<&Instance> = insts.iter().collect();
         let objs = objects();
-        let mut again = PoseModel::new(ModelKind::Full, 32, 10.0, 8, &Device::Cpu).unwrap();
+        let mut again = PoseModel::new(ModelKind::Full, 32, 10.0, 8, 0, &Device::Cpu).unwrap();
         again.load_strict(&path).unwrap();
         let a = full.predict(&refs, Some(&objs), 8).unwrap();
         let b = again.predict(&refs, Some(&objs), 8).unwrap();
         assert_eq!(a, b);
         // A TNet takes Full's translation part (7 layers × weight + bias, one without bias).
-        let mut tnet = PoseModel::new(ModelKind::Tnet, 32, 10.0, 0, &Device::Cpu).unwrap();
+        let mut tnet = PoseModel::new(ModelKind::Tnet, 32, 10.0, 0, 0, &Device::Cpu).unwrap();
         let n = tnet.init_from(&path).unwrap();
         assert_eq!(n, tnet.varmap.all_vars().len());
         let t = tnet.predict(&refs, None, 8).unwrap();
@@ -533,10 +535,10 @@ mod tests {
             assert_eq!(p.centre_m, q.centre_m);
         }
         // Another width still shares the point stem and the CNN; a strict load refuses it.
-        let mut wide = PoseModel::new(ModelKind::Rnet, 64, 10.0, 8, &Device::Cpu).unwrap();
+        let mut wide = PoseModel::new(ModelKind::Rnet, 64, 10.0, 8, 0, &Device::Cpu).unwrap();
         let shared = wide.init_from(&path).unwrap();
         assert!(shared > 0 && shared < wide.varmap.all_vars().len());
-        let mut strict = PoseModel::new(ModelKind::Full, 64, 10.0, 8, &Device::Cpu).unwrap();
+        let mut strict = PoseModel::new(ModelKind::Full, 64, 10.0, 8, 0, &Device::Cpu).unwrap();
         assert!(strict.load_strict(&path).is_err());
         // A file with nothing in common is an error, not a silent no-op.
         let other = dir.path().join("other.safetensors");

@@ -65,6 +65,10 @@ pub struct TrainConfig {
     /// Checkpoints the run was initialized from (`--init`), in order.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub init: Vec<PathBuf>,
+    /// Full: the plain ADD loss (identity only) even for symmetric objects, instead of the
+    /// minimum over their symmetries (`--no-symmetric-loss`, for ablations).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub plain_add_loss: bool,
 }
 
 fn default_loss_points() -> usize {
@@ -168,6 +172,7 @@ pub fn new_model(cfg: &TrainConfig, device: &Device) -> Result<PoseModel> {
         cfg.width,
         cfg.normalization_scale,
         cfg.crop_size,
+        cfg.seed,
         device,
     )
 }
@@ -260,6 +265,22 @@ pub fn train(
             "--batch and --epochs must be positive".into(),
         ));
     }
+    let plain: Option<Objects>;
+    let objects = if cfg.plain_add_loss {
+        // Symmetry transforms start with the identity: keep only it.
+        plain = objects.map(|o| {
+            o.iter()
+                .map(|(&id, t)| {
+                    let mut t = t.clone();
+                    t.symmetries.truncate(1);
+                    (id, t)
+                })
+                .collect()
+        });
+        plain.as_ref()
+    } else {
+        objects
+    };
     std::fs::create_dir_all(out).map_err(|e| Error::io("create directory", out, e))?;
     let val = val_frames(&data.instances, cfg.val_fraction, cfg.seed);
     let (val_set, train_set): (Vec<&Instance>, Vec<&Instance>) = data
@@ -493,6 +514,7 @@ mod tests {
             crop_size: 0,
             loss_points: 100,
             init: Vec::new(),
+            plain_add_loss: false,
         };
         assert!((cfg.lr_at(0, 100, 0) - 1e-3).abs() < 1e-12);
         assert!((cfg.lr_at(100, 100, 9) - 1e-5).abs() < 1e-12);

@@ -53,7 +53,7 @@ Output (in --out):
 
 #[derive(Debug, Args)]
 pub struct TrainArgs {
-    /// The BOP dataset to train on.
+    /// The dataset to train on: BOP, or Linemod (data/NN/gt.yml; detected).
     #[arg(long, value_name = "DIR")]
     pub data: PathBuf,
 
@@ -100,6 +100,11 @@ pub struct TrainArgs {
     /// Model points per object in the full model's ADD loss.
     #[arg(long, default_value_t = 100)]
     pub loss_points: usize,
+
+    /// Full: train with the plain ADD loss even for objects with symmetries in models_info
+    /// (an ablation; eval still scores them with ADD-S).
+    #[arg(long)]
+    pub no_symmetric_loss: bool,
 
     /// Initialize the variables this checkpoint shares with the model (same names and
     /// shapes), e.g. a TNet or RNet run's model.safetensors for --model full. Repeatable.
@@ -152,11 +157,14 @@ row-major and t in millimetres, space-separated. Accuracy is over all GT instanc
 (an instance without an estimate counts as wrong); the highest-scoring estimate
 per (image, object) counts; ADD-S is used for objects with symmetries in
 models_info.json. An rnet checkpoint predicts rotation only: its poses take the
-GT translation (E_te = 0). See docs/metrics.md.";
+GT translation (E_te = 0). See docs/metrics.md.
+
+A Linemod --data is read with the scene and image ids that `synthgen convert --to bop`
+gives its frames (docs/training.md); a results CSV for it uses those ids.";
 
 #[derive(Debug, Args)]
 pub struct EvalArgs {
-    /// The BOP dataset with the ground truth (and models/ for ADD).
+    /// The dataset with the ground truth (and models/ for ADD): BOP, or Linemod (detected).
     #[arg(long, value_name = "DIR")]
     pub data: PathBuf,
 

@@ -4,8 +4,8 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use synthgen_dataset::bop::BopDataset;
-use synthgen_train::data::{load_instances, DataOptions, Instance};
+use synthgen_dataset::source::{open_source, FrameSource};
+use synthgen_train::data::{load_source_instances, DataOptions, Instance};
 use synthgen_train::eval::{evaluate, load_eval_objects, pick_split, read_gt};
 use synthgen_train::metrics::EvalObject;
 use synthgen_train::models::ModelKind;
@@ -29,17 +29,22 @@ pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
     }
 }
 
+/// The dataset in --data, BOP or Linemod (detected).
+fn open_dataset(dir: &Path) -> Result<Box<dyn FrameSource>> {
+    open_source(dir).with_context(|| format!("cannot open the dataset {}", dir.display()))
+}
+
 fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
     let text = serde_json::to_string_pretty(value)?;
     std::fs::write(path, text + "\n").with_context(|| format!("cannot write {}", path.display()))
 }
 
 fn run_results(args: &EvalArgs, csv: &Path, printer: &Printer) -> Result<ExitStatus> {
-    let ds = BopDataset::open(&args.data)?;
-    let split = pick_split(&ds, args.split.as_deref())?;
-    let gts = read_gt(&ds, &split, args.min_visib_fract)?;
+    let ds = open_dataset(&args.data)?;
+    let split = pick_split(ds.as_ref(), args.split.as_deref())?;
+    let gts = read_gt(ds.as_ref(), &split, args.min_visib_fract)?;
     let estimates = read_results_csv(csv)?;
-    let objects = load_eval_objects(&ds, gts.iter().map(|g| g.obj_id))?;
+    let objects = load_eval_objects(ds.as_ref(), gts.iter().map(|g| g.obj_id))?;
     let report = evaluate(&gts, &estimates, &objects)?;
     printer.info(format!(
         "{} estimates from {} against {} GT instances of {}/{}",
@@ -110,7 +115,8 @@ fn run_checkpoint(args: &EvalArgs, ckpt: &Path, printer: &Printer) -> Result<Exi
         crop_size: cfg.crop_size,
         ..DataOptions::default()
     };
-    let set = load_instances(&args.data, &opts, printer)
+    let ds = open_dataset(&args.data)?;
+    let set = load_source_instances(ds.as_ref(), &opts, printer)
         .with_context(|| format!("cannot load {}", args.data.display()))?;
     if set.instances.is_empty() {
         return Err(user_error(
@@ -122,7 +128,7 @@ fn run_checkpoint(args: &EvalArgs, ckpt: &Path, printer: &Printer) -> Result<Exi
         None
     } else {
         Some(
-            load_dataset_objects(&args.data, set.obj_ids(), cfg.loss_points).with_context(
+            load_dataset_objects(ds.as_ref(), set.obj_ids(), cfg.loss_points).with_context(
                 || format!("cannot load the object models of {}", args.data.display()),
             )?,
         )
@@ -180,8 +186,7 @@ fn run_checkpoint(args: &EvalArgs, ckpt: &Path, printer: &Printer) -> Result<Exi
     let Some(objects) = objects else {
         return Err(anyhow::anyhow!("internal: objects not loaded"));
     };
-    let ds = BopDataset::open(&args.data)?;
-    let gts = read_gt(&ds, &set.split, args.min_visib_fract)?;
+    let gts = read_gt(ds.as_ref(), &set.split, args.min_visib_fract)?;
     let estimates: Vec<Estimate> = preds
         .iter()
         .zip(&set.instances)

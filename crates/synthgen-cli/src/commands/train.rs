@@ -1,10 +1,11 @@
-//! `synthgen train`: load a BOP dataset's instances, train a pose model, write the run.
+//! `synthgen train`: load a dataset's instances (BOP or Linemod), train a pose model, write the run.
 
 use std::time::Instant;
 
 use anyhow::{Context, Result};
 use synthgen_core::Progress;
-use synthgen_train::data::{load_instances, DataOptions};
+use synthgen_dataset::source::open_source;
+use synthgen_train::data::{load_source_instances, DataOptions};
 use synthgen_train::models::tnet::DEFAULT_SCALE;
 use synthgen_train::models::ModelKind;
 use synthgen_train::pose_model::load_dataset_objects;
@@ -143,6 +144,7 @@ pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
             crop_size: if model.needs_rgb() { args.crop_size } else { 0 },
             loss_points: args.loss_points,
             init: args.init.clone(),
+            plain_add_loss: args.no_symmetric_loss,
         }
     };
     if cfg.model.needs_rgb() && (cfg.crop_size < 2 || cfg.crop_size % 2 != 0) {
@@ -180,7 +182,9 @@ pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
         ..DataOptions::default()
     };
     let t_load = Instant::now();
-    let set = load_instances(&args.data, &opts, printer)
+    let source = open_source(&args.data)
+        .with_context(|| format!("cannot open the dataset {}", args.data.display()))?;
+    let set = load_source_instances(source.as_ref(), &opts, printer)
         .with_context(|| format!("cannot load training data from {}", args.data.display()))?;
     printer.info(format!(
         "loaded {} instances from {} frames of {}/{} in {:.1} s ({} too little visible, {} with too few valid pixels)",
@@ -210,7 +214,7 @@ pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
         None
     } else {
         Some(
-            load_dataset_objects(&args.data, set.obj_ids(), cfg.loss_points).with_context(
+            load_dataset_objects(source.as_ref(), set.obj_ids(), cfg.loss_points).with_context(
                 || format!("cannot load the object models of {}", args.data.display()),
             )?,
         )

@@ -17,3 +17,4 @@ mod scale;
 mod scene_extras;
 mod scenes;
 mod train;
+mod train_linemod;

@@ -335,3 +335,35 @@ fn full_model_trains_from_tnet_and_evaluates_with_stability() {
     assert_eq!(groups[0]["cov_q"].as_array().unwrap().len(), 4);
     assert!(groups[0]["t_spread_mm"].as_f64().unwrap().is_finite());
 }
+
+#[test]
+fn no_symmetric_loss_is_recorded_and_kept_on_resume() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = tiny_dataset(dir.path());
+    let out = dir.path().join("plain");
+    let full = [
+        "--model",
+        "full",
+        "--crop-size",
+        "16",
+        "--loss-points",
+        "20",
+    ];
+    let o = train(
+        &data,
+        &out,
+        "1",
+        &[&full[..], &["--no-symmetric-loss"]].concat(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let cfg = |p: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(p.join("config.json")).unwrap()).unwrap()
+    };
+    assert_eq!(cfg(&out)["plain_add_loss"], true);
+    assert!(train(&data, &out, "2", &["--resume"]).status.success());
+    assert_eq!(cfg(&out)["plain_add_loss"], true);
+    // The default (symmetric) loss writes no such key.
+    let sym = dir.path().join("sym");
+    assert!(train(&data, &sym, "1", &full).status.success());
+    assert!(cfg(&sym).get("plain_add_loss").is_none());
+}

@@ -3,7 +3,9 @@
 //! `gt.yml`, `info.yml`, `train.txt` and `test.txt`; `models/obj_{id:02d}.ply` (mm) and
 //! `models/models_info.yml`. See docs/formats.md for how synthgen fills it.
 
+pub mod images;
 pub mod reader;
+pub mod source;
 pub mod writer;
 mod yaml;
 

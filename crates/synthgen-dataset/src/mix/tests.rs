@@ -125,6 +125,17 @@ impl FrameSource for FakeSource {
     fn models_info(&self) -> Option<&BTreeMap<u32, ModelInfo>> {
         None
     }
+    fn splits(&self) -> Vec<String> {
+        vec!["train_pbr".into()]
+    }
+    fn models_info_path(&self) -> PathBuf {
+        self.root.join("models").join("models_info.json")
+    }
+    fn model_file(&self, obj_id: u32) -> PathBuf {
+        self.root
+            .join("models")
+            .join(format!("obj_{obj_id:06}.ply"))
+    }
     fn model_path(&self, _: u32) -> Option<PathBuf> {
         None
     }
