@@ -315,3 +315,34 @@ fn check_same_test_split(records: &[RowRecord]) -> Result<()> {
 fn absolute(dir: &Path) -> PathBuf {
     std::path::absolute(dir).unwrap_or_else(|_| dir.to_path_buf())
 }
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_rows_are_the_studys_sixths() {
+        assert_eq!(
+            default_rows(1500),
+            [
+                (1500, 0),
+                (1250, 250),
+                (1000, 500),
+                (750, 750),
+                (500, 1000),
+                (250, 1250),
+                (0, 1500)
+            ]
+        );
+        assert!(default_rows(10).iter().all(|(r, s)| r + s == 10));
+    }
+
+    #[test]
+    fn ratios_parse_as_counts() {
+        let rows = parse_rows(&["100/0".into(), " 50 / 50".into()]).unwrap();
+        assert_eq!(rows, [(100, 0), (50, 50)]);
+        assert!(parse_rows(&["0/0".into()]).is_err());
+        assert!(parse_rows(&["0.5".into()]).is_err());
+    }
+}
