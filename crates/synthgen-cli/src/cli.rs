@@ -4,8 +4,10 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
+mod experiment;
 mod scale;
 mod train;
+pub use experiment::{ExperimentCommand, ExperimentMixArgs};
 pub use scale::{MergeArgs, Shard, MERGE_EXAMPLES};
 pub use train::{DeviceArg, EvalArgs, ModelArg, ScheduleArg, TrainArgs};
 
@@ -67,6 +69,9 @@ pub enum Command {
     /// Combine the shard folders of a `synthgen render --shard I/N` run into one BOP dataset.
     #[command(after_long_help = MERGE_EXAMPLES)]
     Merge(MergeArgs),
+    /// Run an experiment end to end: the real/synthetic mixing table (mix, train, evaluate).
+    #[command(subcommand)]
+    Experiment(ExperimentCommand),
 }
 
 const ANNOTATE_EXAMPLES: &str = "Examples:

@@ -48,6 +48,9 @@ pub fn main() -> ExitCode {
         cli::Command::Train(args) => commands::train::run(*args, &printer),
         cli::Command::Eval(args) => commands::eval::run(*args, &printer),
         cli::Command::Merge(args) => commands::merge::run(args, &printer),
+        cli::Command::Experiment(cli::ExperimentCommand::Mix(args)) => {
+            commands::experiment::run_mix(args, &printer)
+        }
     };
     match result {
         Ok(status) => status.into(),

@@ -3,6 +3,7 @@
 pub mod annotate;
 pub mod convert;
 pub mod eval;
+pub mod experiment;
 pub mod export;
 pub mod merge;
 pub mod mix;

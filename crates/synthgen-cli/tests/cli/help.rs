@@ -82,3 +82,8 @@ fn train_help() {
 fn eval_help() {
     check_snapshot("eval_help.txt", &["eval", "--help"]);
 }
+
+#[test]
+fn experiment_mix_help() {
+    check_snapshot("experiment_mix_help.txt", &["experiment", "mix", "--help"]);
+}

@@ -8,6 +8,7 @@ mod coco;
 mod common;
 mod corpus;
 mod errors;
+mod experiment;
 mod help;
 mod inspect;
 mod linemod;

@@ -1,0 +1,133 @@
+//! Arguments of `synthgen experiment`.
+
+use std::path::PathBuf;
+
+use clap::{Args, Subcommand};
+
+use super::ModelArg;
+
+#[derive(Debug, Subcommand)]
+pub enum ExperimentCommand {
+    /// The real/synthetic mixing table: for each composition of a fixed-size training set,
+    /// mix, train the same model with the same budget, and test on the same held-out real frames.
+    #[command(after_long_help = EXPERIMENT_MIX_EXAMPLES)]
+    Mix(ExperimentMixArgs),
+}
+
+pub const EXPERIMENT_MIX_EXAMPLES: &str = "Examples:
+  # Your captures against a synthetic set rendered here from the same mesh:
+  synthgen experiment mix --real data/lm_driller --objects obj_000008.ply --total 1000 --out runs/mix
+
+  # No real data: a rendered stand-in (D455 noise with holes, other lights and backgrounds):
+  synthgen experiment mix --real-proxy --objects driller.ply --epochs 6 --out runs/mix
+
+  # Both sets given, three training seeds per row (mean ± std), the full model:
+  synthgen experiment mix --real data/real --synth data/synth --model full --repeats 3
+
+  # The whole pipeline in about a minute (small total, few epochs, tiny images):
+  synthgen experiment mix --real-proxy --objects driller.ply --quick --out /tmp/mix
+
+Rows (default: the study's 7 compositions of --total, real/synthetic):
+  1500/0, 1250/250, 1000/500, 750/750, 500/1000, 250/1250, 0/1500 (for --total 1500).
+Every row is tested on the same real frames (`synthgen mix`'s test split depends on
+--seed only; its hash is recorded per row and checked). Run it again with the same
+options to resume: finished rows are kept, an unfinished row is redone.
+
+Output (in --out):
+  table.md, table.csv   real, synth, train error, test error (± std over --repeats),
+                        ADD(-S) and 5cm5° accuracy for --model full
+  plot.png              test error (y) against the synthetic fraction (x, 0..1),
+                        error bars ±1 std; train error in grey
+  rows/NAME/            mix/ (the mixed dataset), train/ (the run), row.json (config,
+                        metrics, test-split hash, wall times; written last)
+  sources/              rendered sets (--real-proxy, or --synth absent), reused on resume
+  experiment.json       the settings; a re-run with other settings is refused";
+
+#[derive(Debug, Args)]
+pub struct ExperimentMixArgs {
+    /// The real dataset (BOP, or Linemod/DenseFusion layout): its held-out frames are the test set.
+    #[arg(long, value_name = "DIR", required_unless_present = "real_proxy")]
+    pub real: Option<PathBuf>,
+
+    /// No real data: render a stand-in "real" set (scenes/real_proxy.toml: D455 camera, depth
+    /// noise with holes, RGB noise, other lights, plain backgrounds, another seed).
+    #[arg(long, conflicts_with = "real")]
+    pub real_proxy: bool,
+
+    /// The synthetic dataset (default: rendered from --scene and --objects into OUT/sources).
+    #[arg(long, value_name = "DIR")]
+    pub synth: Option<PathBuf>,
+
+    /// Scene spec for the synthetic set rendered here (default: `synthgen render`'s defaults).
+    #[arg(long, value_name = "FILE")]
+    pub scene: Option<PathBuf>,
+
+    /// Object meshes for the sets rendered here (--real-proxy, or --synth absent).
+    #[arg(long, num_args = 1.., value_name = "MESH")]
+    pub objects: Vec<PathBuf>,
+
+    /// BOP object ids for --objects, in order (default: from the file names, else 1, 2, ...).
+    #[arg(long, value_delimiter = ',', value_name = "ID,...")]
+    pub obj_ids: Vec<u32>,
+
+    #[arg(long, value_enum, default_value_t = ModelArg::Tnet)]
+    pub model: ModelArg,
+
+    /// Training frames per row (real + synthetic); the default rows divide it in sixths.
+    /// [default: 1500; 42 with --quick]
+    #[arg(long)]
+    pub total: Option<usize>,
+
+    /// Rows as REAL/SYNTH frame counts, e.g. 1500/0,750/750,0/1500 (overrides --total's rows).
+    #[arg(long, value_delimiter = ',', value_name = "R/S,...")]
+    pub ratios: Vec<String>,
+
+    /// Real frames held out for testing, the same for every row (default: --total / 5).
+    #[arg(long)]
+    pub test_count: Option<usize>,
+
+    /// Training epochs per row (the same budget for every row). [default: 8; 2 with --quick]
+    #[arg(long)]
+    pub epochs: Option<usize>,
+
+    /// Instances per step. [default: 32; 8 with --quick]
+    #[arg(long)]
+    pub batch: Option<usize>,
+
+    /// Peak learning rate (AdamW, cosine schedule).
+    #[arg(long, default_value_t = 1e-3)]
+    pub lr: f64,
+
+    /// Points sampled per object instance. [default: 500; 64 with --quick]
+    #[arg(long)]
+    pub points: Option<usize>,
+
+    /// Width of the global feature. [default: 128; 16 with --quick]
+    #[arg(long)]
+    pub width: Option<usize>,
+
+    /// Seeds the mix (and so the test split) and the rendering; training seed = seed + repeat.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+
+    /// Train each row this many times (training seeds seed, seed+1, ...): mean ± std.
+    #[arg(long, default_value_t = 1)]
+    pub repeats: usize,
+
+    /// Small and fast, to check the pipeline: the --quick defaults above and rendered sets
+    /// at a quarter of the camera's resolution (160x120 for 640x480).
+    #[arg(long)]
+    pub quick: bool,
+
+    /// Output folder.
+    #[arg(long, default_value = "runs/mix")]
+    pub out: PathBuf,
+
+    /// Start over in a non-empty --out that holds an experiment with other settings.
+    #[arg(long)]
+    pub force: bool,
+
+    /// Worker threads (default: all cores).
+    #[arg(long, short = 'j')]
+    pub jobs: Option<usize>,
+}

@@ -1,0 +1,348 @@
+//! `synthgen experiment mix`: the study's real/synthetic mixing table in one command. For
+//! each composition of a fixed-size training set: `synthgen mix` (the same held-out real test
+//! split for every row), `synthgen train`, then the errors on the trained frames and on the
+//! real test frames. Rows are resumable: a row is done when its `row.json` exists (written
+//! atomically, last); an unfinished row is redone from scratch.
+
+mod plot;
+mod row;
+mod sources;
+mod table;
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use serde::{Deserialize, Serialize};
+use synthgen_core::Progress;
+use synthgen_dataset::io::atomic_write;
+use synthgen_dataset::manifest::{write_manifest, Manifest};
+
+use crate::cli::{ExperimentMixArgs, ModelArg};
+use crate::commands::user_error;
+use crate::{ExitStatus, Printer};
+
+pub use row::{RowRecord, ROW_FILE};
+
+/// The settings file at the output's root; a re-run must match it to resume.
+pub const SETTINGS_FILE: &str = "experiment.json";
+/// The test split's frames (from the first row's mix), at the output's root.
+pub const TEST_SPLIT_FILE: &str = "test_split.json";
+pub const TABLE_MD: &str = "table.md";
+pub const TABLE_CSV: &str = "table.csv";
+pub const PLOT_FILE: &str = "plot.png";
+
+/// Everything that decides an experiment's numbers.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Settings {
+    pub model: String,
+    /// Rows as (real, synthetic) training frame counts, in order.
+    pub rows: Vec<(usize, usize)>,
+    pub test_count: usize,
+    pub epochs: usize,
+    pub batch: usize,
+    pub lr: f64,
+    pub points: usize,
+    pub width: usize,
+    pub seed: u64,
+    pub repeats: usize,
+    pub quick: bool,
+    pub real: sources::SourceSettings,
+    pub synth: sources::SourceSettings,
+}
+
+impl Settings {
+    pub fn real_is_proxy(&self) -> bool {
+        self.real.rendered.is_some()
+    }
+}
+
+/// The study's compositions: `total` split in sixths, all real first.
+pub fn default_rows(total: usize) -> Vec<(usize, usize)> {
+    (0..=6)
+        .map(|k| {
+            let synth = (total as f64 * k as f64 / 6.0).round() as usize;
+            (total - synth, synth)
+        })
+        .collect()
+}
+
+/// Parses `REAL/SYNTH` counts.
+pub fn parse_rows(items: &[String]) -> Result<Vec<(usize, usize)>> {
+    items
+        .iter()
+        .map(|s| {
+            let parsed = s
+                .split_once('/')
+                .and_then(|(r, y)| Some((r.trim().parse().ok()?, y.trim().parse().ok()?)));
+            match parsed {
+                Some((r, y)) if r + y > 0 => Ok((r, y)),
+                _ => Err(user_error(
+                    format!("--ratios entry {s:?} is not REAL/SYNTH frame counts"),
+                    "e.g. --ratios 1500/0,750/750,0/1500",
+                )),
+            }
+        })
+        .collect()
+}
+
+pub fn run_mix(args: ExperimentMixArgs, printer: &Printer) -> Result<ExitStatus> {
+    let started = Instant::now();
+    let out = args.out.clone();
+    let total = args.total.unwrap_or(if args.quick { 42 } else { 1500 });
+    let rows = if args.ratios.is_empty() {
+        if total == 0 {
+            return Err(user_error("--total must be positive", "e.g. --total 1500"));
+        }
+        default_rows(total)
+    } else {
+        parse_rows(&args.ratios)?
+    };
+    let max_total = rows.iter().map(|r| r.0 + r.1).max().unwrap_or(total);
+    let test_count = args.test_count.unwrap_or(if args.quick {
+        8
+    } else {
+        (max_total / 5).max(1)
+    });
+    let pick = |v: Option<usize>, quick: usize, normal: usize| {
+        v.unwrap_or(if args.quick { quick } else { normal })
+    };
+    let (epochs, batch) = (pick(args.epochs, 2, 8), pick(args.batch, 8, 32));
+    let (points, width) = (pick(args.points, 64, 500), pick(args.width, 16, 128));
+    if epochs == 0 || batch == 0 || points == 0 || width == 0 || args.repeats == 0 {
+        return Err(user_error(
+            "--epochs, --batch, --points, --width and --repeats must be positive",
+            "e.g. --epochs 8 --repeats 1",
+        ));
+    }
+    if test_count == 0 {
+        return Err(user_error(
+            "--test-count must be positive",
+            "e.g. --test-count 300",
+        ));
+    }
+    if let Some(j) = args.jobs {
+        // Ignored when a pool already exists (only in tests that call run twice).
+        let _ = rayon::ThreadPoolBuilder::new()
+            .num_threads(j)
+            .build_global();
+    }
+    std::fs::create_dir_all(&out)
+        .with_context(|| format!("cannot create the output folder {}", out.display()))?;
+    let max_real = rows.iter().map(|r| r.0).max().unwrap_or(0);
+    let max_synth = rows.iter().map(|r| r.1).max().unwrap_or(0);
+    let plan = sources::plan(&args, &out, max_real + test_count, max_synth.max(1))?;
+    let settings = Settings {
+        model: model_name(args.model).into(),
+        rows: rows.clone(),
+        test_count,
+        epochs,
+        batch,
+        lr: args.lr,
+        points,
+        width,
+        seed: args.seed,
+        repeats: args.repeats,
+        quick: args.quick,
+        real: plan.real.settings.clone(),
+        synth: plan.synth.settings.clone(),
+    };
+    check_settings(&out, &settings, args.force)?;
+
+    if settings.real_is_proxy() {
+        printer.warning(
+            "the real side is a PROXY: frames rendered by synthgen itself (scenes/real_proxy.toml), \
+             not captures; the table says so",
+        );
+    }
+    let real_dir = sources::ensure(&plan.real, &out, printer)?;
+    let synth_dir = sources::ensure(&plan.synth, &out, printer)?;
+    let real = synthgen_dataset::source::open_source(&real_dir)
+        .with_context(|| format!("cannot open the real dataset {}", real_dir.display()))?;
+    let synth = synthgen_dataset::source::open_source(&synth_dir)
+        .with_context(|| format!("cannot open the synthetic dataset {}", synth_dir.display()))?;
+    let n_real = real.frames(&[])?.len();
+    let n_synth = synth.frames(&[])?.len();
+    if n_real < max_real + test_count {
+        return Err(user_error(
+            format!(
+                "the real dataset has {n_real} frames; the rows need up to {max_real} for training \
+                 plus {test_count} held out for testing: {}",
+                real_dir.display()
+            ),
+            "lower --total (or give --ratios) or --test-count",
+        ));
+    }
+    if n_synth < max_synth {
+        return Err(user_error(
+            format!(
+                "the synthetic dataset has {n_synth} frames; the rows need up to {max_synth}: {}",
+                synth_dir.display()
+            ),
+            "lower --total, or render more frames",
+        ));
+    }
+
+    let specs = row::specs(&settings);
+    let done: Vec<bool> = specs
+        .iter()
+        .map(|s| row::read_record(&out, &s.name).is_some())
+        .collect();
+    let skipped = done.iter().filter(|d| **d).count();
+    if skipped > 0 {
+        printer.info(format!(
+            "resuming: {skipped} of {} rows already finished, kept",
+            specs.len()
+        ));
+    }
+    printer.start("experiment", (specs.len() * epochs) as u64);
+    printer.advance((skipped * epochs) as u64);
+    let ctx = row::RowContext {
+        settings: &settings,
+        out: &out,
+        real: real.as_ref(),
+        synth: synth.as_ref(),
+        printer,
+    };
+    let mut records = Vec::with_capacity(specs.len());
+    let mut computed = 0;
+    for (spec, done) in specs.iter().zip(done) {
+        let record = match (done, row::read_record(&out, &spec.name)) {
+            (true, Some(r)) => r,
+            _ => {
+                let r =
+                    row::run(&ctx, spec).with_context(|| format!("row {} failed", spec.name))?;
+                computed += 1;
+                printer.info(format!(
+                    "row {}: train error {:.2} cm, test error {:.2} cm, {:.0} s",
+                    spec.name, r.train.centre_error_cm, r.test.centre_error_cm, r.seconds.total
+                ));
+                r
+            }
+        };
+        records.push(record);
+    }
+    printer.finish();
+    check_same_test_split(&records)?;
+
+    let md = table::markdown(&settings, &records, &real_dir, &synth_dir);
+    let csv = table::csv(&settings, &records);
+    atomic_write(&out.join(TABLE_MD), md.as_bytes())?;
+    atomic_write(&out.join(TABLE_CSV), csv.as_bytes())?;
+    plot::write(&out.join(PLOT_FILE), &table::aggregate(&settings, &records))?;
+    let mut manifest = Manifest::new(std::env::args().collect(), args.seed);
+    manifest.extra = serde_json::json!({ "experiment": settings });
+    write_manifest(&out, &manifest)?;
+
+    print!("{md}");
+    printer.info(format!(
+        "{} rows: {computed} computed, {skipped} skipped (finished earlier); {:.0} s",
+        records.len(),
+        started.elapsed().as_secs_f64()
+    ));
+    printer.info(format!(
+        "wrote {}, {}, {} in {}",
+        TABLE_MD,
+        TABLE_CSV,
+        PLOT_FILE,
+        out.display()
+    ));
+    if settings.real_is_proxy() {
+        printer
+            .hint("the real side is a proxy; for captures pass --real DIR (docs/experiments.md)");
+    }
+    Ok(ExitStatus::Success)
+}
+
+fn model_name(m: ModelArg) -> &'static str {
+    match m {
+        ModelArg::Tnet => "tnet",
+        ModelArg::Rnet => "rnet",
+        ModelArg::Full => "full",
+    }
+}
+
+/// Writes the settings, or checks them against those of the experiment already in `out`.
+fn check_settings(out: &Path, settings: &Settings, force: bool) -> Result<()> {
+    let path = out.join(SETTINGS_FILE);
+    if let Ok(text) = std::fs::read_to_string(&path) {
+        let same = serde_json::from_str::<Settings>(&text).is_ok_and(|s| &s == settings);
+        if same {
+            return Ok(());
+        }
+        if !force {
+            return Err(user_error(
+                format!(
+                    "{} holds an experiment with other settings ({SETTINGS_FILE} differs)",
+                    out.display()
+                ),
+                "pass the same options to resume it, choose another --out, or add --force to start over",
+            ));
+        }
+        for dir in ["rows", "sources"] {
+            let p = out.join(dir);
+            if p.is_dir() {
+                std::fs::remove_dir_all(&p)
+                    .with_context(|| format!("cannot remove {}", p.display()))?;
+            }
+        }
+        let _ = std::fs::remove_file(out.join(TEST_SPLIT_FILE));
+    }
+    let text = serde_json::to_string_pretty(settings)? + "\n";
+    atomic_write(&path, text.as_bytes())?;
+    Ok(())
+}
+
+/// Every row must have been tested on the same real frames.
+fn check_same_test_split(records: &[RowRecord]) -> Result<()> {
+    if let Some(first) = records.first() {
+        for r in records {
+            if r.test_split_hash != first.test_split_hash {
+                return Err(anyhow::anyhow!(
+                    "internal: rows {} and {} have different test splits ({} vs {})",
+                    first.name,
+                    r.name,
+                    first.test_split_hash,
+                    r.test_split_hash
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `dir` made absolute (it may not exist yet).
+fn absolute(dir: &Path) -> PathBuf {
+    std::path::absolute(dir).unwrap_or_else(|_| dir.to_path_buf())
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_rows_are_the_studys_sixths() {
+        assert_eq!(
+            default_rows(1500),
+            [
+                (1500, 0),
+                (1250, 250),
+                (1000, 500),
+                (750, 750),
+                (500, 1000),
+                (250, 1250),
+                (0, 1500)
+            ]
+        );
+        assert!(default_rows(10).iter().all(|(r, s)| r + s == 10));
+    }
+
+    #[test]
+    fn ratios_parse_as_counts() {
+        let rows = parse_rows(&["100/0".into(), " 50 / 50".into()]).unwrap();
+        assert_eq!(rows, [(100, 0), (50, 50)]);
+        assert!(parse_rows(&["0/0".into()]).is_err());
+        assert!(parse_rows(&["0.5".into()]).is_err());
+    }
+}

@@ -1,0 +1,449 @@
+//! One row of the experiment: mix, train, evaluate; `row.json` written last marks it done.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use serde::{Deserialize, Serialize};
+use synthgen_core::NoProgress;
+use synthgen_dataset::bop::BopDataset;
+use synthgen_dataset::io::atomic_write;
+use synthgen_dataset::mix::{
+    write_mix, MixCounts, MixOptions, PROVENANCE_FILE, TEST_SPLIT, TRAIN_SPLIT,
+};
+use synthgen_dataset::source::FrameSource;
+use synthgen_train::data::{load_instances, DataOptions, Instance};
+use synthgen_train::eval::{evaluate, read_gt, GtInstance};
+use synthgen_train::metrics::EvalObject;
+use synthgen_train::models::tnet::DEFAULT_SCALE;
+use synthgen_train::models::ModelKind;
+use synthgen_train::pose_model::{load_dataset_objects, Objects, Prediction};
+use synthgen_train::results::Estimate;
+use synthgen_train::train::{
+    self, centre_error_m, load_model, val_frames, EpochMetrics, Schedule, TrainConfig,
+    TrainObserver, MODEL_FILE,
+};
+
+use super::{Settings, TEST_SPLIT_FILE};
+use crate::Printer;
+use synthgen_core::Progress;
+
+/// The completion record of a row, in `rows/NAME/`.
+pub const ROW_FILE: &str = "row.json";
+/// Instances below this visible fraction are neither trained on nor scored.
+const MIN_VISIB_FRACT: f64 = 0.1;
+/// Model points per object in the full model's loss.
+const LOSS_POINTS: usize = 100;
+
+/// Which row: its counts and its training seed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RowSpec {
+    pub name: String,
+    pub real: usize,
+    pub synth: usize,
+    pub repeat: usize,
+    pub train_seed: u64,
+}
+
+/// The rows × repeats of an experiment, in table order.
+pub fn specs(s: &Settings) -> Vec<RowSpec> {
+    let mut out = Vec::new();
+    for &(real, synth) in &s.rows {
+        for repeat in 0..s.repeats {
+            let mut name = format!("r{real:05}_s{synth:05}");
+            if s.repeats > 1 {
+                name += &format!("_rep{repeat}");
+            }
+            out.push(RowSpec {
+                name,
+                real,
+                synth,
+                repeat,
+                train_seed: s.seed.wrapping_add(repeat as u64),
+            });
+        }
+    }
+    out
+}
+
+/// Errors of a model on a set of instances.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Errors {
+    /// Instances scored (GT instances for the ADD(-S) and 5cm5° accuracies of `full`).
+    pub n: usize,
+    /// Mean distance between the predicted and the GT object centre, cm.
+    pub centre_error_cm: f64,
+    /// Fraction with ADD(-S) below 10% of the diameter (full).
+    pub add_s_acc: Option<f64>,
+    /// Fraction within 5 cm and 5° (full).
+    pub acc_5cm5deg: Option<f64>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Seconds {
+    pub mix: f64,
+    pub load: f64,
+    pub train: f64,
+    pub eval: f64,
+    pub total: f64,
+}
+
+/// `row.json`: the row's settings and results.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RowRecord {
+    pub name: String,
+    pub real: usize,
+    pub synth: usize,
+    pub repeat: usize,
+    pub train_seed: u64,
+    pub mix_seed: u64,
+    pub model: String,
+    pub epochs: usize,
+    /// FNV-1a (64 bit) of the sorted test frame list (source, split, scene, image).
+    pub test_split_hash: String,
+    pub test_frames: usize,
+    /// Instances trained on and held out for validation (by frame, inside the training set).
+    pub n_train: usize,
+    pub n_val: usize,
+    /// Errors on the instances trained on.
+    pub train: Errors,
+    /// Errors on the held-out real test frames.
+    pub test: Errors,
+    pub last_epoch: Option<EpochMetrics>,
+    pub seconds: Seconds,
+}
+
+pub fn row_dir(out: &Path, name: &str) -> PathBuf {
+    out.join("rows").join(name)
+}
+
+/// The finished row's record, if it has one that reads.
+pub fn read_record(out: &Path, name: &str) -> Option<RowRecord> {
+    let text = std::fs::read_to_string(row_dir(out, name).join(ROW_FILE)).ok()?;
+    serde_json::from_str(&text).ok()
+}
+
+pub struct RowContext<'a> {
+    pub settings: &'a Settings,
+    pub out: &'a Path,
+    pub real: &'a dyn FrameSource,
+    pub synth: &'a dyn FrameSource,
+    pub printer: &'a Printer,
+}
+
+/// Advances the experiment's bar by one per epoch; the label shows the row and its loss.
+struct RowObserver<'a> {
+    printer: &'a Printer,
+    name: &'a str,
+    epoch: std::cell::Cell<(usize, usize)>,
+}
+
+impl TrainObserver for RowObserver<'_> {
+    fn epoch_start(&self, epoch: usize, epochs: usize, _steps: usize) {
+        self.epoch.set((epoch, epochs));
+        self.printer
+            .set_message(format!("{} epoch {epoch}/{epochs}", self.name));
+    }
+
+    fn step(&self, running_loss: f64) {
+        let (e, n) = self.epoch.get();
+        self.printer.set_message(format!(
+            "{} epoch {e}/{n} loss {running_loss:.4}",
+            self.name
+        ));
+    }
+
+    fn epoch_end(&self, _m: &EpochMetrics) {
+        self.printer.advance(1);
+    }
+}
+
+/// Runs a row from scratch (anything an interrupted attempt left is removed first).
+pub fn run(ctx: &RowContext, spec: &RowSpec) -> Result<RowRecord> {
+    let t0 = Instant::now();
+    let s = ctx.settings;
+    let dir = row_dir(ctx.out, &spec.name);
+    if dir.exists() {
+        std::fs::remove_dir_all(&dir)
+            .with_context(|| format!("cannot remove {}", dir.display()))?;
+    }
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+
+    let mix_dir = dir.join("mix");
+    let opts = MixOptions {
+        counts: MixCounts {
+            real: spec.real,
+            synth: spec.synth,
+            test: Some(s.test_count),
+        },
+        seed: s.seed,
+        command_line: std::env::args().collect(),
+        force: false,
+    };
+    let report = write_mix(ctx.real, ctx.synth, &mix_dir, &opts, &NoProgress)?;
+    for w in &report.warnings {
+        // Same warnings every row (cameras, models): show them once.
+        if spec.name == specs(s)[0].name {
+            ctx.printer.warning(w);
+        }
+    }
+    let (hash, test_list) = test_split(&mix_dir)?;
+    record_test_split(ctx.out, &hash, &test_list)?;
+    let t_mix = t0.elapsed().as_secs_f64();
+
+    let t1 = Instant::now();
+    let model = match s.model.as_str() {
+        "full" => ModelKind::Full,
+        "rnet" => ModelKind::Rnet,
+        _ => ModelKind::Tnet,
+    };
+    let crop_size = if model.needs_rgb() { 48 } else { 0 };
+    let data_opts = |split: &str, seed: u64| DataOptions {
+        n_points: s.points,
+        min_visib_fract: MIN_VISIB_FRACT,
+        seed,
+        split: Some(split.to_string()),
+        crop_size,
+        ..DataOptions::default()
+    };
+    let set = load_instances(
+        &mix_dir,
+        &data_opts(TRAIN_SPLIT, spec.train_seed),
+        &NoProgress,
+    )
+    .with_context(|| format!("cannot load the training frames of {}", mix_dir.display()))?;
+    // The test points are sampled with the experiment's seed: the same for every row.
+    let test_set = load_instances(&mix_dir, &data_opts(TEST_SPLIT, s.seed), &NoProgress)
+        .with_context(|| format!("cannot load the test frames of {}", mix_dir.display()))?;
+    if set.instances.is_empty() || test_set.instances.is_empty() {
+        return Err(anyhow::anyhow!(
+            "no usable instances in {} ({} training, {} test)",
+            mix_dir.display(),
+            set.instances.len(),
+            test_set.instances.len()
+        ));
+    }
+    let obj_ids: BTreeSet<u32> = set.obj_ids().union(&test_set.obj_ids()).copied().collect();
+    let objects = if model == ModelKind::Tnet {
+        None
+    } else {
+        Some(load_dataset_objects(&mix_dir, obj_ids, LOSS_POINTS)?)
+    };
+    let t_load = t1.elapsed().as_secs_f64();
+
+    let t2 = Instant::now();
+    let run_dir = dir.join("train");
+    let cfg = TrainConfig {
+        model,
+        width: s.width,
+        n_points: s.points,
+        normalization_scale: DEFAULT_SCALE,
+        epochs: s.epochs,
+        batch: s.batch,
+        lr: s.lr,
+        weight_decay: 1e-4,
+        schedule: Schedule::Cosine,
+        seed: spec.train_seed,
+        val_fraction: 0.1,
+        min_visib_fract: MIN_VISIB_FRACT,
+        data: mix_dir.clone(),
+        split: set.split.clone(),
+        crop_size,
+        loss_points: LOSS_POINTS,
+        init: Vec::new(),
+    };
+    let observer = RowObserver {
+        printer: ctx.printer,
+        name: &spec.name,
+        epoch: std::cell::Cell::new((0, s.epochs)),
+    };
+    let device = train::device(false)?;
+    let outcome = train::train(
+        &cfg,
+        &set,
+        objects.as_ref(),
+        &run_dir,
+        false,
+        &device,
+        &observer,
+    )?;
+    let t_train = t2.elapsed().as_secs_f64();
+
+    let t3 = Instant::now();
+    let net = load_model(&run_dir.join(MODEL_FILE), &cfg, &device)?;
+    let val = val_frames(&set.instances, cfg.val_fraction, cfg.seed);
+    let trained: Vec<&Instance> = set
+        .instances
+        .iter()
+        .filter(|i| !val.contains(&i.frame()))
+        .collect();
+    let train_preds = net.predict(&trained, objects.as_ref(), 64)?;
+    let train_gts: Vec<GtInstance> = trained.iter().map(|i| gt_of(i)).collect();
+    let train_err = errors(&trained, &train_preds, objects.as_ref(), &train_gts)?;
+    let tested: Vec<&Instance> = test_set.instances.iter().collect();
+    let test_preds = net.predict(&tested, objects.as_ref(), 64)?;
+    // Full: every GT test instance counts (one without enough valid pixels counts as wrong).
+    let test_gts = read_gt(&BopDataset::open(&mix_dir)?, TEST_SPLIT, MIN_VISIB_FRACT)?;
+    let test_err = errors(&tested, &test_preds, objects.as_ref(), &test_gts)?;
+    let t_eval = t3.elapsed().as_secs_f64();
+
+    let record = RowRecord {
+        name: spec.name.clone(),
+        real: spec.real,
+        synth: spec.synth,
+        repeat: spec.repeat,
+        train_seed: spec.train_seed,
+        mix_seed: s.seed,
+        model: s.model.clone(),
+        epochs: s.epochs,
+        test_split_hash: hash,
+        test_frames: report.test,
+        n_train: outcome.n_train,
+        n_val: outcome.n_val,
+        train: train_err,
+        test: test_err,
+        last_epoch: outcome.history.last().cloned(),
+        seconds: Seconds {
+            mix: t_mix,
+            load: t_load,
+            train: t_train,
+            eval: t_eval,
+            total: t0.elapsed().as_secs_f64(),
+        },
+    };
+    let text = serde_json::to_string_pretty(&record)? + "\n";
+    atomic_write(&dir.join(ROW_FILE), text.as_bytes())?;
+    Ok(record)
+}
+
+fn gt_of(i: &Instance) -> GtInstance {
+    GtInstance {
+        scene_id: i.scene_id,
+        im_id: i.im_id,
+        gt_id: i.gt_id,
+        obj_id: i.obj_id,
+        pose: i.pose,
+        visib_fract: 1.0,
+    }
+}
+
+/// Centre error over the instances; for rotation models also ADD(-S) and 5cm5° accuracy
+/// over `gts`, scored as `synthgen eval` scores a checkpoint.
+fn errors(
+    instances: &[&Instance],
+    preds: &[Prediction],
+    objects: Option<&Objects>,
+    gts: &[GtInstance],
+) -> Result<Errors> {
+    let centres: Vec<f64> = preds
+        .iter()
+        .zip(instances)
+        .filter_map(|(p, i)| p.centre_m.map(|c| centre_error_m(c, i)))
+        .collect();
+    let centre_error_cm = if centres.is_empty() {
+        f64::NAN
+    } else {
+        100.0 * centres.iter().sum::<f64>() / centres.len() as f64
+    };
+    let Some(objects) = objects else {
+        return Ok(Errors {
+            n: instances.len(),
+            centre_error_cm,
+            add_s_acc: None,
+            acc_5cm5deg: None,
+        });
+    };
+    let estimates: Vec<Estimate> = preds
+        .iter()
+        .zip(instances)
+        .map(|(p, i)| Estimate {
+            scene_id: i.scene_id,
+            im_id: i.im_id,
+            obj_id: i.obj_id,
+            score: p.score(),
+            pose: p.pose(i.pose.translation_m),
+            time_s: -1.0,
+        })
+        .collect();
+    let eval_objects: BTreeMap<u32, EvalObject> = objects
+        .iter()
+        .map(|(&id, o)| (id, o.eval.clone()))
+        .collect();
+    let report = evaluate(gts, &estimates, &eval_objects)?;
+    Ok(Errors {
+        n: report.all.n_gt,
+        centre_error_cm,
+        add_s_acc: Some(report.all.add_s_acc),
+        acc_5cm5deg: Some(report.all.acc_5cm5deg),
+    })
+}
+
+/// The mix's test frames as sorted "source|split|scene|image" lines, and their hash.
+fn test_split(mix_dir: &Path) -> Result<(String, Vec<String>)> {
+    let path = mix_dir.join(PROVENANCE_FILE);
+    let text = std::fs::read_to_string(&path)
+        .with_context(|| format!("cannot read {}", path.display()))?;
+    let entries: Vec<serde_json::Value> =
+        serde_json::from_str(&text).with_context(|| format!("malformed {}", path.display()))?;
+    let mut lines: Vec<String> = entries
+        .iter()
+        .filter(|e| e["split"] == TEST_SPLIT)
+        .map(|e| {
+            format!(
+                "{}|{}|{}|{}",
+                e["source"].as_str().unwrap_or(""),
+                e["source_split"].as_str().unwrap_or(""),
+                e["source_scene_id"],
+                e["source_im_id"]
+            )
+        })
+        .collect();
+    lines.sort();
+    Ok((
+        format!("{:016x}", fnv1a(lines.join("\n").as_bytes())),
+        lines,
+    ))
+}
+
+fn fnv1a(bytes: &[u8]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for &b in bytes {
+        h ^= u64::from(b);
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    h
+}
+
+/// Writes the test frame list on the first row; later rows must match it.
+fn record_test_split(out: &Path, hash: &str, lines: &[String]) -> Result<()> {
+    let path = out.join(TEST_SPLIT_FILE);
+    let value = serde_json::json!({ "hash": hash, "frames": lines });
+    if let Ok(text) = std::fs::read_to_string(&path) {
+        let old: serde_json::Value =
+            serde_json::from_str(&text).with_context(|| format!("malformed {}", path.display()))?;
+        if old["hash"] != hash {
+            return Err(anyhow::anyhow!(
+                "internal: this row's test split ({hash}) differs from the experiment's ({}) in {}",
+                old["hash"],
+                path.display()
+            ));
+        }
+        return Ok(());
+    }
+    let text = serde_json::to_string_pretty(&value)? + "\n";
+    atomic_write(&path, text.as_bytes())?;
+    Ok(())
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fnv1a_matches_the_reference_values() {
+        assert_eq!(fnv1a(b""), 0xcbf2_9ce4_8422_2325);
+        assert_eq!(fnv1a(b"a"), 0xaf63_dc4c_8601_ec8c);
+    }
+}

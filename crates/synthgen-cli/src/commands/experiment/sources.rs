@@ -1,0 +1,324 @@
+//! The two datasets of an experiment: given folders, or sets rendered into `OUT/sources/`
+//! by `synthgen render` (called in-process), cached so that a resumed run does not render
+//! again.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use clap::Parser;
+use serde::{Deserialize, Serialize};
+use synthgen_core::SceneSpec;
+use synthgen_dataset::io::atomic_write;
+use synthgen_dataset::validate::Layout;
+
+use super::absolute;
+use crate::cli::{Cli, Command, ExperimentMixArgs};
+use crate::commands::user_error;
+use crate::{ExitStatus, Printer};
+
+/// The stand-in for real captures (`--real-proxy`).
+pub const REAL_PROXY_TOML: &str = include_str!("../../../../../scenes/real_proxy.toml");
+/// The proxy renders with the experiment's seed plus this, so its scenes differ from the
+/// synthetic set's even where the specs agree.
+pub const PROXY_SEED_OFFSET: u64 = 1_000_003;
+
+/// How a rendered source was made.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RenderSettings {
+    /// `synthgen render` arguments, without the program name.
+    pub argv: Vec<String>,
+    pub frames: u64,
+    pub seed: u64,
+}
+
+/// Where a dataset of the experiment is, and how it was made when rendered here.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SourceSettings {
+    pub path: PathBuf,
+    pub rendered: Option<RenderSettings>,
+    /// A Linemod-layout folder converted to BOP at `path` (`synthgen convert`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub converted_from: Option<PathBuf>,
+}
+
+pub struct SourcePlan {
+    pub name: &'static str,
+    pub settings: SourceSettings,
+    /// The scene spec text to write beside a rendered source (the proxy's).
+    pub scene_text: Option<&'static str>,
+}
+
+pub struct Plan {
+    pub real: SourcePlan,
+    pub synth: SourcePlan,
+}
+
+/// Decides the sources: `real_frames` / `synth_frames` are what a rendered set needs.
+pub fn plan(
+    args: &ExperimentMixArgs,
+    out: &Path,
+    real_frames: usize,
+    synth_frames: usize,
+) -> Result<Plan> {
+    let sources = absolute(&out.join("sources"));
+    let needs_objects = args.real_proxy || args.synth.is_none();
+    if needs_objects && args.objects.is_empty() {
+        return Err(user_error(
+            "no --objects to render the synthetic (or proxy real) set from",
+            "pass --objects MESH..., or both --real DIR and --synth DIR",
+        ));
+    }
+    let real = match &args.real {
+        Some(dir) => {
+            let dir = existing(dir, "real")?;
+            let layout = crate::commands::convert::layout_of(&dir, None, "--real")?;
+            let settings = if layout == Layout::Linemod {
+                SourceSettings {
+                    path: sources.join("real_bop"),
+                    rendered: None,
+                    converted_from: Some(dir),
+                }
+            } else {
+                SourceSettings {
+                    path: dir,
+                    rendered: None,
+                    converted_from: None,
+                }
+            };
+            SourcePlan {
+                name: "real_bop",
+                settings,
+                scene_text: None,
+            }
+        }
+        None => {
+            let dir = sources.join("real_proxy");
+            let scene = sources.join("real_proxy.toml");
+            let spec = SceneSpec::from_toml_str(REAL_PROXY_TOML)
+                .context("internal: scenes/real_proxy.toml does not parse")?;
+            let seed = args.seed.wrapping_add(PROXY_SEED_OFFSET);
+            SourcePlan {
+                name: "real_proxy",
+                settings: SourceSettings {
+                    path: dir.clone(),
+                    rendered: Some(render_settings(
+                        args,
+                        Some(&scene),
+                        &spec,
+                        &dir,
+                        real_frames,
+                        seed,
+                    )?),
+                    converted_from: None,
+                },
+                scene_text: Some(REAL_PROXY_TOML),
+            }
+        }
+    };
+    let synth = match &args.synth {
+        Some(dir) => SourcePlan {
+            name: "synth",
+            settings: SourceSettings {
+                path: existing(dir, "synth")?,
+                rendered: None,
+                converted_from: None,
+            },
+            scene_text: None,
+        },
+        None => {
+            let dir = sources.join("synth");
+            let scene = match &args.scene {
+                Some(p) => Some(existing(p, "scene")?),
+                None => None,
+            };
+            let spec = match &scene {
+                Some(p) => SceneSpec::from_toml_file(p)
+                    .with_context(|| format!("invalid scene spec {}", p.display()))?,
+                None => SceneSpec::default(),
+            };
+            SourcePlan {
+                name: "synth",
+                settings: SourceSettings {
+                    path: dir.clone(),
+                    rendered: Some(render_settings(
+                        args,
+                        scene.as_deref(),
+                        &spec,
+                        &dir,
+                        synth_frames,
+                        args.seed,
+                    )?),
+                    converted_from: None,
+                },
+                scene_text: None,
+            }
+        }
+    };
+    Ok(Plan { real, synth })
+}
+
+fn existing(path: &Path, flag: &str) -> Result<PathBuf> {
+    path.canonicalize().map_err(|_| {
+        user_error(
+            format!("--{flag} not found: {}", path.display()),
+            "check the path",
+        )
+    })
+}
+
+fn render_settings(
+    args: &ExperimentMixArgs,
+    scene: Option<&Path>,
+    spec: &SceneSpec,
+    dir: &Path,
+    frames: usize,
+    seed: u64,
+) -> Result<RenderSettings> {
+    let mut argv: Vec<String> = vec!["render".into()];
+    if let Some(s) = scene {
+        argv.push("--scene".into());
+        argv.push(s.display().to_string());
+    }
+    argv.push("--objects".into());
+    for o in &args.objects {
+        argv.push(existing(o, "objects")?.display().to_string());
+    }
+    if !args.obj_ids.is_empty() {
+        let ids: Vec<String> = args.obj_ids.iter().map(u32::to_string).collect();
+        argv.push("--obj-ids".into());
+        argv.push(ids.join(","));
+    }
+    argv.extend([
+        "--frames".into(),
+        frames.to_string(),
+        "--seed".into(),
+        seed.to_string(),
+        "--out".into(),
+        dir.display().to_string(),
+    ]);
+    if args.quick {
+        // A quarter of the resolution, with the intrinsics scaled to match.
+        let k = spec.camera.intrinsics()?;
+        argv.extend([
+            "--image-size".into(),
+            format!("{},{}", (k.width / 4).max(8), (k.height / 4).max(8)),
+            "--camera-k".into(),
+            format!(
+                "{},{},{},{}",
+                k.fx / 4.0,
+                k.fy / 4.0,
+                k.cx / 4.0,
+                k.cy / 4.0
+            ),
+        ]);
+    }
+    if let Some(j) = args.jobs {
+        argv.extend(["--jobs".into(), j.to_string()]);
+    }
+    Ok(RenderSettings {
+        argv,
+        frames: frames as u64,
+        seed,
+    })
+}
+
+/// The dataset folder of `plan`, rendering it first unless a finished render with the same
+/// arguments is there (its `OUT/sources/NAME.done` record).
+pub fn ensure(plan: &SourcePlan, out: &Path, printer: &Printer) -> Result<PathBuf> {
+    let dir = plan.settings.path.clone();
+    let sources = out.join("sources");
+    let marker = sources.join(format!("{}.done", plan.name));
+    if let Some(from) = &plan.settings.converted_from {
+        return convert(from, &dir, &marker, printer);
+    }
+    let Some(r) = &plan.settings.rendered else {
+        return Ok(dir);
+    };
+    std::fs::create_dir_all(&sources)
+        .with_context(|| format!("cannot create {}", sources.display()))?;
+    let record = serde_json::to_string_pretty(r)? + "\n";
+    if std::fs::read_to_string(&marker).is_ok_and(|t| t == record) && dir.is_dir() {
+        printer.info(format!(
+            "reusing {} ({} frames rendered earlier)",
+            dir.display(),
+            r.frames
+        ));
+        return Ok(dir);
+    }
+    if let Some(text) = plan.scene_text {
+        atomic_write(
+            &sources.join(format!("{}.toml", plan.name)),
+            text.as_bytes(),
+        )?;
+    }
+    if dir.exists() {
+        // An interrupted or different render: start it again.
+        std::fs::remove_dir_all(&dir)
+            .with_context(|| format!("cannot remove {}", dir.display()))?;
+    }
+    printer.info(format!(
+        "rendering the {} set: synthgen {}",
+        if plan.name == "synth" {
+            "synthetic"
+        } else {
+            "proxy real"
+        },
+        r.argv.join(" ")
+    ));
+    let cli = Cli::try_parse_from(std::iter::once("synthgen".to_string()).chain(r.argv.clone()))
+        .context("internal: the render arguments do not parse")?;
+    let Command::Render(args) = cli.command else {
+        return Err(anyhow::anyhow!("internal: not a render command"));
+    };
+    let status = crate::commands::render::run(*args, printer)?;
+    if status != ExitStatus::Success {
+        return Err(user_error(
+            format!("some frames of {} failed to render", dir.display()),
+            "see the warnings above",
+        ));
+    }
+    atomic_write(&marker, record.as_bytes())?;
+    Ok(dir)
+}
+
+/// Converts a Linemod-layout real set to BOP once (`OUT/sources/real_bop`), for `mix`.
+fn convert(from: &Path, dir: &Path, marker: &Path, printer: &Printer) -> Result<PathBuf> {
+    let record = format!("{}\n", from.display());
+    if std::fs::read_to_string(marker).is_ok_and(|t| t == record) && dir.is_dir() {
+        printer.info(format!("reusing {} (converted earlier)", dir.display()));
+        return Ok(dir.to_path_buf());
+    }
+    if dir.exists() {
+        std::fs::remove_dir_all(dir).with_context(|| format!("cannot remove {}", dir.display()))?;
+    }
+    let argv = [
+        "synthgen".to_string(),
+        "convert".into(),
+        "--from".into(),
+        "linemod".into(),
+        "--to".into(),
+        "bop".into(),
+        from.display().to_string(),
+        dir.display().to_string(),
+    ];
+    printer.info(format!(
+        "the real set is in the Linemod layout: {}",
+        argv[1..].join(" ")
+    ));
+    let cli = Cli::try_parse_from(argv).context("internal: the convert arguments do not parse")?;
+    let Command::Convert(args) = cli.command else {
+        return Err(anyhow::anyhow!("internal: not a convert command"));
+    };
+    if crate::commands::convert::run(args, printer)? != ExitStatus::Success {
+        return Err(user_error(
+            format!("converting {} to BOP failed", from.display()),
+            "see the messages above; `synthgen validate` shows what is wrong",
+        ));
+    }
+    if let Some(parent) = marker.parent() {
+        std::fs::create_dir_all(parent)
+            .with_context(|| format!("cannot create {}", parent.display()))?;
+    }
+    atomic_write(marker, record.as_bytes())?;
+    Ok(dir.to_path_buf())
+}
