@@ -228,7 +228,9 @@ pub fn run(ctx: &RowContext, spec: &RowSpec) -> Result<RowRecord> {
     let objects = if model == ModelKind::Tnet {
         None
     } else {
-        Some(load_dataset_objects(&mix_dir, obj_ids, LOSS_POINTS)?)
+        let source = synthgen_dataset::source::open_source(&mix_dir)
+            .with_context(|| format!("cannot open {}", mix_dir.display()))?;
+        Some(load_dataset_objects(source.as_ref(), obj_ids, LOSS_POINTS)?)
     };
     let t_load = t1.elapsed().as_secs_f64();
 
@@ -252,6 +254,7 @@ pub fn run(ctx: &RowContext, spec: &RowSpec) -> Result<RowRecord> {
         crop_size,
         loss_points: LOSS_POINTS,
         init: Vec::new(),
+        plain_add_loss: false,
     };
     let observer = RowObserver {
         printer: ctx.printer,
