@@ -2,6 +2,7 @@
 
 pub mod dense;
 pub mod full;
+pub mod fused;
 pub mod rnet;
 pub mod tnet;
 

@@ -37,7 +37,7 @@ impl PointStem {
 
     /// `x`: (B·N, 3) → (B·N, 128).
     pub fn forward(&self, x: &Tensor) -> Result<Tensor> {
-        self.l2.forward(&self.l1.forward(x)?.relu()?)?.relu()
+        self.l2.forward_relu(&self.l1.forward_relu(x)?)
     }
 }
 
@@ -127,12 +127,11 @@ impl RotationBranch {
             .reshape((b * h * w, c))?;
         let colour = flat.index_select(pixels, 0)?; // (B·N, C)
         let fused = (self.fuse_c.forward(&colour)? + self.fuse_p.forward(point_feat)?)?.relu()?;
-        let fused = self.fuse2.forward(&fused)?.relu()?; // (B·N, width)
+        let fused = self.fuse2.forward_relu(&fused)?; // (B·N, width)
         let global = fused.reshape((b, n, self.width))?.mean(1)?; // (B, width)
-        let hg = self.r1_global.forward(&global)?.unsqueeze(1)?; // (B, 1, 128)
-        let hp = self.r1_point.forward(&fused)?.reshape((b, n, 128))?;
-        let h = hp.broadcast_add(&hg)?.relu()?.reshape((b * n, 128))?;
-        let h = self.r2.forward(&h)?.relu()?;
+        let hg = self.r1_global.forward(&global)?; // (B, 128)
+        let h = self.r1_point.forward_relu_grouped(&fused, Some(&hg))?; // (B·N, 128)
+        let h = self.r2.forward_relu(&h)?;
         let out = self.r3.forward(&h)?.reshape((b, n, 5))?;
         let raw_q = out.narrow(2, 0, 4)?;
         let norm = (raw_q.sqr()?.sum_keepdim(D::Minus1)? + 1e-12)?.sqrt()?;

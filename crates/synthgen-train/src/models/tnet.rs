@@ -10,6 +10,7 @@ use candle_nn::VarBuilder;
 
 use super::dense::{dense as linear, dense_no_bias as linear_no_bias, Dense as Linear};
 
+use super::fused::group_max;
 use super::rnet::PointStem;
 
 /// Input normalization: points minus the cloud's mean, times `scale` (1/m).
@@ -22,7 +23,6 @@ pub struct TNet {
     h1_global: Linear,
     h2: Linear,
     h3: Linear,
-    width: usize,
 }
 
 impl TNet {
@@ -34,7 +34,6 @@ impl TNet {
             h1_global: linear_no_bias(width, 128, vb.pp("h1_global"))?,
             h2: linear(128, 64, vb.pp("h2"))?,
             h3: linear(64, 3, vb.pp("h3"))?,
-            width,
         })
     }
 
@@ -48,12 +47,11 @@ impl TNet {
         let (b, n, _) = x.dims3()?;
         let x = x.reshape((b * n, 3))?;
         let f2 = self.stem.forward(&x)?;
-        let f3 = self.l3.forward(&f2)?.relu()?;
-        let g = f3.reshape((b, n, self.width))?.max(1)?; // (B, width)
-        let hg = self.h1_global.forward(&g)?.unsqueeze(1)?; // (B, 1, 128)
-        let hp = self.h1_point.forward(&f2)?.reshape((b, n, 128))?;
-        let h = hp.broadcast_add(&hg)?.relu()?.reshape((b * n, 128))?;
-        let h = self.h2.forward(&h)?.relu()?;
+        let f3 = self.l3.forward_relu(&f2)?;
+        let g = group_max(&f3, b)?; // (B, width)
+        let hg = self.h1_global.forward(&g)?; // (B, 128)
+        let h = self.h1_point.forward_relu_grouped(&f2, Some(&hg))?; // (B·N, 128)
+        let h = self.h2.forward_relu(&h)?;
         Ok((self.h3.forward(&h)?.reshape((b, n, 3))?, f2))
     }
 }
