@@ -50,7 +50,7 @@ pub struct ExperimentMixArgs {
     pub real: Option<PathBuf>,
 
     /// No real data: render a stand-in "real" set (scenes/real_proxy.toml: D455 camera, depth
-    /// noise with holes, RGB noise, other lights, plain backgrounds, another seed).
+    /// noise with holes, RGB noise, other lights, plain backgrounds, cylinder clutter, another seed).
     #[arg(long, conflicts_with = "real")]
     pub real_proxy: bool,
 

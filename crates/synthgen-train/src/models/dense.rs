@@ -10,7 +10,7 @@
 use candle_core::{Module, Result, Tensor};
 use candle_nn::VarBuilder;
 
-use super::fused::bias_relu;
+use super::fused::dense_relu;
 
 #[derive(Debug, Clone)]
 pub struct Dense {
@@ -37,7 +37,7 @@ pub fn dense_no_bias(in_dim: usize, out_dim: usize, vb: VarBuilder) -> Result<De
 }
 
 impl Dense {
-    /// `relu(x·Wᵀ + b)` for `x`: (rows, in), as one fused node on the CPU ([`bias_relu`]).
+    /// `relu(x·Wᵀ + b)` for `x`: (rows, in), as one fused node on the CPU ([`dense_relu`]).
     pub fn forward_relu(&self, x: &Tensor) -> Result<Tensor> {
         self.forward_relu_grouped(x, None)
     }
@@ -45,15 +45,14 @@ impl Dense {
     /// `relu(x·Wᵀ + b + extra[group])`: `extra` (G, out) is added to each of G equal,
     /// contiguous groups of rows (TNet's per-cloud global term).
     pub fn forward_relu_grouped(&self, x: &Tensor, extra: Option<&Tensor>) -> Result<Tensor> {
-        let z = x.matmul(&self.weight.t()?)?;
         let out = self.weight.dim(0)?;
         let bias = match (&self.bias, extra) {
             (Some(b), Some(e)) => e.broadcast_add(&b.unsqueeze(0)?)?,
             (Some(b), None) => b.unsqueeze(0)?,
             (None, Some(e)) => e.clone(),
-            (None, None) => Tensor::zeros((1, out), z.dtype(), z.device())?,
+            (None, None) => Tensor::zeros((1, out), x.dtype(), x.device())?,
         };
-        bias_relu(&z, &bias)
+        dense_relu(x, &self.weight, &bias)
     }
 }
 

@@ -5,11 +5,13 @@
 //! a dozen more (candle's relu gradient alone builds a zero tensor, a comparison, a cast and a
 //! product; every gradient is first summed into a fresh zero tensor). With 16 000 rows per batch
 //! that memory traffic, not the matrix products, was most of a TNet step (docs/benchmarks.md).
-//! Here `relu(z + bias)` is one graph node whose backward pass writes one (rows × C) tensor
-//! (`grad` where the output is positive) and the bias gradient (a column sum); the max-pool
-//! likewise. Only the CPU with f32 takes these paths; other devices and dtypes compose candle's
+//! Here a whole layer `relu(x·Wᵀ + b)` ([`dense_relu`]) is one graph node: its forward pass
+//! adds the bias and clamps in place on candle's matmul output, its backward pass masks the
+//! gradient once (`grad` where the output is positive) and takes `dx`, `dW` and the bias
+//! gradient (a column sum) from that; the max-pool likewise. Only the CPU with f32 takes these paths; other devices and dtypes compose candle's
 //! own ops ([`bias_relu`], [`group_max`] choose), so the results agree to rounding.
 
+use candle_core::backend::BackendStorage;
 use candle_core::{
     CpuStorage, CustomOp1, CustomOp2, CustomOp3, DType, Layout, Result, Shape, Tensor,
 };
@@ -41,6 +43,29 @@ pub fn bias_relu(z: &Tensor, bias: &Tensor) -> Result<Tensor> {
     }
 }
 
+/// `relu(x·Wᵀ + bias[group])` as one graph node: `x` (rows, in), `w` (out, in), `bias`
+/// (G, out) as in [`bias_relu`]. Its backward pass computes `dx`, `dW` and the bias gradient
+/// from one masked gradient, so no (rows × out) pre-activation is kept or accumulated.
+pub fn dense_relu(x: &Tensor, w: &Tensor, bias: &Tensor) -> Result<Tensor> {
+    let (rows, _) = x.dims2()?;
+    let (out, _) = w.dims2()?;
+    let (g, cb) = bias.dims2()?;
+    if cb != out || g == 0 || rows % g != 0 {
+        candle_core::bail!(
+            "dense_relu: x {:?}, w {:?} and bias {:?} do not fit",
+            x.dims(),
+            w.dims(),
+            bias.dims()
+        );
+    }
+    if fused_path(x) && w.dtype() == DType::F32 && bias.dtype() == DType::F32 {
+        x.contiguous()?
+            .apply_op3(&w.contiguous()?, &bias.contiguous()?, DenseRelu)
+    } else {
+        bias_relu(&x.matmul(&w.t()?)?, bias)
+    }
+}
+
 /// Max over each of `groups` equal, contiguous groups of rows: (rows, C) → (groups, C).
 pub fn group_max(x: &Tensor, groups: usize) -> Result<Tensor> {
     let (rows, c) = x.dims2()?;
@@ -69,6 +94,67 @@ fn f32_slice<'a>(s: &'a CpuStorage, l: &Layout, op: &str) -> Result<&'a [f32]> {
     }
 }
 
+/// `z ← relu(z + bias[group(row)])` in place; `z` holds rows × c values.
+fn add_bias_relu_in_place(z: &mut [f32], bias: &[f32], c: usize, per_group: usize) {
+    z.par_chunks_mut(CHUNK_ROWS * c)
+        .enumerate()
+        .for_each(|(k, z)| {
+            for (i, z) in z.chunks_exact_mut(c).enumerate() {
+                let g = (k * CHUNK_ROWS + i) / per_group;
+                for (z, b) in z.iter_mut().zip(&bias[g * c..(g + 1) * c]) {
+                    *z = (*z + b).max(0.0);
+                }
+            }
+        });
+}
+
+struct DenseRelu;
+
+impl CustomOp3 for DenseRelu {
+    fn name(&self) -> &'static str {
+        "dense-relu"
+    }
+
+    fn cpu_fwd(
+        &self,
+        s1: &CpuStorage,
+        l1: &Layout,
+        s2: &CpuStorage,
+        l2: &Layout,
+        s3: &CpuStorage,
+        l3: &Layout,
+    ) -> Result<(CpuStorage, Shape)> {
+        let (rows, k) = l1.shape().dims2()?;
+        let (out, _) = l2.shape().dims2()?;
+        let bias = f32_slice(s3, l3, self.name())?;
+        let per_group = rows / l3.shape().dims2()?.0;
+        // x (rows, k) · wᵀ (k, out) with candle's own CPU matmul.
+        let z = s1.matmul(s2, (1, rows, out, k), l1, &l2.transpose(0, 1)?)?;
+        let CpuStorage::F32(mut z) = z else {
+            candle_core::bail!("dense-relu: f32 tensors only");
+        };
+        add_bias_relu_in_place(&mut z, bias, out, per_group);
+        Ok((CpuStorage::F32(z), Shape::from((rows, out))))
+    }
+
+    fn bwd(
+        &self,
+        x: &Tensor,
+        w: &Tensor,
+        bias: &Tensor,
+        res: &Tensor,
+        grad: &Tensor,
+    ) -> Result<(Option<Tensor>, Option<Tensor>, Option<Tensor>)> {
+        let dz = grad.contiguous()?.apply_op2_no_bwd(res, &ReluMask)?;
+        let dx = dz.matmul(&w.detach())?;
+        let dw = dz.t()?.matmul(&x.detach())?;
+        let db = dz.apply_op1_no_bwd(&GroupSum {
+            groups: bias.dim(0)?,
+        })?;
+        Ok((Some(dx), Some(dw), Some(db)))
+    }
+}
+
 struct BiasRelu;
 
 impl CustomOp2 for BiasRelu {
@@ -83,24 +169,11 @@ impl CustomOp2 for BiasRelu {
         s2: &CpuStorage,
         l2: &Layout,
     ) -> Result<(CpuStorage, Shape)> {
-        let z = f32_slice(s1, l1, self.name())?;
+        let mut z = f32_slice(s1, l1, self.name())?.to_vec();
         let bias = f32_slice(s2, l2, self.name())?;
         let (rows, c) = l1.shape().dims2()?;
-        let per_group = rows / l2.shape().dims2()?.0;
-        let mut out = vec![0f32; z.len()];
-        out.par_chunks_mut(CHUNK_ROWS * c)
-            .zip(z.par_chunks(CHUNK_ROWS * c))
-            .enumerate()
-            .for_each(|(k, (o, z))| {
-                for (i, (o, z)) in o.chunks_exact_mut(c).zip(z.chunks_exact(c)).enumerate() {
-                    let g = (k * CHUNK_ROWS + i) / per_group;
-                    let b = &bias[g * c..(g + 1) * c];
-                    for ((o, z), b) in o.iter_mut().zip(z).zip(b) {
-                        *o = (z + b).max(0.0);
-                    }
-                }
-            });
-        Ok((CpuStorage::F32(out), Shape::from((rows, c))))
+        add_bias_relu_in_place(&mut z, bias, c, rows / l2.shape().dims2()?.0);
+        Ok((CpuStorage::F32(z), Shape::from((rows, c))))
     }
 
     fn bwd(
@@ -138,14 +211,12 @@ impl CustomOp2 for ReluMask {
         if grad.len() != res.len() {
             candle_core::bail!("relu-mask: shapes differ");
         }
-        let mut out = vec![0f32; grad.len()];
-        out.par_chunks_mut(1 << 16)
-            .zip(grad.par_chunks(1 << 16).zip(res.par_chunks(1 << 16)))
-            .for_each(|(o, (g, r))| {
-                for ((o, g), r) in o.iter_mut().zip(g).zip(r) {
-                    *o = if *r > 0.0 { *g } else { 0.0 };
-                }
-            });
+        let out: Vec<f32> = grad
+            .par_iter()
+            .zip(res.par_iter())
+            .with_min_len(1 << 14)
+            .map(|(g, r)| if *r > 0.0 { *g } else { 0.0 })
+            .collect();
         Ok((CpuStorage::F32(out), l1.shape().clone()))
     }
 }
@@ -339,6 +410,39 @@ mod tests {
                 let d = max_diff(a, p) / scale.max(1.0);
                 assert!(
                     d < 1e-6,
+                    "rows {rows} groups {groups}: gradient differs by {d} (relative)"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn dense_relu_matches_candle_ops() {
+        for (rows, groups) in [(1300, 1), (1300, 13)] {
+            let x = random((rows, 9), 4);
+            let w = random((7, 9), 5);
+            let b = random((groups, 7), 6);
+            let fused = dense_relu(&x, &w, &b).unwrap();
+            let plain = x
+                .matmul(&w.t().unwrap())
+                .unwrap()
+                .reshape((groups, rows / groups, 7))
+                .unwrap()
+                .broadcast_add(&b.unsqueeze(1).unwrap())
+                .unwrap()
+                .relu()
+                .unwrap()
+                .reshape((rows, 7))
+                .unwrap();
+            assert!(max_diff(&fused, &plain) < 1e-6);
+            let gf = weighted_sum(&fused).backward().unwrap();
+            let gp = weighted_sum(&plain).backward().unwrap();
+            for t in [x.as_tensor(), w.as_tensor(), b.as_tensor()] {
+                let (a, p) = (gf.get(t).unwrap(), gp.get(t).unwrap());
+                let scale: f32 = p.abs().unwrap().max_all().unwrap().to_scalar().unwrap();
+                let d = max_diff(a, p) / scale.max(1.0);
+                assert!(
+                    d < 1e-5,
                     "rows {rows} groups {groups}: gradient differs by {d} (relative)"
                 );
             }

@@ -102,7 +102,7 @@ pub fn markdown(settings: &Settings, records: &[RowRecord], real: &Path, synth: 
         s += &format!(
             "**The real side is a PROXY**: frames rendered by synthgen itself with \
              scenes/real_proxy.toml (D455 camera and depth noise with holes, RGB noise, other \
-             lights and backgrounds, another seed), not captured images: {}. The numbers say how \
+             lights and backgrounds, held-out cylinder clutter, another seed), not captured images: {}. The numbers say how \
              the model transfers between two rendered distributions, not to real captures.\n\n",
             real.display()
         );
