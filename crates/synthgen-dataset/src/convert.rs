@@ -9,11 +9,10 @@ use synthgen_core::Progress;
 
 use crate::bop::chunk::write_map;
 use crate::bop::image::{encode_gray16_png, encode_gray8_png, read_depth_raw, read_mask, read_rgb};
-use crate::bop::reader::ROTATION_TOLERANCE;
 use crate::bop::{BopDataset, CameraInfo, GtEntry, PngCompression, SceneCamera};
 use crate::error::{Error, Result};
 use crate::io::{self, atomic_write, create_dir_all};
-use crate::linemod::images::{image_gts, plan_images};
+use crate::linemod::images::{image_gts, plan_images, validate_gt_rotations};
 use crate::linemod::{
     LinemodDataset, LinemodFrame, LinemodGt, LinemodObject, LinemodWriter, LinemodWriterOptions,
     ListFile, DEFAULT_MIN_VISIB_FRACT,
@@ -244,15 +243,7 @@ pub fn linemod_to_bop(
             }
         }
     }
-    for f in &folders {
-        for (frame, gts) in &f.gt {
-            for g in gts {
-                g.cam_from_obj().validate(ROTATION_TOLERANCE).map_err(|e| {
-                    Error::malformed(&f.dir.join("gt.yml"), format!("frame {frame}: {e}"))
-                })?;
-            }
-        }
-    }
+    validate_gt_rotations(&folders)?;
 
     let (shared, targets) = plan_images(&folders)?;
 

@@ -12,7 +12,7 @@ use crate::background::Background;
 use crate::color::ColorLuts;
 use crate::ground::{select, Ground, GroundRow, TileTables};
 use crate::prepare::{prepare, validate_texture, PreparedModel};
-use crate::raster::{raster_object, ObjScratch, Projection, Rect};
+use crate::raster::{canvas_and_image, raster_object, ObjScratch, Projection, Rect};
 use crate::shade::{shade_pixels, Light, ShadeBatch, ShadeParams};
 use crate::{Error, Renderer};
 
@@ -205,19 +205,7 @@ impl CpuRenderer {
         let ground = scene.ground.as_ref().map(Ground::new);
 
         // The canvas for alone renders is three times the image, centred on it.
-        let (wi, hi) = (k.width as i32, k.height as i32);
-        let canvas = Rect {
-            x0: -wi,
-            y0: -hi,
-            x1: 2 * wi,
-            y1: 2 * hi,
-        };
-        let image = Rect {
-            x0: 0,
-            y0: 0,
-            x1: wi,
-            y1: hi,
-        };
+        let (canvas, image) = canvas_and_image(k);
         for ((inst, alone), os) in scene
             .objects
             .iter()

@@ -69,6 +69,24 @@ pub(crate) struct Rect {
     pub y1: i32,
 }
 
+/// The canvas for alone renders (three times the image, centred on it) and the image.
+pub(crate) fn canvas_and_image(k: &synthgen_core::Intrinsics) -> (Rect, Rect) {
+    let (wi, hi) = (k.width as i32, k.height as i32);
+    let canvas = Rect {
+        x0: -wi,
+        y0: -hi,
+        x1: 2 * wi,
+        y1: 2 * hi,
+    };
+    let image = Rect {
+        x0: 0,
+        y0: 0,
+        x1: wi,
+        y1: hi,
+    };
+    (canvas, image)
+}
+
 impl Rect {
     pub fn width(&self) -> usize {
         (self.x1 - self.x0).max(0) as usize

@@ -7,7 +7,7 @@ use synthgen_core::{AloneDepth, FrameScene, ViewCheck, Visibility};
 
 use crate::cpu::{composite, raster_into};
 use crate::ground::Ground;
-use crate::raster::{ObjScratch, Rect};
+use crate::raster::{canvas_and_image, ObjScratch, Rect};
 use crate::CpuRenderer;
 
 /// Counts target pixels exactly as a render followed by `synthgen_core::annotate` would
@@ -36,19 +36,8 @@ impl ViewChecker {
         let k = &scene.intrinsics;
         let proj = r.projection(k);
         let (w, h) = (k.width as usize, k.height as usize);
-        let (wi, hi) = (k.width as i32, k.height as i32);
-        let canvas = Rect {
-            x0: -wi,
-            y0: -hi,
-            x1: 2 * wi,
-            y1: 2 * hi,
-        };
-        let image = Rect {
-            x0: 0,
-            y0: 0,
-            x1: wi,
-            y1: hi,
-        };
+        let (canvas, image) = canvas_and_image(k);
+        let (wi, hi) = (image.x1, image.y1);
         let mut os = ObjScratch::default();
         let raster = |insts: &[synthgen_core::ObjectInstance], on: Rect, os: &mut ObjScratch| {
             insts

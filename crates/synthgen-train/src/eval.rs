@@ -11,8 +11,10 @@ use synthgen_core::{Model, NoProgress, Pose};
 use synthgen_dataset::bop::ModelInfo;
 use synthgen_dataset::source::{FrameLocation, FrameSource};
 
+use crate::data::Instance;
 use crate::error::{Error, Result};
 use crate::metrics::{is_5cm5deg, subsample_vertices, EvalObject, PoseErrors};
+use crate::pose_model::{Objects, Prediction};
 use crate::results::Estimate;
 
 /// Model points used for ADD / ADD-S (evenly strided vertices).
@@ -204,6 +206,38 @@ pub struct EvalReport {
     pub matches: Vec<Match>,
     /// Estimates not used: for an (image, object) with no GT, or beyond its GT count.
     pub unmatched_estimates: usize,
+}
+
+/// Scores a model's predictions for `instances` (in the same order) against `gts`, as
+/// `synthgen eval --checkpoint` does: each prediction becomes an estimate with its confidence
+/// as score (RNet, which predicts no translation, gets the GT translation).
+pub fn score_predictions<'a>(
+    preds: &[Prediction],
+    instances: impl IntoIterator<Item = &'a Instance>,
+    gts: &[GtInstance],
+    objects: &Objects,
+) -> Result<EvalReport> {
+    let estimates: Vec<Estimate> = preds
+        .iter()
+        .zip(instances)
+        .map(|(p, i)| Estimate {
+            scene_id: i.scene_id,
+            im_id: i.im_id,
+            obj_id: i.obj_id,
+            score: p.score(),
+            pose: p.pose(i.pose.translation_m),
+            time_s: -1.0,
+        })
+        .collect();
+    evaluate(gts, &estimates, &eval_objects(objects))
+}
+
+/// The metric side of training objects, by id.
+pub fn eval_objects(objects: &Objects) -> BTreeMap<u32, EvalObject> {
+    objects
+        .iter()
+        .map(|(&id, o)| (id, o.eval.clone()))
+        .collect()
 }
 
 /// Matches estimates to GT per (scene, image, object) and scores them. For an (image,

@@ -6,11 +6,12 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use synthgen_dataset::source::{open_source, FrameSource};
 use synthgen_train::data::{load_source_instances, DataOptions, Instance};
-use synthgen_train::eval::{evaluate, load_eval_objects, pick_split, read_gt};
-use synthgen_train::metrics::EvalObject;
+use synthgen_train::eval::{
+    eval_objects, evaluate, load_eval_objects, pick_split, read_gt, score_predictions,
+};
 use synthgen_train::models::ModelKind;
 use synthgen_train::pose_model::{load_dataset_objects, Prediction};
-use synthgen_train::results::{read_results_csv, Estimate};
+use synthgen_train::results::read_results_csv;
 use synthgen_train::stability::{stability, to_markdown as stability_markdown, Sample};
 use synthgen_train::train::{self, centre_error_m, load_model, read_config, CONFIG_FILE};
 
@@ -187,24 +188,8 @@ fn run_checkpoint(args: &EvalArgs, ckpt: &Path, printer: &Printer) -> Result<Exi
         return Err(anyhow::anyhow!("internal: objects not loaded"));
     };
     let gts = read_gt(ds.as_ref(), &set.split, args.min_visib_fract)?;
-    let estimates: Vec<Estimate> = preds
-        .iter()
-        .zip(&set.instances)
-        .map(|(p, i)| Estimate {
-            scene_id: i.scene_id,
-            im_id: i.im_id,
-            obj_id: i.obj_id,
-            score: p.score(),
-            pose: p.pose(i.pose.translation_m),
-            time_s: -1.0,
-        })
-        .collect();
-    let eval_objects: BTreeMap<u32, EvalObject> = objects
-        .iter()
-        .map(|(&id, o)| (id, o.eval.clone()))
-        .collect();
-    let report = evaluate(&gts, &estimates, &eval_objects)?;
-    print!("{}", report.to_markdown(&eval_objects));
+    let report = score_predictions(&preds, &set.instances, &gts, &objects)?;
+    print!("{}", report.to_markdown(&eval_objects(&objects)));
     if let Some(path) = &args.json {
         write_json(path, &report.to_json())?;
         printer.info(format!("wrote {}", path.display()));

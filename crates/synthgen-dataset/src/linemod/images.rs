@@ -140,3 +140,23 @@ pub fn image_gts(
         })
         .collect()
 }
+
+/// Every GT rotation of the folders is a rotation (within the BOP reader's tolerance); the
+/// error names the folder's gt.yml and the frame.
+pub fn validate_gt_rotations(folders: &[super::LinemodFolder]) -> crate::error::Result<()> {
+    for f in folders {
+        for (frame, gts) in &f.gt {
+            for g in gts {
+                g.cam_from_obj()
+                    .validate(crate::bop::reader::ROTATION_TOLERANCE)
+                    .map_err(|e| {
+                        crate::error::Error::malformed(
+                            &f.dir.join("gt.yml"),
+                            format!("frame {frame}: {e}"),
+                        )
+                    })?;
+            }
+        }
+    }
+    Ok(())
+}

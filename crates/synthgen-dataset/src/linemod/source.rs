@@ -5,9 +5,8 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use super::images::{image_gts, plan_images, LinemodImage};
+use super::images::{image_gts, plan_images, validate_gt_rotations, LinemodImage};
 use super::{LinemodDataset, LinemodFolder};
-use crate::bop::reader::ROTATION_TOLERANCE;
 use crate::bop::{CameraInfo, GtEntry, ModelInfo, SceneCamera};
 use crate::error::{Error, Result};
 use crate::source::{FrameLocation, FrameSource, SourceFrame};
@@ -31,15 +30,7 @@ impl LinemodSource {
         for &id in &dataset.objects {
             folders.push(dataset.read_folder(id)?);
         }
-        for f in &folders {
-            for (frame, gts) in &f.gt {
-                for g in gts {
-                    g.cam_from_obj().validate(ROTATION_TOLERANCE).map_err(|e| {
-                        Error::malformed(&f.dir.join("gt.yml"), format!("frame {frame}: {e}"))
-                    })?;
-                }
-            }
-        }
+        validate_gt_rotations(&folders)?;
         let (shared, images) = plan_images(&folders)?;
         let first = images.first().ok_or_else(|| {
             Error::malformed(&root.join("data"), "no frames in any object folder")

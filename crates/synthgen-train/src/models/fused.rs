@@ -36,11 +36,18 @@ pub fn bias_relu(z: &Tensor, bias: &Tensor) -> Result<Tensor> {
     if fused_path(z) && bias.dtype() == DType::F32 {
         z.contiguous()?.apply_op2(&bias.contiguous()?, BiasRelu)
     } else {
-        z.reshape((g, rows / g, c))?
-            .broadcast_add(&bias.unsqueeze(1)?)?
-            .relu()?
-            .reshape((rows, c))
+        composed_bias_relu(z, bias)
     }
+}
+
+/// [`bias_relu`] from candle's own ops (other devices and dtypes; the tests' reference).
+fn composed_bias_relu(z: &Tensor, bias: &Tensor) -> Result<Tensor> {
+    let (rows, c) = z.dims2()?;
+    let g = bias.dim(0)?;
+    z.reshape((g, rows / g, c))?
+        .broadcast_add(&bias.unsqueeze(1)?)?
+        .relu()?
+        .reshape((rows, c))
 }
 
 /// `relu(x·Wᵀ + bias[group])` as one graph node: `x` (rows, in), `w` (out, in), `bias`
@@ -383,6 +390,25 @@ mod tests {
         (y * w).unwrap().sum_all().unwrap()
     }
 
+    /// Gradients of the fused and the composed graph agree, relative to their size (candle
+    /// sums the bias gradient in f32, the fused op in f64).
+    fn assert_gradients_close(
+        fused: &Tensor,
+        plain: &Tensor,
+        wrt: &[&Tensor],
+        tol: f32,
+        what: &str,
+    ) {
+        let gf = weighted_sum(fused).backward().unwrap();
+        let gp = weighted_sum(plain).backward().unwrap();
+        for t in wrt {
+            let (a, p) = (gf.get(t).unwrap(), gp.get(t).unwrap());
+            let scale: f32 = p.abs().unwrap().max_all().unwrap().to_scalar().unwrap();
+            let d = max_diff(a, p) / scale.max(1.0);
+            assert!(d < tol, "{what}: gradient differs by {d} (relative)");
+        }
+    }
+
     /// Values and gradients equal candle's `relu(broadcast_add)`, for one bias and per group,
     /// across chunk boundaries (rows > CHUNK_ROWS, groups not aligned to chunks).
     #[test]
@@ -391,28 +417,10 @@ mod tests {
             let z = random((rows, 7), 1);
             let b = random((groups, 7), 2);
             let fused = bias_relu(&z, &b).unwrap();
-            let plain = z
-                .reshape((groups, rows / groups, 7))
-                .unwrap()
-                .broadcast_add(&b.unsqueeze(1).unwrap())
-                .unwrap()
-                .relu()
-                .unwrap()
-                .reshape((rows, 7))
-                .unwrap();
+            let plain = composed_bias_relu(&z, &b).unwrap();
             assert_eq!(max_diff(&fused, &plain), 0.0);
-            let gf = weighted_sum(&fused).backward().unwrap();
-            let gp = weighted_sum(&plain).backward().unwrap();
-            for t in [z.as_tensor(), b.as_tensor()] {
-                let (a, p) = (gf.get(t).unwrap(), gp.get(t).unwrap());
-                // Relative: candle sums the bias gradient in f32, the fused op in f64.
-                let scale: f32 = p.abs().unwrap().max_all().unwrap().to_scalar().unwrap();
-                let d = max_diff(a, p) / scale.max(1.0);
-                assert!(
-                    d < 1e-6,
-                    "rows {rows} groups {groups}: gradient differs by {d} (relative)"
-                );
-            }
+            let what = format!("rows {rows} groups {groups}");
+            assert_gradients_close(&fused, &plain, &[&z, &b], 1e-6, &what);
         }
     }
 
@@ -423,29 +431,10 @@ mod tests {
             let w = random((7, 9), 5);
             let b = random((groups, 7), 6);
             let fused = dense_relu(&x, &w, &b).unwrap();
-            let plain = x
-                .matmul(&w.t().unwrap())
-                .unwrap()
-                .reshape((groups, rows / groups, 7))
-                .unwrap()
-                .broadcast_add(&b.unsqueeze(1).unwrap())
-                .unwrap()
-                .relu()
-                .unwrap()
-                .reshape((rows, 7))
-                .unwrap();
+            let plain = composed_bias_relu(&x.matmul(&w.t().unwrap()).unwrap(), &b).unwrap();
             assert!(max_diff(&fused, &plain) < 1e-6);
-            let gf = weighted_sum(&fused).backward().unwrap();
-            let gp = weighted_sum(&plain).backward().unwrap();
-            for t in [x.as_tensor(), w.as_tensor(), b.as_tensor()] {
-                let (a, p) = (gf.get(t).unwrap(), gp.get(t).unwrap());
-                let scale: f32 = p.abs().unwrap().max_all().unwrap().to_scalar().unwrap();
-                let d = max_diff(a, p) / scale.max(1.0);
-                assert!(
-                    d < 1e-5,
-                    "rows {rows} groups {groups}: gradient differs by {d} (relative)"
-                );
-            }
+            let what = format!("rows {rows} groups {groups}");
+            assert_gradients_close(&fused, &plain, &[&x, &w, &b], 1e-5, &what);
         }
     }
 

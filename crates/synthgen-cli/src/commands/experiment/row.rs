@@ -1,6 +1,6 @@
 //! One row of the experiment: mix, train, evaluate; `row.json` written last marks it done.
 
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -14,12 +14,10 @@ use synthgen_dataset::mix::{
 };
 use synthgen_dataset::source::FrameSource;
 use synthgen_train::data::{load_instances, DataOptions, Instance};
-use synthgen_train::eval::{evaluate, read_gt, GtInstance};
-use synthgen_train::metrics::EvalObject;
+use synthgen_train::eval::{read_gt, score_predictions, GtInstance};
 use synthgen_train::models::tnet::DEFAULT_SCALE;
 use synthgen_train::models::ModelKind;
 use synthgen_train::pose_model::{load_dataset_objects, Objects, Prediction};
-use synthgen_train::results::Estimate;
 use synthgen_train::train::{
     self, centre_error_m, load_model, val_frames, EpochMetrics, Schedule, TrainConfig,
     TrainObserver, MODEL_FILE,
@@ -357,23 +355,7 @@ fn errors(
             acc_5cm5deg: None,
         });
     };
-    let estimates: Vec<Estimate> = preds
-        .iter()
-        .zip(instances)
-        .map(|(p, i)| Estimate {
-            scene_id: i.scene_id,
-            im_id: i.im_id,
-            obj_id: i.obj_id,
-            score: p.score(),
-            pose: p.pose(i.pose.translation_m),
-            time_s: -1.0,
-        })
-        .collect();
-    let eval_objects: BTreeMap<u32, EvalObject> = objects
-        .iter()
-        .map(|(&id, o)| (id, o.eval.clone()))
-        .collect();
-    let report = evaluate(gts, &estimates, &eval_objects)?;
+    let report = score_predictions(preds, instances.iter().copied(), gts, objects)?;
     Ok(Errors {
         n: report.all.n_gt,
         centre_error_cm,
