@@ -27,6 +27,7 @@
 //!     lights: vec![],
 //!     ambient: 1.0,
 //!     ground: None,
+//!     walls: vec![],
 //!     background: BackgroundSample { kind: BackgroundKind::Color, color: [0.0; 3], seed: 0 },
 //! };
 //! let frame = renderer.render(&scene)?;
@@ -119,9 +120,11 @@ mod cpu;
 mod error;
 mod ground;
 mod prepare;
+pub mod procedural;
 mod raster;
 pub mod sensor;
 mod shade;
+mod surface;
 mod view_check;
 
 pub use cpu::{render_frames, CpuOptions, CpuRenderer};
