@@ -64,6 +64,9 @@ pub enum Error {
         path: PathBuf,
     },
 
+    #[error("cannot decode image ({reason}): {path}")]
+    Image { reason: String, path: PathBuf },
+
     #[error("cannot parse obj ({reason}): {path}")]
     Obj { reason: String, path: PathBuf },
 

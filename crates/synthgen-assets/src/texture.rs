@@ -68,6 +68,25 @@ impl TextureCache {
 /// (and any seeded choice among them) is reproducible. An unreadable image is a warning and is
 /// skipped; an unreadable directory is an error. An empty result is for the caller to judge.
 pub fn load_images_in_dir(dir: &Path, progress: &dyn Progress) -> Result<Vec<Arc<Texture>>, Error> {
+    let paths = image_paths(dir)?;
+    let mut images = Vec::with_capacity(paths.len());
+    for path in paths {
+        match decode_file(&path) {
+            Ok(t) => images.push(Arc::new(t)),
+            Err(DecodeError::Missing) => {
+                progress.warn(&format!("image vanished, skipped: {}", path.display()))
+            }
+            Err(DecodeError::Unreadable(reason)) => progress.warn(&format!(
+                "image unreadable ({reason}), skipped: {}",
+                path.display()
+            )),
+        }
+    }
+    Ok(images)
+}
+
+/// The PNG and JPEG files of `dir` (by extension, not recursive), sorted by name.
+fn image_paths(dir: &Path) -> Result<Vec<PathBuf>, Error> {
     let read_err = |source| Error::Read {
         path: dir.to_path_buf(),
         source,
@@ -84,20 +103,24 @@ pub fn load_images_in_dir(dir: &Path, progress: &dyn Progress) -> Result<Vec<Arc
         }
     }
     paths.sort();
-    let mut images = Vec::with_capacity(paths.len());
-    for path in paths {
-        match decode_file(&path) {
-            Ok(t) => images.push(Arc::new(t)),
-            Err(DecodeError::Missing) => {
-                progress.warn(&format!("image vanished, skipped: {}", path.display()))
-            }
-            Err(DecodeError::Unreadable(reason)) => progress.warn(&format!(
-                "image unreadable ({reason}), skipped: {}",
-                path.display()
-            )),
-        }
-    }
-    Ok(images)
+    Ok(paths)
+}
+
+/// Like [`load_images_in_dir`], but every PNG or JPEG file of `dir` must decode: the first
+/// that does not is an error naming it (for texture folders, where a silently skipped file
+/// would change which image a frame draws). An empty result is for the caller to judge.
+pub fn load_images_in_dir_strict(dir: &Path) -> Result<Vec<Arc<Texture>>, Error> {
+    image_paths(dir)?
+        .into_iter()
+        .map(|path| match decode_file(&path) {
+            Ok(t) => Ok(Arc::new(t)),
+            Err(DecodeError::Missing) => Err(Error::Image {
+                reason: "vanished while reading the folder".into(),
+                path,
+            }),
+            Err(DecodeError::Unreadable(reason)) => Err(Error::Image { reason, path }),
+        })
+        .collect()
 }
 
 /// The path users should see in messages: canonical when the file or at least its directory

@@ -119,6 +119,7 @@ impl BlenderRenderer {
             objects: Vec::new(),
             distractors: Vec::new(),
             ground: None,
+            walls: Vec::new(),
             ..scene.clone()
         };
         let background = self.raster.render(&background_only)?;

@@ -246,6 +246,7 @@ fn camera_convention_puts_a_box_where_opencv_projects_it() {
         lights: vec![],
         ambient: 1.0,
         ground: None,
+        walls: vec![],
         background: BackgroundSample {
             kind: BackgroundKind::Color,
             color: [0.0; 3],
@@ -414,6 +415,7 @@ fn distractors_render_in_cycles_without_an_instance_id() {
         lights: vec![],
         ambient: 1.0,
         ground: None,
+        walls: vec![],
         background: BackgroundSample {
             kind: BackgroundKind::Color,
             color: [0.0; 3],

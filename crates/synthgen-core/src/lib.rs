@@ -26,6 +26,7 @@ pub mod scene;
 mod sensor_spec;
 pub mod symmetry;
 pub mod view;
+mod walls_spec;
 
 pub use annotate::{annotate, AloneDepth, GtInfo, ObjectAnnotation, RenderedFrame};
 pub use camera::Intrinsics;

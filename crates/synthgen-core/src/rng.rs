@@ -18,6 +18,10 @@ pub enum Stream {
     Ground = 6,
     Sensor = 7,
     Distractors = 8,
+    /// The ground texture image and its offset (`ground.texture_dir`).
+    GroundTexture = 9,
+    /// Walls: count, distance, height, colour, texture (`[walls]`).
+    Walls = 10,
 }
 
 /// SplitMix64 finalizer: a bijective 64-bit mix.

@@ -15,6 +15,7 @@ use crate::pose::Pose;
 use crate::rng::{derive_seed, frame_rng, Stream};
 use crate::scene::{BackgroundKind, Orientation, PlacementMode, Range, SceneSpec};
 use crate::view::{targets_inside_image, ViewCheck};
+use crate::walls_spec::{camera_inside, ground_texture, sample_walls};
 use crate::Error;
 
 /// One object instance to place in every frame.
@@ -109,6 +110,35 @@ pub struct GroundInstance {
     pub color: [f32; 3],
     pub texture_strength: f32,
     pub texture_seed: u64,
+    /// An image texture (`ground.texture_dir`) instead of the procedural tiles.
+    #[serde(default)]
+    pub texture: Option<SurfaceTexture>,
+}
+
+/// An image tiled over a plane: which of the renderer's images (`image` modulo their
+/// count), where the tiling starts and how large a tile is.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SurfaceTexture {
+    /// Any value; the renderer uses image `image % count`.
+    pub image: u64,
+    /// Offset of the tiling in the plane's (x, y), in tiles, 0..1.
+    pub offset: [f64; 2],
+    /// Side of one tile along the plane's x axis, metres; along y the tile keeps the image's
+    /// aspect ratio.
+    pub scale_m: f64,
+}
+
+/// A wall: the rectangle |x| < width / 2, |y| < height / 2 of the plane z = 0 of
+/// `cam_from_wall` (x horizontal, y up, z towards the room's centre). Rendered with depth
+/// and instance id 0, like the ground.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WallInstance {
+    pub cam_from_wall: Pose,
+    pub width_m: f64,
+    pub height_m: f64,
+    /// sRGB 0..1; multiplies the texture when there is one.
+    pub color: [f32; 3],
+    pub texture: Option<SurfaceTexture>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -133,6 +163,9 @@ pub struct FrameScene {
     pub lights: Vec<PointLight>,
     pub ambient: f32,
     pub ground: Option<GroundInstance>,
+    /// Vertical planes around the scene (`[walls]`), those the camera is inside of.
+    #[serde(default)]
+    pub walls: Vec<WallInstance>,
     pub background: BackgroundSample,
 }
 
@@ -352,6 +385,12 @@ impl SceneSampler {
         let center = scene_center(world_from_objs);
         let (world_lights, ambient) = self.sample_lights(frame_index, center);
 
+        let world_walls = sample_walls(spec, self.seed, frame_index, center);
+        // With walls the ground reaches them: a square room of half side d turned by any yaw
+        // fits in the axis-aligned square of half side d sqrt 2.
+        let ground_size = world_walls.first().map_or(spec.ground.size_m, |w| {
+            spec.ground.size_m.max(w.width_m * std::f64::consts::SQRT_2)
+        });
         let g = &spec.ground;
         let ground = g.visible.then(|| {
             let mut rng = frame_rng(self.seed, frame_index, Stream::Ground);
@@ -360,10 +399,11 @@ impl SceneSampler {
                 std::array::from_fn(|i| g.color_min[i] + t * (g.color_max[i] - g.color_min[i]));
             GroundInstance {
                 cam_from_plane: Pose::new(DMat3::IDENTITY, DVec3::new(center.x, center.y, 0.0)),
-                size_m: g.size_m,
+                size_m: ground_size,
                 color,
                 texture_strength: g.texture_strength,
                 texture_seed: rng.gen(),
+                texture: ground_texture(spec, self.seed, frame_index),
             }
         });
 
@@ -419,6 +459,14 @@ impl SceneSampler {
                     cam_from_plane: cam_from_world.compose(&g.cam_from_plane),
                     ..g.clone()
                 }),
+                walls: world_walls
+                    .iter()
+                    .filter(|w| camera_inside(&w.cam_from_wall, world_from_cam.translation_m))
+                    .map(|w| WallInstance {
+                        cam_from_wall: cam_from_world.compose(&w.cam_from_wall),
+                        ..w.clone()
+                    })
+                    .collect(),
                 background: background.clone(),
             };
             if !c.allow_truncation && !targets_inside_image(&scene, &self.objects) {

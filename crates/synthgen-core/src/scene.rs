@@ -8,6 +8,7 @@ use serde::{Deserialize, Serialize};
 use crate::camera::Intrinsics;
 pub use crate::distractor_spec::{DistractorShape, DistractorSpec};
 pub use crate::sensor_spec::{D455Spec, DepthModel, RgbNoiseSpec, SensorSpec, TofSpec};
+pub use crate::walls_spec::WallSpec;
 use crate::Error;
 
 /// A closed range `[min, max]` sampled uniformly.
@@ -27,6 +28,8 @@ pub struct SceneSpec {
     pub sensor: SensorSpec,
     /// Objects rendered around the targets that get no annotations. Default: none.
     pub distractors: DistractorSpec,
+    /// Vertical textured planes around the scene (a square room). Default: none.
+    pub walls: WallSpec,
     /// Objects declared in the spec (in addition to `--objects` on the command line).
     pub objects: Vec<ObjectSpec>,
 }
@@ -224,8 +227,15 @@ pub struct GroundSpec {
     /// a grey-brown table tone.
     pub color_min: [f32; 3],
     pub color_max: [f32; 3],
-    /// Procedural checker/noise texture strength 0..1 (0 = plain). Default 0.3.
+    /// Procedural checker/noise texture strength 0..1 (0 = plain). Default 0.3. Ignored
+    /// with `texture_dir`.
     pub texture_strength: f32,
+    /// Folder of PNG/JPEG images (relative to the spec file); each frame draws one and tiles
+    /// the plane with it, times the frame's colour. Default: none (procedural tiles).
+    pub texture_dir: Option<PathBuf>,
+    /// Side of one texture tile on the plane along its x axis, metres (y keeps the image's
+    /// aspect ratio). Default 0.5.
+    pub texture_scale_m: f64,
 }
 
 impl Default for GroundSpec {
@@ -236,6 +246,8 @@ impl Default for GroundSpec {
             color_min: [0.25, 0.22, 0.2],
             color_max: [0.75, 0.7, 0.65],
             texture_strength: 0.3,
+            texture_dir: None,
+            texture_scale_m: 0.5,
         }
     }
 }
@@ -384,7 +396,14 @@ impl SceneSpec {
                 *m = base.join(&*m);
             }
         }
-        if let Some(dir) = &mut spec.background.images_dir {
+        for dir in [
+            &mut spec.background.images_dir,
+            &mut spec.ground.texture_dir,
+            &mut spec.walls.texture_dir,
+        ]
+        .into_iter()
+        .flatten()
+        {
             if dir.is_relative() {
                 *dir = base.join(&*dir);
             }
@@ -488,6 +507,7 @@ impl SceneSpec {
             ));
         }
         self.validate_scene_extras()?;
+        self.validate_surfaces()?;
         self.sensor.validate()?;
         if self.background.kind == BackgroundKind::Images && self.background.images_dir.is_none() {
             return Err(Error::InvalidSpec(

@@ -261,6 +261,7 @@ fn full_frames(
             lights: vec![],
             ambient: 0.3,
             ground: None,
+            walls: vec![],
             background: BackgroundSample {
                 kind: BackgroundKind::Noise,
                 color: [0.5; 3],

@@ -14,6 +14,7 @@ use crate::ground::{select, Ground, GroundRow, TileTables};
 use crate::prepare::{prepare, validate_texture, PreparedModel};
 use crate::raster::{canvas_and_image, raster_object, ObjScratch, Projection, Rect};
 use crate::shade::{shade_pixels, Light, ShadeBatch, ShadeParams};
+use crate::surface::{SurfaceImage, TexMap};
 use crate::{Error, Renderer};
 
 /// Tunables of the CPU renderer.
@@ -38,6 +39,9 @@ pub struct CpuRenderer {
     options: CpuOptions,
     luts: ColorLuts,
     tiles: TileTables,
+    /// Images for `ground.texture_dir` and `walls.texture_dir`, prepared once.
+    ground_textures: Arc<[Arc<SurfaceImage>]>,
+    wall_textures: Arc<[Arc<SurfaceImage>]>,
 }
 
 /// Buffers reused from frame to frame on each thread, so a frame allocates only its output.
@@ -91,7 +95,21 @@ impl CpuRenderer {
             options,
             luts: ColorLuts::new(),
             tiles: TileTables::new(),
+            ground_textures: Arc::new([]),
+            wall_textures: Arc::new([]),
         })
+    }
+
+    /// Adds the images frames with `GroundInstance::texture` and `WallInstance::texture`
+    /// pick from (validated, converted to linear light and mip-mapped here, once).
+    pub fn with_surface_textures(
+        mut self,
+        ground: &[Arc<Texture>],
+        walls: &[Arc<Texture>],
+    ) -> Result<Self, Error> {
+        self.ground_textures = SurfaceImage::prepare_all(ground)?.into();
+        self.wall_textures = SurfaceImage::prepare_all(walls)?.into();
+        Ok(self)
     }
 
     pub fn options(&self) -> &CpuOptions {
@@ -154,6 +172,20 @@ impl CpuRenderer {
                     what: "ground plane".into(),
                     reason: e.to_string(),
                 })?;
+            if g.texture.is_some() && self.ground_textures.is_empty() {
+                return Err(Error::NoSurfaceTextures { what: "ground" });
+            }
+        }
+        for (i, wall) in scene.walls.iter().enumerate() {
+            wall.cam_from_wall
+                .validate(1e-4)
+                .map_err(|e| Error::InvalidPose {
+                    what: format!("wall {i}"),
+                    reason: e.to_string(),
+                })?;
+            if wall.texture.is_some() && self.wall_textures.is_empty() {
+                return Err(Error::NoSurfaceTextures { what: "walls" });
+            }
         }
         Ok(())
     }
@@ -202,7 +234,18 @@ impl CpuRenderer {
             .distractor_alone
             .resize_with(scene.distractors.len(), AloneDepth::default);
 
-        let ground = scene.ground.as_ref().map(Ground::new);
+        let ground = scene.ground.as_ref().map(|g| {
+            let tex = g.texture.as_ref();
+            Ground::new(g, tex.and_then(|t| TexMap::new(t, &self.ground_textures)))
+        });
+        let walls: Vec<Ground> = scene
+            .walls
+            .iter()
+            .map(|w| {
+                let tex = w.texture.as_ref();
+                Ground::wall(w, tex.and_then(|t| TexMap::new(t, &self.wall_textures)))
+            })
+            .collect();
 
         // The canvas for alone renders is three times the image, centred on it.
         let (canvas, image) = canvas_and_image(k);
@@ -273,6 +316,7 @@ impl CpuRenderer {
         shade_background_and_ground(
             &bg,
             ground.as_ref(),
+            &walls,
             &proj,
             &params,
             &scratch.cam_lights,
@@ -378,13 +422,14 @@ pub(crate) fn composite(
     }
 }
 
-/// The ground plane (depth test against the objects, then its colour) and the background,
-/// row by row.
+/// The ground plane (depth test against the objects, then its colour), the walls (depth
+/// test against both, colour where they win) and the background, row by row.
 #[inline(never)]
 #[allow(clippy::too_many_arguments)]
 fn shade_background_and_ground(
     bg: &Background,
     ground: Option<&Ground>,
+    walls: &[Ground],
     proj: &Projection,
     params: &ShadeParams,
     lights: &[Light],
@@ -403,6 +448,9 @@ fn shade_background_and_ground(
     {
         if let Some(g) = ground {
             g.draw_row(y, proj, params, lights, tables, luts, depth, inst, rgb, row);
+        }
+        for wall in walls {
+            wall.draw_row_masked(y, proj, params, lights, luts, depth, inst, rgb);
         }
         bg.fill_row(y, depth, rgb);
     }

@@ -43,6 +43,9 @@ pub enum Error {
     #[error("background kind \"images\" needs at least one background image, but none were given")]
     NoBackgroundImages,
 
+    #[error("the frame's {what} has an image texture, but the renderer was given no {what} textures (CpuRenderer::with_surface_textures)")]
+    NoSurfaceTextures { what: &'static str },
+
     #[error("invalid render option {name}: {reason}")]
     InvalidOption { name: &'static str, reason: String },
 

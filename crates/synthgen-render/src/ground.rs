@@ -6,11 +6,13 @@
 //! pixels), with only the table lookups (tile pattern, sRGB) left scalar.
 
 use synthgen_core::glam::Vec3;
-use synthgen_core::sample::GroundInstance;
+use synthgen_core::sample::{GroundInstance, WallInstance};
+use synthgen_core::Pose;
 
 use crate::color::{srgb_index32, srgb_to_linear_f32, ColorLuts, MAGIC, TO_SRGB_MAX};
 use crate::raster::Projection;
 use crate::shade::{Light, ShadeParams};
+use crate::surface::TexMap;
 
 /// Side of the fine texture tiles, metres; coarse tiles are 4 x 4 fine ones (8 cm).
 const FINE_TILE_M: f32 = 0.02;
@@ -42,40 +44,77 @@ impl TileTables {
     }
 }
 
-/// The plane in the camera frame.
-pub(crate) struct Ground {
+/// A textured plane rectangle in the camera frame: the ground, or a wall.
+pub(crate) struct Ground<'a> {
     origin: Vec3,
     e1: Vec3,
     e2: Vec3,
     normal: Vec3,
     /// normal . origin
     num: f32,
-    half_m: f32,
+    /// Half sides along e1 and e2.
+    half_u: f32,
+    half_v: f32,
     albedo_linear: [f32; 3],
     strength: f32,
     /// Per-frame offset into the tile table (x, y), so frames differ.
     offsets: [i32; 2],
+    /// An image texture instead of the procedural tiles.
+    texture: Option<TexMap<'a>>,
 }
 
-impl Ground {
-    pub fn new(g: &GroundInstance) -> Ground {
-        let r = g.cam_from_plane.rotation;
-        let origin = g.cam_from_plane.translation_m.as_vec3();
-        let normal = r.z_axis.as_vec3();
+impl<'a> Ground<'a> {
+    pub fn new(g: &GroundInstance, texture: Option<TexMap<'a>>) -> Ground<'a> {
         let s = g.texture_seed;
+        let half = (g.size_m * 0.5) as f32;
+        Self::plane(
+            &g.cam_from_plane,
+            [half, half],
+            g.color,
+            g.texture_strength,
+            [
+                (s as i32) & TILE_MASK,
+                ((s >> TILES_LOG2) as i32) & TILE_MASK,
+            ],
+            texture,
+        )
+    }
+
+    /// A wall: plain colour, or its image texture.
+    pub fn wall(w: &WallInstance, texture: Option<TexMap<'a>>) -> Ground<'a> {
+        Self::plane(
+            &w.cam_from_wall,
+            [(w.width_m * 0.5) as f32, (w.height_m * 0.5) as f32],
+            w.color,
+            0.0,
+            [0, 0],
+            texture,
+        )
+    }
+
+    fn plane(
+        cam_from_plane: &Pose,
+        half: [f32; 2],
+        color: [f32; 3],
+        strength: f32,
+        offsets: [i32; 2],
+        texture: Option<TexMap<'a>>,
+    ) -> Ground<'a> {
+        let r = cam_from_plane.rotation;
+        let origin = cam_from_plane.translation_m.as_vec3();
+        let normal = r.z_axis.as_vec3();
         Ground {
             origin,
             e1: r.x_axis.as_vec3(),
             e2: r.y_axis.as_vec3(),
             normal,
             num: normal.dot(origin),
-            half_m: (g.size_m * 0.5) as f32,
-            albedo_linear: g.color.map(srgb_to_linear_f32),
-            strength: g.texture_strength.clamp(0.0, 1.0),
-            offsets: [
-                (s as i32) & TILE_MASK,
-                ((s >> TILES_LOG2) as i32) & TILE_MASK,
-            ],
+            half_u: half[0],
+            half_v: half[1],
+            albedo_linear: color.map(srgb_to_linear_f32),
+            strength: strength.clamp(0.0, 1.0),
+            offsets,
+            texture,
         }
     }
 
@@ -103,7 +142,7 @@ impl Ground {
             self.e1.as_dvec3().dot(self.origin.as_dvec3()),
             self.e2.as_dvec3().dot(self.origin.as_dvec3()),
         );
-        let h = self.half_m as f64;
+        let (hu, hv) = (self.half_u as f64, self.half_v as f64);
         let near = proj.near_m as f64;
         // With D = n.d and s D > 0: t = num / D >= near  <=>  |num| - near s D >= 0;
         // u = num (e1.d) / D - uc in [-h, h)  <=>  s num (e1.d) - (uc -+ h) s D  >=< 0.
@@ -111,20 +150,20 @@ impl Ground {
             (s * na, s * nb),
             (-near * s * na, num.abs() - near * s * nb),
             (
-                s * (num * ua - (uc - h) * na),
-                s * (num * ub - (uc - h) * nb),
+                s * (num * ua - (uc - hu) * na),
+                s * (num * ub - (uc - hu) * nb),
             ),
             (
-                -s * (num * ua - (uc + h) * na),
-                -s * (num * ub - (uc + h) * nb),
+                -s * (num * ua - (uc + hu) * na),
+                -s * (num * ub - (uc + hu) * nb),
             ),
             (
-                s * (num * va - (vc - h) * na),
-                s * (num * vb - (vc - h) * nb),
+                s * (num * va - (vc - hv) * na),
+                s * (num * vb - (vc - hv) * nb),
             ),
             (
-                -s * (num * va - (vc + h) * na),
-                -s * (num * vb - (vc + h) * nb),
+                -s * (num * va - (vc + hv) * na),
+                -s * (num * vb - (vc + hv) * nb),
             ),
         ];
         let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
@@ -173,8 +212,8 @@ impl Ground {
         let tt = self.num / (c.n_a * xf + c.n_b);
         let u = tt * (c.u_a * xf + c.u_b) - c.u_c;
         let v = tt * (c.v_a * xf + c.v_b) - c.v_c;
-        let h = self.half_m;
-        let hit = (tt >= near) & (u >= -h) & (u < h) & (v >= -h) & (v < h);
+        let (hu, hv) = (self.half_u, self.half_v);
+        let hit = (tt >= near) & (u >= -hu) & (u < hu) & (v >= -hv) & (v < hv);
         (select(hit, tt, 0.0), u, v)
     }
 
@@ -217,6 +256,7 @@ impl Ground {
             tile,
             pattern,
             f,
+            fc,
             samples,
         } = row;
 
@@ -254,20 +294,46 @@ impl Ground {
         let w = x1 - x0;
         let t = &t[first..last];
 
-        // Texture factor per pixel, mean 1, contrast `strength`: the table lookups alone in a
-        // scalar pass, the arithmetic in a vectorized one. Padded with 1 to whole chunks of
-        // LIGHT_STEP pixels.
+        // Texture factor per pixel and channel, padded with 1 to whole chunks of LIGHT_STEP
+        // pixels. Procedural tiles: mean 1, contrast `strength`, the same for the three
+        // channels (the table lookups alone in a scalar pass, the arithmetic in a vectorized
+        // one). An image: its linear texel at the mip level of the pixel's footprint.
         let wp = w.div_ceil(LIGHT_STEP) * LIGHT_STEP;
-        pattern.resize(w, 0);
-        for (p, &k) in pattern[..w].iter_mut().zip(&tile[first..last]) {
-            *p = tables.pattern[k as usize & (TILES * TILES - 1)];
-        }
-        f.resize(wp, 0.0);
-        let s2 = self.strength * 2.0;
-        for (fx, &p) in f[..w].iter_mut().zip(&pattern[..w]) {
-            *fx = 1.0 + s2 * (p as f32 / 255.0 - 0.5);
-        }
-        f[w..wp].fill(1.0);
+        let factors: [&[f32]; 3] = if let Some(tm) = &self.texture {
+            let c = self.row_coeffs(y, proj);
+            for fc in fc.iter_mut() {
+                fc.resize(wp, 1.0);
+                fc[w..wp].fill(1.0);
+            }
+            let [fr, fg, fb] = fc;
+            for (i, ((r, g), b)) in fr[..w]
+                .iter_mut()
+                .zip(&mut fg[..w])
+                .zip(&mut fb[..w])
+                .enumerate()
+            {
+                let xf = (x0 + i) as i32 as f32;
+                let (_, u, v) = self.eval(&c, proj.near_m, xf);
+                // A pixel spans depth / (fx |n.d|) metres of the plane along its steepest
+                // direction (d the pixel's ray with d.z = 1, depth = num / n.d).
+                let nd = c.n_a * xf + c.n_b;
+                let foot = (self.num / (proj.fx * nd * nd)).abs();
+                [*r, *g, *b] = tm.fetch(u, v, foot);
+            }
+            [&fr[..], &fg[..], &fb[..]]
+        } else {
+            pattern.resize(w, 0);
+            for (p, &k) in pattern[..w].iter_mut().zip(&tile[first..last]) {
+                *p = tables.pattern[k as usize & (TILES * TILES - 1)];
+            }
+            f.resize(wp, 0.0);
+            let s2 = self.strength * 2.0;
+            for (fx, &p) in f[..w].iter_mut().zip(&pattern[..w]) {
+                *fx = 1.0 + s2 * (p as f32 / 255.0 - 0.5);
+            }
+            f[w..wp].fill(1.0);
+            [&f[..], &f[..], &f[..]]
+        };
 
         // Irradiance x albedo, pre-scaled to the sRGB table's range: exact every LIGHT_STEP
         // pixels and linear in between (it varies slowly over the plane). On the plane
@@ -304,17 +370,19 @@ impl Ground {
         let mut ix = [[0u32; LIGHT_STEP]; 3];
         let out = &mut rgb[x0 * 3..x1 * 3];
         let mut px_chunks = out.chunks_exact_mut(3 * LIGHT_STEP);
-        for (s, (px, fs)) in px_chunks
-            .by_ref()
-            .zip(f.chunks_exact(LIGHT_STEP))
-            .enumerate()
-        {
+        let chunk = |c: usize, start: usize| {
+            <&[f32; LIGHT_STEP]>::try_from(&factors[c][start..start + LIGHT_STEP])
+        };
+        for (s, px) in px_chunks.by_ref().enumerate() {
             // Fixed-size arrays, so the inner loops unroll (the conversions cannot fail).
-            if let (Ok(px), Ok(fs)) = (
+            let o = s * LIGHT_STEP;
+            if let (Ok(px), Ok(f0), Ok(f1), Ok(f2)) = (
                 <&mut [u8; 3 * LIGHT_STEP]>::try_from(px),
-                <&[f32; LIGHT_STEP]>::try_from(fs),
+                chunk(0, o),
+                chunk(1, o),
+                chunk(2, o),
             ) {
-                chunk_indices(&samples[s..s + 2], fs, LIGHT_STEP as f32, &mut ix);
+                chunk_indices(&samples[s..s + 2], [f0, f1, f2], LIGHT_STEP as f32, &mut ix);
                 pack_chunk(&ix, px, luts);
             }
         }
@@ -324,13 +392,72 @@ impl Ground {
             let s = w / LIGHT_STEP;
             let done = s * LIGHT_STEP;
             let den = ((w - done).max(2) - 1) as f32;
-            if let Ok(fs) = <&[f32; LIGHT_STEP]>::try_from(&f[done..done + LIGHT_STEP]) {
-                chunk_indices(&samples[s..s + 2], fs, den, &mut ix);
+            if let (Ok(f0), Ok(f1), Ok(f2)) = (chunk(0, done), chunk(1, done), chunk(2, done)) {
+                chunk_indices(&samples[s..s + 2], [f0, f1, f2], den, &mut ix);
             }
             for (i, px) in rest.chunks_exact_mut(3).enumerate() {
                 px[0] = luts.srgb_at(ix[0][i] as u16);
                 px[1] = luts.srgb_at(ix[1][i] as u16);
                 px[2] = luts.srgb_at(ix[2][i] as u16);
+            }
+        }
+    }
+
+    /// Draws a wall into row `y` where it is nearer than what `depth` holds (or ties; it
+    /// has instance 0): depth, and colour = colour x texture x (ambient + Lambert), every
+    /// pixel exact. Unlike `draw_row` it writes colour only where it wins, so walls and the
+    /// ground may be drawn in any order.
+    #[allow(clippy::too_many_arguments)]
+    pub fn draw_row_masked(
+        &self,
+        y: usize,
+        proj: &Projection,
+        params: &ShadeParams,
+        lights: &[Light],
+        luts: &ColorLuts,
+        depth: &mut [f32],
+        instance: &mut [u16],
+        rgb: &mut [u8],
+    ) {
+        let (s0, s1) = self.row_span(y, proj, depth.len());
+        if s0 >= s1 {
+            return;
+        }
+        let c = self.row_coeffs(y, proj);
+        let (ifx, ify) = (1.0 / proj.fx, 1.0 / proj.fy);
+        let dy = (y as f32 - proj.cy) * ify;
+        let scale = self.albedo_linear.map(|a| a * TO_SRGB_MAX as f32);
+        let side = if self.num > 0.0 { -1.0 } else { 1.0 };
+        for x in s0..s1 {
+            let xf = x as i32 as f32;
+            let (tt, u, v) = self.eval(&c, proj.near_m, xf);
+            let d = depth[x];
+            if !(tt > 0.0 && (d == 0.0 || tt <= d)) {
+                continue;
+            }
+            depth[x] = tt;
+            instance[x] = 0;
+            let p = Vec3::new((xf - proj.cx) * ifx * tt, dy * tt, tt);
+            let mut e = [params.ambient; 3];
+            for l in lights {
+                // The light's height above the plane, on the camera's side.
+                let h = side * (self.normal.dot(l.position) - self.num);
+                if h > 0.0 {
+                    let k = h / (l.position - p).length();
+                    for (ec, lc) in e.iter_mut().zip(l.color) {
+                        *ec += lc * k;
+                    }
+                }
+            }
+            let tex = match &self.texture {
+                Some(tm) => {
+                    let nd = c.n_a * xf + c.n_b;
+                    tm.fetch(u, v, (self.num / (proj.fx * nd * nd)).abs())
+                }
+                None => [1.0; 3],
+            };
+            for ch in 0..3 {
+                rgb[x * 3 + ch] = luts.srgb_at(srgb_index32(e[ch] * scale[ch] * tex[ch]) as u16);
             }
         }
     }
@@ -363,16 +490,17 @@ const RAMP: [f32; LIGHT_STEP] = {
 };
 
 /// sRGB table indices per channel for a chunk of pixels: irradiance linear from
-/// `samples[0]` in steps of (`samples[1]` - `samples[0]`) / `den`, times the texture factor.
+/// `samples[0]` in steps of (`samples[1]` - `samples[0]`) / `den`, times the channel's
+/// texture factor.
 #[inline(always)]
 fn chunk_indices(
     samples: &[[f32; 3]],
-    fs: &[f32; LIGHT_STEP],
+    fs: [&[f32; LIGHT_STEP]; 3],
     den: f32,
     ix: &mut [[u32; LIGHT_STEP]; 3],
 ) {
     let (s0, s1) = (samples[0], samples[1]);
-    for (c, ixc) in ix.iter_mut().enumerate() {
+    for (c, (ixc, fs)) in ix.iter_mut().zip(fs).enumerate() {
         let a = s0[c];
         let step = (s1[c] - a) / den;
         for ((o, &fx), r) in ixc.iter_mut().zip(fs).zip(RAMP) {
@@ -408,7 +536,7 @@ pub(crate) fn select(c: bool, a: f32, b: f32) -> f32 {
 /// floor(x) modulo 2^16 (enough for the tile masks), for |x| < 2^21, without a float-to-int
 /// cast.
 #[inline(always)]
-fn floor_low_bits(x: f32) -> i32 {
+pub(crate) fn floor_low_bits(x: f32) -> i32 {
     ((x - 0.5 + MAGIC).to_bits() & 0xffff) as i32
 }
 
@@ -423,6 +551,8 @@ pub(crate) struct GroundRow {
     pattern: Vec<u8>,
     /// Texture factor per pixel.
     f: Vec<f32>,
+    /// Image texture factor per channel and pixel.
+    fc: [Vec<f32>; 3],
     /// Exact irradiance samples along the row.
     samples: Vec<[f32; 3]>,
 }
@@ -442,16 +572,19 @@ pub(crate) fn hash32(mut x: u32) -> u32 {
 mod tests {
     use super::*;
     use synthgen_core::glam::{DMat3, DVec3};
-    use synthgen_core::Pose;
 
-    fn ground(rot: DMat3, t: DVec3, size_m: f64) -> Ground {
-        Ground::new(&GroundInstance {
-            cam_from_plane: Pose::new(rot, t),
-            size_m,
-            color: [0.5; 3],
-            texture_strength: 0.3,
-            texture_seed: 1,
-        })
+    fn ground(rot: DMat3, t: DVec3, size_m: f64) -> Ground<'static> {
+        Ground::new(
+            &GroundInstance {
+                cam_from_plane: Pose::new(rot, t),
+                size_m,
+                color: [0.5; 3],
+                texture_strength: 0.3,
+                texture_seed: 1,
+                texture: None,
+            },
+            None,
+        )
     }
 
     /// The analytic span of each row holds every pixel the exact per-pixel test hits.

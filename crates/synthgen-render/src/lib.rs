@@ -27,6 +27,7 @@
 //!     lights: vec![],
 //!     ambient: 1.0,
 //!     ground: None,
+//!     walls: vec![],
 //!     background: BackgroundSample { kind: BackgroundKind::Color, color: [0.0; 3], seed: 0 },
 //! };
 //! let frame = renderer.render(&scene)?;
@@ -72,6 +73,13 @@
 //!   `texture_strength`, offset by `texture_seed`, repeating every 5.12 m), lit by ambient +
 //!   Lambert (no specular); the irradiance is exact every 16 pixels along a row and linear in
 //!   between (it varies by far less than a level over that distance).
+//!   With `GroundInstance::texture` the tiles give way to an image (one of those given to
+//!   `CpuRenderer::with_surface_textures`): linear-light mip chain, tiled every `scale_m`,
+//!   nearest texel at the level matching the pixel's footprint depth / (fx |n·d|), times
+//!   the ground colour.
+//! - **Walls** (`FrameScene::walls`): rectangles drawn like the ground (exact ray-plane
+//!   depth, instance 0, ties won against objects) after it, each pixel lit exactly and
+//!   written only where the wall is nearest, so planes may be drawn in any order.
 //! - **Shading** is deferred: only the pixel an object wins is shaded, with barycentrics
 //!   recomputed exactly from the pixel-centre ray. Base colour = material `base_color` ×
 //!   (texture, bilinear with wrap, if the primitive has uvs and a texture; else the
@@ -119,9 +127,11 @@ mod cpu;
 mod error;
 mod ground;
 mod prepare;
+pub mod procedural;
 mod raster;
 pub mod sensor;
 mod shade;
+mod surface;
 mod view_check;
 
 pub use cpu::{render_frames, CpuOptions, CpuRenderer};

@@ -1,6 +1,6 @@
 //! The view check for `camera.min_visib_fract`: a depth-only pass of the CPU raster (each
-//! target alone on the 3x canvas, distractors on the image, the ground plane where a target
-//! is) and BOP's pixel counts, with no shading, background or mask images.
+//! target alone on the 3x canvas, distractors on the image, the ground plane and walls where
+//! a target is) and BOP's pixel counts, with no shading, background or mask images.
 
 use synthgen_core::annotate::DEFAULT_VISIB_DELTA_M;
 use synthgen_core::{AloneDepth, FrameScene, ViewCheck, Visibility};
@@ -57,9 +57,16 @@ impl ViewChecker {
         let next = scene.objects.len() as u16 + 1;
         composite(&distractors, next, &image, w, &mut depth, &mut instance);
 
-        // The ground wins ties, as in the renderer; only where a target is matters.
-        if let Some(g) = scene.ground.as_ref().map(Ground::new) {
-            let mut row = Vec::new();
+        // The ground and the walls win ties, as in the renderer; only where a target is
+        // matters.
+        let planes: Vec<Ground> = scene
+            .ground
+            .iter()
+            .map(|g| Ground::new(g, None))
+            .chain(scene.walls.iter().map(|w| Ground::wall(w, None)))
+            .collect();
+        let mut row = Vec::new();
+        for g in &planes {
             for a in &targets {
                 let x0 = a.x0.clamp(0, wi) as usize;
                 let x1 = (a.x0 + a.width as i32).clamp(0, wi) as usize;

@@ -149,6 +149,7 @@ fn annotate_frame(
         lights: vec![],
         ambient: 1.0,
         ground: None,
+        walls: vec![],
         background: BackgroundSample {
             kind: BackgroundKind::Color,
             color: [0.0; 3],

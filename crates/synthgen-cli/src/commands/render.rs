@@ -33,7 +33,10 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     check_backend(&args)?;
     render_resume::check_supported(&args)?;
     let frame_range = render_resume::frame_range(&args)?;
-    let spec = build_spec(&args)?;
+    let mut spec = build_spec(&args)?;
+    if args.backend == Backend::Blender {
+        render_extras::drop_surfaces_for_blender(&mut spec, printer);
+    }
     let sources = collect_sources(&args, &spec)?;
     if !args.resume {
         check_out_dir(&args.out, args.force)?;
@@ -56,6 +59,7 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     let distractors = render_extras::distractor_pool(&spec, &mut models, printer)?;
 
     let backgrounds = load_backgrounds(&spec, printer)?;
+    let (ground_textures, wall_textures) = render_extras::surface_textures(&spec, printer)?;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(args.jobs.unwrap_or(0))
         .build()
@@ -89,7 +93,8 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     let names: Vec<String> = models[..n_targets].iter().map(|m| m.name.clone()).collect();
     let renderer: Box<dyn Renderer + Sync> = match args.backend {
         Backend::Cpu => {
-            let cpu = CpuRenderer::new(models, backgrounds)?;
+            let cpu = CpuRenderer::new(models, backgrounds)?
+                .with_surface_textures(&ground_textures, &wall_textures)?;
             if spec.camera.min_visib_fract > 0.0 {
                 // A clone shares the prepared models.
                 let check = ViewChecker::new(cpu.clone(), args.visib_delta_m as f32);

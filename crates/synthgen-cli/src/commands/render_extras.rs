@@ -1,11 +1,14 @@
 //! Scene extras for `synthgen render`: the distractor models (primitive bank and other
-//! meshes) appended after the targets' models.
+//! meshes) appended after the targets' models, and the ground and wall texture images.
+
+use std::path::PathBuf;
+use std::sync::Arc;
 
 use anyhow::{Context, Result};
 use synthgen_assets::Units;
 use synthgen_core::distractor::{primitive_models, DistractorPool};
 use synthgen_core::sample::SceneObject;
-use synthgen_core::{Model, SceneSpec};
+use synthgen_core::{Model, SceneSpec, Texture};
 
 use crate::commands::user_error;
 use crate::Printer;
@@ -53,4 +56,66 @@ pub fn distractor_pool(
         pool.meshes.len()
     ));
     Ok(pool)
+}
+
+/// Decoded images of a folder.
+type Images = Vec<Arc<Texture>>;
+
+/// The images of `ground.texture_dir` and `walls.texture_dir` (each empty when unset),
+/// decoded once. A missing or empty folder, or a file in it that does not decode, is an
+/// error naming it.
+pub fn surface_textures(
+    spec: &SceneSpec,
+    printer: &Printer,
+) -> Result<(Images, Images)> {
+    let load = |what: &str, dir: &Option<PathBuf>| -> Result<Images> {
+        let Some(dir) = dir else {
+            return Ok(Vec::new());
+        };
+        if !dir.is_dir() {
+            return Err(user_error(
+                format!("{what}.texture_dir is not a folder: {}", dir.display()),
+                "point it at a folder of PNG or JPEG images (relative to the scene file), e.g. the repo's textures/",
+            ));
+        }
+        let images = synthgen_assets::load_images_in_dir_strict(dir)
+            .with_context(|| format!("cannot load {what} textures from {}", dir.display()))?;
+        if images.is_empty() {
+            return Err(user_error(
+                format!(
+                    "no PNG or JPEG images in {what}.texture_dir {}",
+                    dir.display()
+                ),
+                "put images in the folder, or remove texture_dir from the scene spec",
+            ));
+        }
+        printer.info(format!(
+            "{} {what} textures from {}",
+            images.len(),
+            dir.display()
+        ));
+        Ok(images)
+    };
+    Ok((
+        load("ground", &spec.ground.texture_dir)?,
+        load("walls", &spec.walls.texture_dir)?,
+    ))
+}
+
+/// The Blender backend does not draw image textures on the ground nor walls yet: the spec
+/// drops them with a warning (so the manifest records what was rendered).
+pub fn drop_surfaces_for_blender(spec: &mut SceneSpec, printer: &Printer) {
+    if let Some(dir) = spec.ground.texture_dir.take() {
+        printer.warning(format!(
+            "the blender backend ignores ground.texture_dir (Cycles draws the plain or procedural ground): {}",
+            dir.display()
+        ));
+    }
+    if spec.walls.count[1] > 0 {
+        printer.warning(
+            "the blender backend does not render [walls] yet: rendering without walls (walls.count set to [0, 0])",
+        );
+        spec.walls.count = [0, 0];
+        spec.walls.texture_dir = None;
+    }
 }

@@ -17,5 +17,6 @@ mod render;
 mod scale;
 mod scene_extras;
 mod scenes;
+mod surfaces;
 mod train;
 mod train_linemod;

@@ -58,6 +58,7 @@ pub fn scene(frame_index: u64, objects: Vec<ObjectInstance>) -> FrameScene {
         lights: vec![],
         ambient: 0.3,
         ground: None,
+        walls: vec![],
         background: BackgroundSample {
             kind: BackgroundKind::Noise,
             color: [0.5; 3],

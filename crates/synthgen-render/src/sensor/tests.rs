@@ -244,6 +244,7 @@ fn sensor_model_touches_only_rgb_and_depth_and_is_deterministic() {
         lights: vec![],
         ambient: 0.8,
         ground: None,
+        walls: vec![],
         background: BackgroundSample {
             kind: BackgroundKind::Noise,
             color: [0.0; 3],

@@ -34,6 +34,7 @@ pub fn scene(intrinsics: Intrinsics, objects: Vec<ObjectInstance>) -> FrameScene
         }],
         ambient: 0.25,
         ground: None,
+        walls: vec![],
         background: BackgroundSample {
             kind: BackgroundKind::Color,
             color: [0.1, 0.2, 0.3],
@@ -50,6 +51,7 @@ pub fn ground_facing(cam_from_plane: Pose) -> GroundInstance {
         color: [0.55, 0.5, 0.45],
         texture_strength: 0.4,
         texture_seed: 99,
+        texture: None,
     }
 }
 

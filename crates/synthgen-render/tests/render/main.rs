@@ -9,3 +9,4 @@ mod geometry;
 mod golden;
 mod linemod;
 mod occlusion;
+mod surfaces;
