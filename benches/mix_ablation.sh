@@ -2,7 +2,7 @@
 # Issue 7's ablation: which knob of the synthetic scene moves the all-synthetic row of
 # `synthgen experiment mix` closest to the all-real row.
 #
-#   bash benches/mix_ablation.sh OUT [EPOCHS] [VARIANT...]
+#   bash benches/mix_ablation.sh OUT [EPOCHS] [VARIANT...]   # VARIANT "none": only the table
 #
 # 1. OUT/main: the full 7-row table, proxy real set, synthetic side rendered from
 #    scenes/robot_chest_d455.toml (the study's camera and viewpoints, D455 depth + RGB noise).
@@ -18,7 +18,7 @@ epochs=${2:-8}
 shift $(( $# > 1 ? 2 : 1 ))
 variants=("$@")
 if [ ${#variants[@]} -eq 0 ]; then
-  variants=(render_defaults no_sensor distractors physics)
+  variants=(render_defaults no_sensor no_textures distractors physics)
 fi
 mkdir -p "$out/specs"
 bin=target/release/synthgen
@@ -40,6 +40,8 @@ spec_of() {
         "$base" > "$f" ;;
     distractors)  # primitive clutter (boxes and spheres: the proxy's cylinders stay held out)
       { cat "$base"; printf '\n[distractors]\ncount = [0, 2]\nshapes = ["box", "sphere"]\nsize_m = [0.04, 0.1]\n'; } > "$f" ;;
+    no_textures)  # plain procedural ground, no walls
+      sed -e '/^texture_dir/d' -e '/^texture_scale_m/d' -e '/^\[walls\]/,/^$/d' "$base" > "$f" ;;
     physics)  # dropped and settled instead of placed upright
       sed 's/^orientation = "upright"/orientation = "upright"\nmode = "physics"/' "$base" > "$f" ;;
     *) [ -f "$v" ] || { echo "unknown variant $v (or not a file)" >&2; exit 1; }
@@ -61,6 +63,7 @@ printf '%-18s %10s %10s %8s %s\n' all-real "$real_test" "$real_train" "+0%" "$ma
 pct() { awk -v a="$1" -v b="$real_test" 'BEGIN { printf "%+.0f%%", 100 * (a / b - 1) }'; }
 printf '%-18s %10s %10s %8s %s\n' base "$synth_test" "$synth_train" "$(pct "$synth_test")" "$main_hash"
 for v in "${variants[@]}"; do
+  [ "$v" = none ] && continue
   spec=$(spec_of "$v")
   name=$(basename "${spec:-$v}" .toml)
   scene=()
