@@ -54,6 +54,12 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     let n_targets = models.len();
     // Distractor models go after the targets' in the renderer's list.
     let distractors = render_extras::distractor_pool(&spec, &mut models, printer)?;
+    // The bin's two wall models go last.
+    let bin_models = spec.bin.enabled.then(|| {
+        let first = models.len();
+        models.extend(spec.bin.models());
+        first
+    });
 
     let backgrounds = load_backgrounds(&spec, printer)?;
     let (ground_textures, wall_textures) = render_extras::surface_textures(&spec, printer)?;
@@ -74,6 +80,9 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
 
     let mut sampler =
         SceneSampler::new(spec.clone(), scene_objects, args.seed)?.with_distractors(distractors);
+    if let Some(first) = bin_models {
+        sampler = sampler.with_bin_models(first);
+    }
     if spec.placement.mode == PlacementMode::Physics {
         let p = sampler.distractor_pool();
         let all: Vec<SceneObject> = sampler
@@ -83,7 +92,12 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
             .chain(&p.meshes)
             .cloned()
             .collect();
-        let settler = synthgen_physics::PhysicsSettler::new(&all, spec.placement.physics.clone())?;
+        let settler = synthgen_physics::PhysicsSettler::new(&all, spec.placement.physics.clone())?
+            .with_bin(&if spec.bin.enabled {
+                spec.bin.walls()
+            } else {
+                Vec::new()
+            });
         sampler = sampler.with_settle(Arc::new(settler));
     }
     // The summary needs only the names: the meshes move into the renderer, not a copy.
