@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # `synthgen render` to disk for every preset in scenes/, five Linemod models, 640x480 BOP
-# (rgb PNG, depth PNG, masks, JSON). The peer in the same run is tabletop with
-# placement.mode = "sample" (no physics), so the cost of physics reads as a ratio.
+# (rgb PNG, depth PNG, masks, JSON). The peers in the same run are tabletop with
+# placement.mode = "sample" (no physics), so the cost of physics reads as a ratio, and
+# tabletop without its image textures and walls (procedural ground, as before issue 6's
+# backgrounds), so the cost of those reads as a ratio too.
 #
 #   bash benches/presets.sh [FRAMES] [REPEATS] [JOBS]
 #
@@ -20,9 +22,14 @@ trap 'rm -rf "$work"' EXIT
 
 cargo build --release -q -p synthgen-cli
 bin=target/release/synthgen
-sed 's/^mode = "physics".*/mode = "sample"/' scenes/tabletop.toml > "$work/tabletop_no_physics.toml"
+# Texture folders are relative to the spec file: the copies point at the repo's absolutely.
+sed 's/^mode = "physics".*/mode = "sample"/; s|^texture_dir = "\.\./|texture_dir = "'"$PWD"'/|' \
+  scenes/tabletop.toml > "$work/tabletop_no_physics.toml"
+sed '/^texture_dir/d; s/^count = \[2, 4\]/count = [0, 0]/' scenes/tabletop.toml \
+  > "$work/tabletop_plain_surfaces.toml"
 
-specs=(scenes/tabletop.toml "$work/tabletop_no_physics.toml" scenes/robot_chest_d455.toml \
+specs=(scenes/tabletop.toml "$work/tabletop_no_physics.toml" "$work/tabletop_plain_surfaces.toml" \
+  scenes/robot_chest_d455.toml \
   scenes/linemod_like.toml scenes/bin_picking.toml scenes/random_pose.toml)
 for spec in "${specs[@]}"; do
   fps=()

@@ -95,14 +95,16 @@ def setup(settings_json):
         models={},  # model_index -> list of (mesh, base material, material kind)
         instances={},  # model_index -> list of instance slots (lists of objects)
         lights=[],
+        walls=[],
+        surface_images={},  # "ground" / "walls" -> list of bpy images
     )
 
 
-def _make_ground(scene, root):
-    me = bpy.data.meshes.new("synthgen_ground")
-    me.from_pydata([(-0.5, -0.5, 0), (0.5, -0.5, 0), (0.5, 0.5, 0), (-0.5, 0.5, 0)], [], [(0, 1, 2, 3)])
-    me.update()
-    mat = bpy.data.materials.new("synthgen_ground")
+def _plane_material(name):
+    """A principled material whose base colour is either the procedural checker (`tiles`,
+    the ground without an image) or an image tiled through a mapping node times a colour
+    (`image`, `mapping`, `tint`, `mul`); `_use_image` links one of the two."""
+    mat = bpy.data.materials.new(name)
     mat.use_nodes = True
     nt = mat.node_tree
     bsdf = nt.nodes.get("Principled BSDF")
@@ -111,14 +113,86 @@ def _make_ground(scene, root):
     checker = nt.nodes.new("ShaderNodeTexChecker")
     checker.name = "tiles"
     nt.links.new(coords.outputs["Object"], checker.inputs["Vector"])
+    mapping = nt.nodes.new("ShaderNodeMapping")
+    mapping.name = "mapping"
+    mapping.vector_type = "POINT"
+    nt.links.new(coords.outputs["Object"], mapping.inputs["Vector"])
+    image = nt.nodes.new("ShaderNodeTexImage")
+    image.name = "image"
+    image.extension = "REPEAT"
+    image.interpolation = "Closest"
+    nt.links.new(mapping.outputs["Vector"], image.inputs["Vector"])
+    tint = nt.nodes.new("ShaderNodeRGB")
+    tint.name = "tint"
+    mul = nt.nodes.new("ShaderNodeVectorMath")
+    mul.name = "mul"
+    mul.operation = "MULTIPLY"
+    nt.links.new(image.outputs["Color"], mul.inputs[0])
+    nt.links.new(tint.outputs["Color"], mul.inputs[1])
     nt.links.new(checker.outputs["Color"], bsdf.inputs["Base Color"])
-    me.materials.append(mat)
+    return mat
+
+
+def _use_image(mat, kind, t, color):
+    """Links the material's base colour to image `t["image"]` of `kind` (tiled by
+    `t["scale"]`, offset by `t["offset"]`, in the plane object's coordinates) times `color`,
+    or, when `t` is None, to the checker."""
+    nt = mat.node_tree
+    bsdf = nt.nodes.get("Principled BSDF")
+    if t is None:
+        nt.links.new(nt.nodes["tiles"].outputs["Color"], bsdf.inputs["Base Color"])
+        return
+    nt.nodes["image"].image = _state["surface_images"][kind][int(t["image"])]
+    m = nt.nodes["mapping"]
+    m.inputs["Scale"].default_value = (t["scale"][0], t["scale"][1], 1.0)
+    m.inputs["Location"].default_value = (t["offset"][0], t["offset"][1], 0.0)
+    nt.nodes["tint"].outputs["Color"].default_value = (*[_linear(x) for x in color], 1.0)
+    nt.links.new(nt.nodes["mul"].outputs["Vector"], bsdf.inputs["Base Color"])
+
+
+def _unit_square(name):
+    me = bpy.data.meshes.new(name)
+    me.from_pydata([(-0.5, -0.5, 0), (0.5, -0.5, 0), (0.5, 0.5, 0), (-0.5, 0.5, 0)], [], [(0, 1, 2, 3)])
+    me.update()
+    return me
+
+
+def _make_ground(scene, root):
+    me = _unit_square("synthgen_ground")
+    me.materials.append(_plane_material("synthgen_ground"))
     obj = bpy.data.objects.new("synthgen_ground", me)
     scene.collection.objects.link(obj)
     obj.parent = root
     obj.pass_index = 0
     obj.hide_render = True
     return obj
+
+
+def _wall(i):
+    """Wall object `i` (a unit square with its own material), created on first use."""
+    walls = _state["walls"]
+    while len(walls) <= i:
+        name = "synthgen_wall.%d" % len(walls)
+        me = _unit_square(name)
+        me.materials.append(_plane_material(name))
+        obj = bpy.data.objects.new(name, me)
+        _state["scene"].collection.objects.link(obj)
+        obj.parent = _state["root"]
+        obj.pass_index = 0
+        walls.append(obj)
+    return walls[i]
+
+
+def add_surface_image(kind, width, height, rgb):
+    """Image number len(list) of `kind` ("ground" or "walls"): sRGB bytes, top row first."""
+    images = _state["surface_images"].setdefault(kind, [])
+    px = np.frombuffer(rgb, dtype=np.uint8).reshape(height, width, 3)[::-1]
+    rgba = np.ones((height, width, 4), dtype=np.float32)
+    rgba[:, :, :3] = px / 255.0
+    img = bpy.data.images.new("synthgen_%s.%d" % (kind, len(images)), width, height, alpha=False)
+    img.pixels.foreach_set(rgba.ravel())
+    img.pack()
+    images.append(img)
 
 
 def add_primitive(model_index, name, positions, triangles, normals, colors, uvs, texture, material_json):
@@ -281,12 +355,31 @@ def render_frame(frame_json, exr_path):
     if g is not None:
         ground.matrix_parent_inverse = Matrix.Identity(4)
         ground.matrix_basis = _matrix(g["matrix"]) @ Matrix.Diagonal((g["size_m"], g["size_m"], 1.0, 1.0))
-        tiles = ground.material_slots[0].material.node_tree.nodes["tiles"]
+        mat = ground.material_slots[0].material
+        tiles = mat.node_tree.nodes["tiles"]
         col = [_linear(x) for x in g["color"]]
         k = g["texture_strength"]
         tiles.inputs["Color1"].default_value = (*[x * (1.0 - k) for x in col], 1.0)
         tiles.inputs["Color2"].default_value = (*[x * (1.0 + k) for x in col], 1.0)
         tiles.inputs["Scale"].default_value = g["size_m"] / 0.04
+        _use_image(mat, "ground", g.get("texture"), g["color"])
+
+    walls = f.get("walls", [])
+    for i, w in enumerate(walls):
+        obj = _wall(i)
+        obj.hide_render = False
+        obj.matrix_parent_inverse = Matrix.Identity(4)
+        obj.matrix_basis = _matrix(w["matrix"]) @ Matrix.Diagonal((w["width_m"], w["height_m"], 1.0, 1.0))
+        mat = obj.material_slots[0].material
+        if w.get("texture") is None:
+            # A plain wall: the checker with both colours equal.
+            tiles = mat.node_tree.nodes["tiles"]
+            col = (*[_linear(x) for x in w["color"]], 1.0)
+            tiles.inputs["Color1"].default_value = col
+            tiles.inputs["Color2"].default_value = col
+        _use_image(mat, "walls", w.get("texture"), w["color"])
+    for obj in _state["walls"][len(walls):]:
+        obj.hide_render = True
 
     scene.render.filepath = exr_path
     bpy.ops.render.render(write_still=True)

@@ -29,7 +29,9 @@ pub mod venv;
 
 pub use error::{Error, SETUP_HINT};
 #[cfg(feature = "blender")]
-pub use renderer::{frame_json, BlenderRenderer, WATTS_PER_IRRADIANCE_AT_1M};
+pub use renderer::{
+    frame_json, frame_json_with, BlenderRenderer, SurfaceAspects, WATTS_PER_IRRADIANCE_AT_1M,
+};
 
 use std::path::PathBuf;
 

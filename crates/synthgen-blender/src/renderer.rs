@@ -11,6 +11,7 @@ use std::thread::JoinHandle;
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 use synthgen_core::glam::{DMat3, DVec3};
+use synthgen_core::sample::SurfaceTexture;
 use synthgen_core::{FrameScene, Model, RenderedFrame, Texture};
 use synthgen_render::{CpuRenderer, Renderer};
 
@@ -47,6 +48,29 @@ pub struct BlenderRenderer {
     raster: CpuRenderer,
     scratch: PathBuf,
     options: BlenderOptions,
+    aspects: SurfaceAspects,
+}
+
+/// Height / width of each ground and wall image the renderer holds (in order), which the
+/// frame JSON needs to tile them as the raster does.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SurfaceAspects {
+    pub ground: Vec<f64>,
+    pub walls: Vec<f64>,
+}
+
+impl SurfaceAspects {
+    fn of(ground: &[Arc<Texture>], walls: &[Arc<Texture>]) -> SurfaceAspects {
+        let a = |v: &[Arc<Texture>]| {
+            v.iter()
+                .map(|t| f64::from(t.height) / f64::from(t.width.max(1)))
+                .collect()
+        };
+        SurfaceAspects {
+            ground: a(ground),
+            walls: a(walls),
+        }
+    }
 }
 
 impl BlenderRenderer {
@@ -54,6 +78,19 @@ impl BlenderRenderer {
     pub fn new(
         models: Vec<Model>,
         backgrounds: Vec<Arc<Texture>>,
+        options: BlenderOptions,
+    ) -> Result<Self, Error> {
+        Self::with_surfaces(models, backgrounds, Vec::new(), Vec::new(), options)
+    }
+
+    /// [`BlenderRenderer::new`] with the images frames with ground and wall textures pick
+    /// from (the same lists, in the same order, as the raster's
+    /// `CpuRenderer::with_surface_textures`).
+    pub fn with_surfaces(
+        models: Vec<Model>,
+        backgrounds: Vec<Arc<Texture>>,
+        ground: Vec<Arc<Texture>>,
+        walls: Vec<Arc<Texture>>,
         options: BlenderOptions,
     ) -> Result<Self, Error> {
         options.validate()?;
@@ -71,14 +108,18 @@ impl BlenderRenderer {
             source,
             path: scratch.clone(),
         })?;
-        let raster = CpuRenderer::new(models.clone(), backgrounds)?;
+        let raster = CpuRenderer::new(models.clone(), backgrounds)?
+            .with_surface_textures(&ground, &walls)?;
+        let aspects = SurfaceAspects::of(&ground, &walls);
 
         let (job_tx, job_rx) = channel::<Job>();
         let (ready_tx, ready_rx) = channel::<Result<(), Error>>();
         let settings = options.settings_json();
         let thread = std::thread::Builder::new()
             .name("blender".into())
-            .spawn(move || blender_thread(site, settings, models, ready_tx, job_rx))
+            .spawn(move || {
+                blender_thread(site, settings, models, [ground, walls], ready_tx, job_rx)
+            })
             .map_err(|e| Error::ThreadGone {
                 reason: format!("cannot start it: {e}"),
             })?;
@@ -100,6 +141,7 @@ impl BlenderRenderer {
             raster,
             scratch,
             options,
+            aspects,
         })
     }
 
@@ -136,7 +178,7 @@ impl BlenderRenderer {
                 reason: "the renderer is shutting down".into(),
             })?;
             tx.send(Job {
-                frame_json: frame_json(scene),
+                frame_json: frame_json_with(scene, &self.aspects),
                 exr_path: exr_path.clone(),
                 reply: reply_tx,
             })
@@ -217,11 +259,13 @@ fn blender_thread(
     site: PathBuf,
     settings: String,
     models: Vec<Model>,
+    surfaces: [Vec<Arc<Texture>>; 2],
     ready: Sender<Result<(), Error>>,
     jobs: Receiver<Job>,
 ) {
-    let module = Python::attach(|py| init(py, &site, &settings, &models));
+    let module = Python::attach(|py| init(py, &site, &settings, &models, &surfaces));
     drop(models);
+    drop(surfaces);
     let module = match module {
         Ok(m) => {
             let _ = ready.send(Ok(()));
@@ -251,6 +295,7 @@ fn init(
     site: &Path,
     settings: &str,
     models: &[Model],
+    surfaces: &[Vec<Arc<Texture>>; 2],
 ) -> Result<Py<PyModule>, Error> {
     let sys_path = py
         .import("sys")
@@ -280,6 +325,16 @@ fn init(
         .getattr("setup")
         .and_then(|f| f.call1((settings,)))
         .map_err(|e| py_error("setting up the scene", py, e))?;
+    let add_image = module
+        .getattr("add_surface_image")
+        .map_err(|e| py_error("setting up the scene", py, e))?;
+    for (kind, images) in ["ground", "walls"].iter().zip(surfaces) {
+        for t in images {
+            add_image
+                .call1((*kind, t.width, t.height, PyBytes::new(py, &t.rgb)))
+                .map_err(|e| py_error("adding a surface texture", py, e))?;
+        }
+    }
     let add = module
         .getattr("add_primitive")
         .map_err(|e| py_error("setting up the scene", py, e))?;
@@ -367,9 +422,37 @@ fn roughness(shininess: f32) -> f64 {
     (2.0 / (f64::from(shininess.max(0.0)) + 2.0)).sqrt().sqrt()
 }
 
-/// The frame for `render_frame` in blender/synthgen_scene.py, as JSON. Every pose is in the
-/// OpenCV camera frame; the camera's rotation is the one convention change.
+/// The frame for `render_frame` in blender/synthgen_scene.py, as JSON, for a renderer with
+/// no surface images (image textures are left out). Every pose is in the OpenCV camera
+/// frame; the camera's rotation is the one convention change.
 pub fn frame_json(scene: &FrameScene) -> String {
+    frame_json_with(scene, &SurfaceAspects::default())
+}
+
+/// The mapping of an image texture on a plane of `size_m` (x, y) for the script's mapping
+/// node: tiles per object unit (the plane mesh is a unit square scaled by its size) and the
+/// offset in tiles, y negated because Blender's image v runs from the bottom row up while
+/// the raster's rows run down. `null` when there is no texture or no image.
+fn texture_json(t: Option<&SurfaceTexture>, size_m: [f64; 2], aspects: &[f64]) -> String {
+    let Some(t) = t else {
+        return "null".into();
+    };
+    if aspects.is_empty() {
+        return "null".into();
+    }
+    let image = (t.image % aspects.len() as u64) as usize;
+    let a = aspects[image];
+    format!(
+        "{{\"image\": {image}, \"scale\": [{}, {}], \"offset\": [{}, {}]}}",
+        size_m[0] / t.scale_m,
+        -size_m[1] / (t.scale_m * a),
+        t.offset[0],
+        -t.offset[1]
+    )
+}
+
+/// [`frame_json`] for a renderer holding surface images with these aspect ratios.
+pub fn frame_json_with(scene: &FrameScene, aspects: &SurfaceAspects) -> String {
     let cam = BlenderCamera::from_intrinsics(&scene.intrinsics);
     let centre = if scene.objects.is_empty() {
         scene
@@ -430,17 +513,34 @@ pub fn frame_json(scene: &FrameScene) -> String {
         .collect();
     let ground = scene.ground.as_ref().map_or("null".to_string(), |g| {
         format!(
-            "{{\"matrix\": {}, \"size_m\": {}, \"color\": [{}, {}, {}], \"texture_strength\": {}}}",
+            "{{\"matrix\": {}, \"size_m\": {}, \"color\": [{}, {}, {}], \"texture_strength\": {}, \"texture\": {}}}",
             rows(&g.cam_from_plane.rotation, g.cam_from_plane.translation_m),
             g.size_m,
             g.color[0],
             g.color[1],
             g.color[2],
-            g.texture_strength
+            g.texture_strength,
+            texture_json(g.texture.as_ref(), [g.size_m; 2], &aspects.ground)
         )
     });
+    let walls: Vec<String> = scene
+        .walls
+        .iter()
+        .map(|w| {
+            format!(
+                "{{\"matrix\": {}, \"width_m\": {}, \"height_m\": {}, \"color\": [{}, {}, {}], \"texture\": {}}}",
+                rows(&w.cam_from_wall.rotation, w.cam_from_wall.translation_m),
+                w.width_m,
+                w.height_m,
+                w.color[0],
+                w.color[1],
+                w.color[2],
+                texture_json(w.texture.as_ref(), [w.width_m, w.height_m], &aspects.walls)
+            )
+        })
+        .collect();
     format!(
-        "{{\"seed\": {}, \"camera\": {{\"width\": {}, \"height\": {}, \"lens_mm\": {}, \"sensor_width_mm\": {}, \"shift_x\": {}, \"shift_y\": {}, \"y_scale\": {}, \"matrix_world\": {}}}, \"objects\": [{}], \"lights\": [{}], \"ambient\": {}, \"ground\": {}}}",
+        "{{\"seed\": {}, \"camera\": {{\"width\": {}, \"height\": {}, \"lens_mm\": {}, \"sensor_width_mm\": {}, \"shift_x\": {}, \"shift_y\": {}, \"y_scale\": {}, \"matrix_world\": {}}}, \"objects\": [{}], \"lights\": [{}], \"ambient\": {}, \"ground\": {}, \"walls\": [{}]}}",
         scene.frame_index,
         cam.width,
         cam.height,
@@ -453,6 +553,7 @@ pub fn frame_json(scene: &FrameScene) -> String {
         objects.join(", "),
         lights.join(", "),
         scene.ambient,
-        ground
+        ground,
+        walls.join(", ")
     )
 }

@@ -86,7 +86,11 @@ fn renderer() -> Option<&'static BlenderRenderer> {
             threads: 2,
             ..Default::default()
         };
-        Some(BlenderRenderer::new(models, vec![], options).unwrap())
+        // Ground images: wood, tiles; wall images: tiles (frames pick by index).
+        let tex = |n: &str| std::sync::Arc::new(synthgen_render::procedural::texture(n).unwrap());
+        let ground = vec![tex("wood"), tex("tiles")];
+        let walls = vec![tex("tiles")];
+        Some(BlenderRenderer::with_surfaces(models, vec![], ground, walls, options).unwrap())
     })
     .as_ref()
 }
@@ -438,4 +442,109 @@ fn distractors_render_in_cycles_without_an_instance_id() {
     );
     let (iou, _) = iou(&b.instance, &r.instance, 1);
     assert!(iou > 0.9, "visible target IoU with the raster {iou}");
+}
+
+/// Pearson correlation of two equally long series.
+fn correlation(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len() as f64;
+    let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for (x, y) in a.iter().zip(b) {
+        sab += (x - ma) * (y - mb);
+        saa += (x - ma) * (x - ma);
+        sbb += (y - mb) * (y - mb);
+    }
+    sab / (saa * sbb).sqrt()
+}
+
+#[test]
+fn textured_ground_and_walls_match_the_raster_in_cycles() {
+    use synthgen_core::sample::{GroundInstance, SurfaceTexture, WallInstance};
+    let renderer = renderer_or_skip!();
+    let k = small_linemod();
+    // A floor seen at 45 degrees (its z axis towards the camera) and a wall facing the
+    // camera 0.75 m away over the left half; both tiled with the 4 x 4 tiles texture.
+    let ground = GroundInstance {
+        cam_from_plane: Pose::new(
+            DMat3::from_rotation_x(135f64.to_radians()),
+            DVec3::new(0.0, 0.0, 0.7),
+        ),
+        size_m: 3.0,
+        color: [1.0; 3],
+        texture_strength: 0.3,
+        texture_seed: 1,
+        texture: Some(SurfaceTexture {
+            image: 1,
+            offset: [0.3, 0.6],
+            scale_m: 0.3,
+        }),
+    };
+    let wall = WallInstance {
+        cam_from_wall: Pose::new(
+            DMat3::from_cols(DVec3::X, -DVec3::Y, -DVec3::Z),
+            DVec3::new(-0.5, 0.0, 0.75),
+        ),
+        width_m: 1.0,
+        height_m: 2.0,
+        color: [0.9, 0.8, 0.7],
+        texture: Some(SurfaceTexture {
+            image: 0,
+            offset: [0.1, 0.2],
+            scale_m: 0.5,
+        }),
+    };
+    let scene = FrameScene {
+        frame_index: 0,
+        intrinsics: k,
+        world_from_cam: Pose::IDENTITY,
+        objects: vec![],
+        distractors: vec![],
+        lights: vec![],
+        ambient: 1.0,
+        ground: Some(ground),
+        walls: vec![wall],
+        background: BackgroundSample {
+            kind: BackgroundKind::Color,
+            color: [0.0; 3],
+            seed: 0,
+        },
+    };
+    let (b, r) = renderer.render_with_raster(&scene).unwrap();
+    assert!(b.instance.iter().all(|&i| i == 0));
+    let w = k.width as usize;
+    let (mut wall_px, mut ground_px) = (Vec::new(), Vec::new());
+    let mut depth_diffs = Vec::new();
+    for p in 0..b.depth_m.len() {
+        if r.depth_m[p] == 0.0 {
+            continue;
+        }
+        depth_diffs.push(f64::from((b.depth_m[p] - r.depth_m[p]).abs()));
+        let x = p % w;
+        // Away from the wall's edge (x = 0 in the camera frame, column cx).
+        let edge = (x as f64 - k.cx).abs() < 3.0;
+        if (r.depth_m[p] - 0.75).abs() < 1e-4 && !edge {
+            wall_px.push(p);
+        } else if !edge {
+            ground_px.push(p);
+        }
+    }
+    let med = median(depth_diffs);
+    assert!(med < 2e-3, "median depth difference {med} m");
+    assert!(
+        wall_px.len() > 1500 && ground_px.len() > 1500,
+        "{} wall and {} ground pixels",
+        wall_px.len(),
+        ground_px.len()
+    );
+    // The same image, tiling, offset and orientation: the luminance of Cycles and the
+    // raster correlate pixel for pixel on both planes.
+    let lum = |f: &RenderedFrame, p: usize| {
+        let c = &f.rgb[p * 3..p * 3 + 3];
+        0.3 * f64::from(c[0]) + 0.6 * f64::from(c[1]) + 0.1 * f64::from(c[2])
+    };
+    for (name, px) in [("wall", &wall_px), ("ground", &ground_px)] {
+        let (lb, lr): (Vec<f64>, Vec<f64>) = px.iter().map(|&p| (lum(&b, p), lum(&r, p))).unzip();
+        let c = correlation(&lb, &lr);
+        assert!(c > 0.6, "{name}: luminance correlation {c}");
+    }
 }

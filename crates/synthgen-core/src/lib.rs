@@ -12,6 +12,7 @@
 
 pub mod annotate;
 pub mod atomic;
+pub mod bin_spec;
 pub mod camera;
 pub mod color;
 pub mod distractor;

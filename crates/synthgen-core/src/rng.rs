@@ -22,6 +22,8 @@ pub enum Stream {
     GroundTexture = 9,
     /// Walls: count, distance, height, colour, texture (`[walls]`).
     Walls = 10,
+    /// The bin's colour (`[bin]`).
+    Bin = 11,
 }
 
 /// SplitMix64 finalizer: a bijective 64-bit mix.

@@ -8,6 +8,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+use crate::bin_spec::bin_instances;
 use crate::camera::Intrinsics;
 use crate::color::kelvin_to_rgb;
 use crate::distractor::{Chosen, DistractorPool};
@@ -211,6 +212,8 @@ pub struct SceneSampler {
     settle: Option<SettleHook>,
     view_check: Option<ViewHook>,
     distractors: DistractorPool,
+    /// Model index of the bin's x walls (y walls at the next index), for `[bin]`.
+    bin_models: Option<usize>,
     /// Frames whose physics placement failed and fell back to the footprint poses, with why.
     fallbacks: Arc<Mutex<Vec<(u64, String)>>>,
 }
@@ -268,6 +271,7 @@ impl SceneSampler {
             settle: None,
             view_check: None,
             distractors: DistractorPool::default(),
+            bin_models: None,
             fallbacks: Arc::default(),
         })
     }
@@ -289,6 +293,13 @@ impl SceneSampler {
     /// renderer's model list, after the targets' models).
     pub fn with_distractors(mut self, pool: DistractorPool) -> SceneSampler {
         self.distractors = pool;
+        self
+    }
+
+    /// Where the renderer holds the `[bin]` wall models (`BinSpec::models`, in order):
+    /// `first` and `first + 1`.
+    pub fn with_bin_models(mut self, first: usize) -> SceneSampler {
+        self.bin_models = Some(first);
         self
     }
 
@@ -366,7 +377,17 @@ impl SceneSampler {
                 }
             })
             .collect();
-        let world_distractors: Vec<ObjectInstance> = chosen
+        let bin = if spec.bin.enabled {
+            let Some(first) = self.bin_models else {
+                return Err(Error::InvalidSpec(
+                    "bin.enabled but the sampler was given no bin models (with_bin_models)".into(),
+                ));
+            };
+            bin_instances(spec, self.seed, frame_index, first)
+        } else {
+            Vec::new()
+        };
+        let mut world_distractors: Vec<ObjectInstance> = chosen
             .iter()
             .zip(world_from_distractors)
             .map(|(c, w)| {
@@ -381,6 +402,8 @@ impl SceneSampler {
                 }
             })
             .collect();
+        // The bin's walls: rendered and occluding like distractors, after them.
+        world_distractors.extend(bin);
 
         let center = scene_center(world_from_objs);
         let (world_lights, ambient) = self.sample_lights(frame_index, center);
@@ -637,6 +660,13 @@ impl SceneSampler {
                 rng.gen_range(-0.5..=0.5) * area[0],
                 rng.gen_range(-0.5..=0.5) * area[1],
             ];
+            // With a bin, the footprint must lie inside it (so nothing starts in a wall).
+            let [bx, by] = self.spec.bin.size_m;
+            if self.spec.bin.enabled
+                && (center[0].abs() + radius > 0.5 * bx || center[1].abs() + radius > 0.5 * by)
+            {
+                continue;
+            }
             let clear = placed.iter().all(|f| {
                 let d =
                     ((f.center[0] - center[0]).powi(2) + (f.center[1] - center[1]).powi(2)).sqrt();

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+pub use crate::bin_spec::BinSpec;
 use crate::camera::Intrinsics;
 pub use crate::distractor_spec::{DistractorShape, DistractorSpec};
 pub use crate::sensor_spec::{D455Spec, DepthModel, RgbNoiseSpec, SensorSpec, TofSpec};
@@ -30,6 +31,8 @@ pub struct SceneSpec {
     pub distractors: DistractorSpec,
     /// Vertical textured planes around the scene (a square room). Default: none.
     pub walls: WallSpec,
+    /// An open box around the placement area (physics and rendering). Default: none.
+    pub bin: BinSpec,
     /// Objects declared in the spec (in addition to `--objects` on the command line).
     pub objects: Vec<ObjectSpec>,
 }
@@ -508,6 +511,7 @@ impl SceneSpec {
         }
         self.validate_scene_extras()?;
         self.validate_surfaces()?;
+        self.bin.validate()?;
         self.sensor.validate()?;
         if self.background.kind == BackgroundKind::Images && self.background.images_dir.is_none() {
             return Err(Error::InvalidSpec(

@@ -1,6 +1,6 @@
-//! Physics placement for synthgen: objects dropped onto the plane z = 0 settle under gravity
-//! (rapier3d, convex-hull colliders from the models' extreme points) and the resting poses
-//! are used. Deterministic: rapier's `enhanced-determinism` feature and a fixed step count
+//! Physics placement for synthgen: objects dropped onto the plane z = 0 (and into the
+//! `[bin]`'s walls, fixed cuboids, when there is one) settle under gravity (rapier3d,
+//! convex-hull colliders from the models' extreme points) and the resting poses are used. Deterministic: rapier's `enhanced-determinism` feature and a fixed step count
 //! per scene make the result a pure function of the drop poses.
 //!
 //! ```
@@ -27,6 +27,7 @@
 use std::collections::BTreeMap;
 
 use rapier3d::prelude::*;
+use synthgen_core::bin_spec::BinWall;
 use synthgen_core::glam::{DMat3, DQuat, DVec3};
 use synthgen_core::sample::SceneObject;
 use synthgen_core::scene::PhysicsSpec;
@@ -46,6 +47,8 @@ pub struct PhysicsSettler {
     spec: PhysicsSpec,
     /// Collider shape per `SceneObject::model_index`.
     hulls: BTreeMap<usize, SharedShape>,
+    /// Static boxes besides the ground (the `[bin]` walls).
+    walls: Vec<BinWall>,
 }
 
 /// Half size of the ground slab, metres: far larger than any placement area.
@@ -68,7 +71,18 @@ impl PhysicsSettler {
             })?;
             hulls.insert(o.model_index, hull);
         }
-        Ok(PhysicsSettler { spec, hulls })
+        Ok(PhysicsSettler {
+            spec,
+            hulls,
+            walls: Vec::new(),
+        })
+    }
+
+    /// Adds fixed cuboid colliders for `walls` (`BinSpec::walls`), so that objects settle
+    /// inside the bin.
+    pub fn with_bin(mut self, walls: &[BinWall]) -> PhysicsSettler {
+        self.walls = walls.to_vec();
+        self
     }
 
     /// The collider shape of a model, for distance checks.
@@ -94,6 +108,16 @@ impl PhysicsSettler {
                 .friction(s.friction as f32)
                 .restitution(s.restitution as f32),
         );
+        for w in &self.walls {
+            let (c, h) = (w.center_m, w.size_m * 0.5);
+            world.insert(
+                RigidBodyBuilder::fixed()
+                    .translation(Vector::new(c.x as f32, c.y as f32, c.z as f32)),
+                ColliderBuilder::cuboid(h.x as f32, h.y as f32, h.z as f32)
+                    .friction(s.friction as f32)
+                    .restitution(s.restitution as f32),
+            );
+        }
         let mut handles = Vec::with_capacity(objects.len());
         for (o, p) in objects.iter().zip(world_from_objs) {
             let shape = self

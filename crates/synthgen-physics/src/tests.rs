@@ -185,3 +185,73 @@ fn physics_mode_without_an_engine_is_an_error() {
         .unwrap_err();
     assert!(e.to_string().contains("physics"), "{e}");
 }
+
+#[test]
+fn objects_settle_inside_the_bin_and_above_its_floor() {
+    let mut spec = SceneSpec::default();
+    spec.placement.mode = PlacementMode::Physics;
+    spec.placement.orientation = Orientation::Random;
+    spec.placement.area_m = [0.3, 0.24];
+    spec.placement.min_gap_m = 0.0;
+    spec.placement.max_tries = 400;
+    spec.placement.physics.drop_height_m = [0.05, 0.15];
+    spec.bin.enabled = true;
+    spec.bin.size_m = [0.45, 0.38];
+    let objs = objects();
+    let walls = spec.bin.walls();
+    let settler = Arc::new(
+        PhysicsSettler::new(&objs, spec.placement.physics.clone())
+            .unwrap()
+            .with_bin(&walls),
+    );
+    let [bx, by] = spec.bin.size_m;
+    let s = SceneSampler::new(spec, objs.clone(), 11)
+        .unwrap()
+        .with_settle(settler)
+        .with_bin_models(3);
+    let tol = 0.002;
+    let mut near_wall = 0;
+    for f in 0..10 {
+        let frame = s.sample(f).unwrap();
+        // The four walls are unannotated instances of the two wall models.
+        assert_eq!(frame.distractors.len(), 4);
+        assert!(frame
+            .distractors
+            .iter()
+            .all(|d| d.obj_id == 0 && d.model_index >= 3));
+        for (o, w) in objs.iter().zip(world_poses(&s, f)) {
+            let pts: Vec<DVec3> = o
+                .support_points_m
+                .iter()
+                .map(|p| w.transform_point(p.as_dvec3()))
+                .collect();
+            for p in &pts {
+                assert!(
+                    p.z > -tol,
+                    "frame {f}: {} below the floor ({} m)",
+                    o.name,
+                    p.z
+                );
+                assert!(
+                    p.x.abs() < bx / 2.0 + tol && p.y.abs() < by / 2.0 + tol,
+                    "frame {f}: {} outside the bin at ({}, {})",
+                    o.name,
+                    p.x,
+                    p.y
+                );
+            }
+            let reach = pts
+                .iter()
+                .map(|p| (bx / 2.0 - p.x.abs()).min(by / 2.0 - p.y.abs()))
+                .fold(f64::INFINITY, f64::min);
+            near_wall += usize::from(reach < 0.01);
+        }
+    }
+    assert!(
+        s.physics_fallbacks().is_empty(),
+        "{:?}",
+        s.physics_fallbacks()
+    );
+    // The walls matter: some objects end against them.
+    assert!(near_wall > 0, "no object came within 1 cm of a wall");
+}

@@ -33,10 +33,7 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     check_backend(&args)?;
     render_resume::check_supported(&args)?;
     let frame_range = render_resume::frame_range(&args)?;
-    let mut spec = build_spec(&args)?;
-    if args.backend == Backend::Blender {
-        render_extras::drop_surfaces_for_blender(&mut spec, printer);
-    }
+    let spec = build_spec(&args)?;
     let sources = collect_sources(&args, &spec)?;
     if !args.resume {
         check_out_dir(&args.out, args.force)?;
@@ -57,6 +54,12 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     let n_targets = models.len();
     // Distractor models go after the targets' in the renderer's list.
     let distractors = render_extras::distractor_pool(&spec, &mut models, printer)?;
+    // The bin's two wall models go last.
+    let bin_models = spec.bin.enabled.then(|| {
+        let first = models.len();
+        models.extend(spec.bin.models());
+        first
+    });
 
     let backgrounds = load_backgrounds(&spec, printer)?;
     let (ground_textures, wall_textures) = render_extras::surface_textures(&spec, printer)?;
@@ -77,6 +80,9 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
 
     let mut sampler =
         SceneSampler::new(spec.clone(), scene_objects, args.seed)?.with_distractors(distractors);
+    if let Some(first) = bin_models {
+        sampler = sampler.with_bin_models(first);
+    }
     if spec.placement.mode == PlacementMode::Physics {
         let p = sampler.distractor_pool();
         let all: Vec<SceneObject> = sampler
@@ -86,7 +92,12 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
             .chain(&p.meshes)
             .cloned()
             .collect();
-        let settler = synthgen_physics::PhysicsSettler::new(&all, spec.placement.physics.clone())?;
+        let settler = synthgen_physics::PhysicsSettler::new(&all, spec.placement.physics.clone())?
+            .with_bin(&if spec.bin.enabled {
+                spec.bin.walls()
+            } else {
+                Vec::new()
+            });
         sampler = sampler.with_settle(Arc::new(settler));
     }
     // The summary needs only the names: the meshes move into the renderer, not a copy.
@@ -106,11 +117,13 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
             if spec.camera.min_visib_fract > 0.0 {
                 // The raster's depth-only pass: the Blender backend's alone depths come from
                 // the same raster.
-                let cpu = CpuRenderer::new(models.clone(), Vec::new())?;
+                let cpu = CpuRenderer::new(models.clone(), Vec::new())?
+                    .with_surface_textures(&ground_textures, &wall_textures)?;
                 let check = ViewChecker::new(cpu, args.visib_delta_m as f32);
                 sampler = sampler.with_view_check(Arc::new(check));
             }
-            blender_renderer(&args, models, backgrounds, printer)?
+            let surfaces = [ground_textures, wall_textures];
+            blender_renderer(&args, models, backgrounds, surfaces, printer)?
         }
     };
     // Applied after the annotations, so masks and GT come from the clean render.
@@ -330,6 +343,7 @@ fn blender_renderer(
     args: &RenderArgs,
     models: Vec<Model>,
     backgrounds: Vec<Arc<Texture>>,
+    surfaces: [Vec<Arc<Texture>>; 2],
     printer: &Printer,
 ) -> Result<Box<dyn Renderer + Sync>> {
     use synthgen_blender::{BlenderOptions, BlenderRenderer, Error};
@@ -345,7 +359,8 @@ fn blender_renderer(
         options.samples,
         if options.denoise { ", denoised" } else { "" }
     ));
-    match BlenderRenderer::new(models, backgrounds, options) {
+    let [ground, walls] = surfaces;
+    match BlenderRenderer::with_surfaces(models, backgrounds, ground, walls, options) {
         Ok(r) => Ok(Box::new(r)),
         Err(e @ Error::BpyNotFound { .. }) => {
             Err(user_error(e.to_string(), synthgen_blender::SETUP_HINT))
@@ -362,6 +377,7 @@ fn blender_renderer(
     _args: &RenderArgs,
     _models: Vec<Model>,
     _backgrounds: Vec<Arc<Texture>>,
+    _surfaces: [Vec<Arc<Texture>>; 2],
     _printer: &Printer,
 ) -> Result<Box<dyn Renderer + Sync>> {
     // check_backend refuses --backend blender first in this build.

@@ -64,10 +64,7 @@ type Images = Vec<Arc<Texture>>;
 /// The images of `ground.texture_dir` and `walls.texture_dir` (each empty when unset),
 /// decoded once. A missing or empty folder, or a file in it that does not decode, is an
 /// error naming it.
-pub fn surface_textures(
-    spec: &SceneSpec,
-    printer: &Printer,
-) -> Result<(Images, Images)> {
+pub fn surface_textures(spec: &SceneSpec, printer: &Printer) -> Result<(Images, Images)> {
     let load = |what: &str, dir: &Option<PathBuf>| -> Result<Images> {
         let Some(dir) = dir else {
             return Ok(Vec::new());
@@ -100,22 +97,4 @@ pub fn surface_textures(
         load("ground", &spec.ground.texture_dir)?,
         load("walls", &spec.walls.texture_dir)?,
     ))
-}
-
-/// The Blender backend does not draw image textures on the ground nor walls yet: the spec
-/// drops them with a warning (so the manifest records what was rendered).
-pub fn drop_surfaces_for_blender(spec: &mut SceneSpec, printer: &Printer) {
-    if let Some(dir) = spec.ground.texture_dir.take() {
-        printer.warning(format!(
-            "the blender backend ignores ground.texture_dir (Cycles draws the plain or procedural ground): {}",
-            dir.display()
-        ));
-    }
-    if spec.walls.count[1] > 0 {
-        printer.warning(
-            "the blender backend does not render [walls] yet: rendering without walls (walls.count set to [0, 0])",
-        );
-        spec.walls.count = [0, 0];
-        spec.walls.texture_dir = None;
-    }
 }
