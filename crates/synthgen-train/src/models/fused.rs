@@ -153,8 +153,13 @@ impl CustomOp3 for DenseRelu {
         grad: &Tensor,
     ) -> Result<(Option<Tensor>, Option<Tensor>, Option<Tensor>)> {
         let dz = grad.contiguous()?.apply_op2_no_bwd(res, &ReluMask)?;
-        let dx = dz.matmul(&w.detach())?;
-        let dw = dz.t()?.matmul(&x.detach())?;
+        // The two products are independent; run them side by side (the tall-skinny dW product
+        // does not keep both cores busy on its own).
+        let (dx, dw) = rayon::join(
+            || dz.matmul(&w.detach()),
+            || dz.t().and_then(|t| t.matmul(&x.detach())),
+        );
+        let (dx, dw) = (dx?, dw?);
         let db = dz.apply_op1_no_bwd(&GroupSum {
             groups: bias.dim(0)?,
         })?;
