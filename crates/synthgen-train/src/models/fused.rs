@@ -1,4 +1,4 @@
-//! Fused CPU kernels for the per-point layers: `relu(z + bias)` and the max-pool over points.
+//! Fused CPU kernels for the per-point layers: `relu(x·Wᵀ + b)` and the max-pool over points.
 //!
 //! Built from candle's primitives, one layer `relu(x·Wᵀ + b)` leaves four (rows × C) tensors in
 //! the graph (product, broadcast bias, sum, relu) and its backward pass allocates and fills about
@@ -8,8 +8,9 @@
 //! Here a whole layer `relu(x·Wᵀ + b)` ([`dense_relu`]) is one graph node: its forward pass
 //! adds the bias and clamps in place on candle's matmul output, its backward pass masks the
 //! gradient once (`grad` where the output is positive) and takes `dx`, `dW` and the bias
-//! gradient (a column sum) from that; the max-pool likewise. Only the CPU with f32 takes these paths; other devices and dtypes compose candle's
-//! own ops ([`bias_relu`], [`group_max`] choose), so the results agree to rounding.
+//! gradient (a column sum) from that; the max-pool ([`group_max`]) likewise. Only the CPU with
+//! f32 takes these paths; other devices and dtypes compose candle's own ops, so the results
+//! agree to rounding.
 
 use candle_core::backend::BackendStorage;
 use candle_core::{
@@ -20,27 +21,10 @@ use rayon::prelude::*;
 /// Rows per parallel chunk in the element-wise kernels.
 const CHUNK_ROWS: usize = 512;
 
-/// `relu(z + bias[group])`. `z`: (rows, C); `bias`: (G, C) with rows a multiple of G: row r
-/// belongs to group r / (rows / G) (G = 1: one bias for every row; G = clouds: a per-cloud
-/// term, as TNet's global feature).
-pub fn bias_relu(z: &Tensor, bias: &Tensor) -> Result<Tensor> {
-    let (rows, c) = z.dims2()?;
-    let (g, cb) = bias.dims2()?;
-    if cb != c || g == 0 || rows % g != 0 {
-        candle_core::bail!(
-            "bias_relu: z {:?} and bias {:?} do not fit",
-            z.dims(),
-            bias.dims()
-        );
-    }
-    if fused_path(z) && bias.dtype() == DType::F32 {
-        z.contiguous()?.apply_op2(&bias.contiguous()?, BiasRelu)
-    } else {
-        composed_bias_relu(z, bias)
-    }
-}
-
-/// [`bias_relu`] from candle's own ops (other devices and dtypes; the tests' reference).
+/// `relu(z + bias[group])` from candle's own ops, for `z` (rows, C) and `bias` (G, C) with rows
+/// a multiple of G: row r belongs to group r / (rows / G) (G = 1: one bias for every row;
+/// G = clouds: a per-cloud term, as TNet's global feature). The fallback of [`dense_relu`] on
+/// other devices and dtypes, and the tests' reference.
 fn composed_bias_relu(z: &Tensor, bias: &Tensor) -> Result<Tensor> {
     let (rows, c) = z.dims2()?;
     let g = bias.dim(0)?;
@@ -51,8 +35,9 @@ fn composed_bias_relu(z: &Tensor, bias: &Tensor) -> Result<Tensor> {
 }
 
 /// `relu(x·Wᵀ + bias[group])` as one graph node: `x` (rows, in), `w` (out, in), `bias`
-/// (G, out) as in [`bias_relu`]. Its backward pass computes `dx`, `dW` and the bias gradient
-/// from one masked gradient, so no (rows × out) pre-activation is kept or accumulated.
+/// (G, out), one row per equal, contiguous group of rows (G = 1: one bias for every row).
+/// Its backward pass computes `dx`, `dW` and the bias gradient from one masked gradient, so
+/// no (rows × out) pre-activation is kept or accumulated.
 pub fn dense_relu(x: &Tensor, w: &Tensor, bias: &Tensor) -> Result<Tensor> {
     let (rows, _) = x.dims2()?;
     let (out, _) = w.dims2()?;
@@ -69,7 +54,7 @@ pub fn dense_relu(x: &Tensor, w: &Tensor, bias: &Tensor) -> Result<Tensor> {
         x.contiguous()?
             .apply_op3(&w.contiguous()?, &bias.contiguous()?, DenseRelu)
     } else {
-        bias_relu(&x.matmul(&w.t()?)?, bias)
+        composed_bias_relu(&x.matmul(&w.t()?)?, bias)
     }
 }
 
@@ -164,42 +149,6 @@ impl CustomOp3 for DenseRelu {
             groups: bias.dim(0)?,
         })?;
         Ok((Some(dx), Some(dw), Some(db)))
-    }
-}
-
-struct BiasRelu;
-
-impl CustomOp2 for BiasRelu {
-    fn name(&self) -> &'static str {
-        "bias-relu"
-    }
-
-    fn cpu_fwd(
-        &self,
-        s1: &CpuStorage,
-        l1: &Layout,
-        s2: &CpuStorage,
-        l2: &Layout,
-    ) -> Result<(CpuStorage, Shape)> {
-        let mut z = f32_slice(s1, l1, self.name())?.to_vec();
-        let bias = f32_slice(s2, l2, self.name())?;
-        let (rows, c) = l1.shape().dims2()?;
-        add_bias_relu_in_place(&mut z, bias, c, rows / l2.shape().dims2()?.0);
-        Ok((CpuStorage::F32(z), Shape::from((rows, c))))
-    }
-
-    fn bwd(
-        &self,
-        _z: &Tensor,
-        bias: &Tensor,
-        res: &Tensor,
-        grad: &Tensor,
-    ) -> Result<(Option<Tensor>, Option<Tensor>)> {
-        let dz = grad.contiguous()?.apply_op2_no_bwd(res, &ReluMask)?;
-        let db = dz.apply_op1_no_bwd(&GroupSum {
-            groups: bias.dim(0)?,
-        })?;
-        Ok((Some(dz), Some(db)))
     }
 }
 
@@ -414,24 +363,11 @@ mod tests {
         }
     }
 
-    /// Values and gradients equal candle's `relu(broadcast_add)`, for one bias and per group,
-    /// across chunk boundaries (rows > CHUNK_ROWS, groups not aligned to chunks).
-    #[test]
-    fn bias_relu_matches_candle_ops() {
-        for (rows, groups) in [(1300, 1), (1300, 13), (6, 3)] {
-            let z = random((rows, 7), 1);
-            let b = random((groups, 7), 2);
-            let fused = bias_relu(&z, &b).unwrap();
-            let plain = composed_bias_relu(&z, &b).unwrap();
-            assert_eq!(max_diff(&fused, &plain), 0.0);
-            let what = format!("rows {rows} groups {groups}");
-            assert_gradients_close(&fused, &plain, &[&z, &b], 1e-6, &what);
-        }
-    }
-
+    /// Values and gradients equal candle's matmul + `relu(broadcast_add)`, for one bias and per
+    /// group, across chunk boundaries (rows > CHUNK_ROWS, groups not aligned to chunks).
     #[test]
     fn dense_relu_matches_candle_ops() {
-        for (rows, groups) in [(1300, 1), (1300, 13)] {
+        for (rows, groups) in [(1300, 1), (1300, 13), (6, 3)] {
             let x = random((rows, 9), 4);
             let w = random((7, 9), 5);
             let b = random((groups, 7), 6);
@@ -457,8 +393,9 @@ mod tests {
     #[test]
     fn shapes_that_do_not_fit_are_errors() {
         let z = random((6, 4), 1);
-        assert!(bias_relu(&z, &random((4, 4), 2)).is_err());
-        assert!(bias_relu(&z, &random((1, 3), 2)).is_err());
+        let w = random((4, 4), 3);
+        assert!(dense_relu(&z, &w, &random((4, 4), 2)).is_err());
+        assert!(dense_relu(&z, &w, &random((1, 3), 2)).is_err());
         assert!(group_max(&z, 4).is_err());
     }
 }
