@@ -28,7 +28,18 @@ fn tiny_dataset(dir: &Path) -> PathBuf {
     out
 }
 
-fn train(data: &Path, out: &Path, epochs: &str, extra: &[&str]) -> std::process::Output {
+/// The full model at the tiny sizes these tests train with.
+pub(crate) const FULL_MODEL_ARGS: [&str; 6] = [
+    "--model",
+    "full",
+    "--crop-size",
+    "16",
+    "--loss-points",
+    "20",
+];
+
+/// `synthgen train` with tiny settings (batch 4, 64 points, width 16, seed 1).
+pub(crate) fn train(data: &Path, out: &Path, epochs: &str, extra: &[&str]) -> std::process::Output {
     run(synthgen()
         .args(["train", "-q", "--data"])
         .arg(data)
@@ -265,15 +276,10 @@ fn full_model_trains_from_tnet_and_evaluates_with_stability() {
         &full,
         "2",
         &[
-            "--model",
-            "full",
-            "--crop-size",
-            "16",
-            "--loss-points",
-            "20",
-            "--init",
-            tnet.join("model.safetensors").to_str().unwrap(),
-        ],
+            &FULL_MODEL_ARGS[..],
+            &["--init", tnet.join("model.safetensors").to_str().unwrap()],
+        ]
+        .concat(),
     );
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(
@@ -341,14 +347,7 @@ fn no_symmetric_loss_is_recorded_and_kept_on_resume() {
     let dir = tempfile::tempdir().unwrap();
     let data = tiny_dataset(dir.path());
     let out = dir.path().join("plain");
-    let full = [
-        "--model",
-        "full",
-        "--crop-size",
-        "16",
-        "--loss-points",
-        "20",
-    ];
+    let full = FULL_MODEL_ARGS;
     let o = train(
         &data,
         &out,

@@ -7,6 +7,7 @@ use synthgen_dataset::source::open_source;
 
 use crate::common::{repo_root, run, stderr, synthgen};
 use crate::render::write_box_ply;
+use crate::train::FULL_MODEL_ARGS;
 
 /// Renders 8 small driller frames in the Linemod layout into `dir/lm` and converts them to BOP
 /// in `dir/bop`.
@@ -37,27 +38,9 @@ fn driller_both_layouts(dir: &Path) -> (PathBuf, PathBuf) {
     (lm, bop)
 }
 
+/// One epoch of `synthgen train` with the tiny settings of the train tests.
 fn train(data: &Path, out: &Path, extra: &[&str]) {
-    let o = run(synthgen()
-        .args(["train", "-q", "--data"])
-        .arg(data)
-        .args([
-            "--epochs",
-            "1",
-            "--batch",
-            "4",
-            "--points",
-            "64",
-            "--width",
-            "16",
-            "--seed",
-            "1",
-            "--val-fraction",
-            "0.25",
-            "--out",
-        ])
-        .arg(out)
-        .args(extra));
+    let o = crate::train::train(data, out, "1", extra);
     assert!(o.status.success(), "{}", stderr(&o));
 }
 
@@ -108,20 +91,7 @@ fn linemod_and_its_bop_conversion_train_and_evaluate_alike() {
     let dir = tempfile::tempdir().unwrap();
     let (lm, bop) = driller_both_layouts(dir.path());
     let timing = ["seconds"];
-    for (model, extra) in [
-        ("tnet", &[][..]),
-        (
-            "full",
-            &[
-                "--model",
-                "full",
-                "--crop-size",
-                "16",
-                "--loss-points",
-                "20",
-            ][..],
-        ),
-    ] {
+    for (model, extra) in [("tnet", &[][..]), ("full", &FULL_MODEL_ARGS[..])] {
         let run_lm = dir.path().join(format!("{model}_lm"));
         let run_bop = dir.path().join(format!("{model}_bop"));
         train(&lm, &run_lm, extra);
