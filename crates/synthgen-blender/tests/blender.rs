@@ -11,8 +11,7 @@ use std::sync::OnceLock;
 use synthgen_blender::venv::{bpy_site_packages, resolve_venv};
 use synthgen_blender::{BlenderOptions, BlenderRenderer};
 use synthgen_core::glam::{DMat3, DVec3, Vec3};
-use synthgen_core::sample::{BackgroundSample, SceneObject};
-use synthgen_core::scene::BackgroundKind;
+use synthgen_core::sample::SceneObject;
 use synthgen_core::{FrameScene, Intrinsics, Model, ObjectInstance, Pose, RenderedFrame};
 use synthgen_core::{SceneSampler, SceneSpec};
 
@@ -232,11 +231,10 @@ fn camera_convention_puts_a_box_where_opencv_projects_it() {
         cy: 44.0,
     };
     let centre = DVec3::new(-0.06, -0.04, 0.6);
-    let scene = FrameScene {
-        frame_index: 0,
-        intrinsics: k,
-        world_from_cam: Pose::IDENTITY,
-        objects: vec![ObjectInstance {
+    let scene = FrameScene::bare(
+        0,
+        k,
+        vec![ObjectInstance {
             model_index: BOX,
             obj_id: 2,
             cam_from_obj: Pose::new(DMat3::from_rotation_y(0.3), centre),
@@ -246,17 +244,7 @@ fn camera_convention_puts_a_box_where_opencv_projects_it() {
             tint: [1.0; 3],
             hue_deg: 0.0,
         }],
-        distractors: vec![],
-        lights: vec![],
-        ambient: 1.0,
-        ground: None,
-        walls: vec![],
-        background: BackgroundSample {
-            kind: BackgroundKind::Color,
-            color: [0.0; 3],
-            seed: 0,
-        },
-    };
+    );
     let (b, r) = renderer.render_with_raster(&scene).unwrap();
     let (mut sx, mut sy, mut n) = (0.0, 0.0, 0.0);
     for (p, &id) in b.instance.iter().enumerate() {
@@ -411,20 +399,8 @@ fn distractors_render_in_cycles_without_an_instance_id() {
         )
     };
     let scene = FrameScene {
-        frame_index: 0,
-        intrinsics: k,
-        world_from_cam: Pose::IDENTITY,
-        objects: vec![target],
         distractors: vec![distractor],
-        lights: vec![],
-        ambient: 1.0,
-        ground: None,
-        walls: vec![],
-        background: BackgroundSample {
-            kind: BackgroundKind::Color,
-            color: [0.0; 3],
-            seed: 0,
-        },
+        ..FrameScene::bare(0, k, vec![target])
     };
     let (b, r) = renderer.render_with_raster(&scene).unwrap();
     assert!(b.instance.iter().all(|&i| i <= 1));
@@ -494,20 +470,9 @@ fn textured_ground_and_walls_match_the_raster_in_cycles() {
         }),
     };
     let scene = FrameScene {
-        frame_index: 0,
-        intrinsics: k,
-        world_from_cam: Pose::IDENTITY,
-        objects: vec![],
-        distractors: vec![],
-        lights: vec![],
-        ambient: 1.0,
         ground: Some(ground),
         walls: vec![wall],
-        background: BackgroundSample {
-            kind: BackgroundKind::Color,
-            color: [0.0; 3],
-            seed: 0,
-        },
+        ..FrameScene::bare(0, k, vec![])
     };
     let (b, r) = renderer.render_with_raster(&scene).unwrap();
     assert!(b.instance.iter().all(|&i| i == 0));

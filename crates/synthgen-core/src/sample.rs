@@ -170,6 +170,30 @@ pub struct FrameScene {
     pub background: BackgroundSample,
 }
 
+impl FrameScene {
+    /// A scene of only `objects` seen from the origin: no distractors, lights, ground or walls,
+    /// ambient 1 and a black background. What masks and annotations need (`annotate`), and a
+    /// plain scene for tests.
+    pub fn bare(frame_index: u64, intrinsics: Intrinsics, objects: Vec<ObjectInstance>) -> Self {
+        FrameScene {
+            frame_index,
+            intrinsics,
+            world_from_cam: Pose::IDENTITY,
+            objects,
+            distractors: vec![],
+            lights: vec![],
+            ambient: 1.0,
+            ground: None,
+            walls: vec![],
+            background: BackgroundSample {
+                kind: BackgroundKind::Color,
+                color: [0.0; 3],
+                seed: 0,
+            },
+        }
+    }
+}
+
 /// Settles dropped objects on the plane z = 0 (world z up). Implemented by synthgen-physics,
 /// so that core needs no physics engine.
 pub trait Settle: Send + Sync {

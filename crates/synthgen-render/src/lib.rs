@@ -3,33 +3,23 @@
 //!
 //! ```
 //! use synthgen_core::glam::{DMat3, DVec3, Vec3};
-//! use synthgen_core::sample::{BackgroundSample, ObjectInstance};
-//! use synthgen_core::scene::BackgroundKind;
+//! use synthgen_core::sample::ObjectInstance;
 //! use synthgen_core::{FrameScene, Intrinsics, Model, Pose};
 //! use synthgen_render::{CpuRenderer, Renderer};
 //!
 //! let renderer = CpuRenderer::new(vec![Model::cuboid("box", Vec3::splat(0.1))], vec![])?;
-//! let scene = FrameScene {
-//!     frame_index: 0,
-//!     intrinsics: Intrinsics::LINEMOD,
-//!     world_from_cam: Pose::IDENTITY,
-//!     objects: vec![ObjectInstance {
-//!         model_index: 0,
-//!         obj_id: 1,
-//!         cam_from_obj: Pose::new(DMat3::IDENTITY, DVec3::new(0.0, 0.0, 0.5)),
-//!         brightness: 1.0,
-//!         specular: 0.2,
-//!         shininess: 32.0,
-//!         tint: [1.0; 3],
-//!         hue_deg: 0.0,
-//!     }],
-//!     distractors: vec![],
-//!     lights: vec![],
-//!     ambient: 1.0,
-//!     ground: None,
-//!     walls: vec![],
-//!     background: BackgroundSample { kind: BackgroundKind::Color, color: [0.0; 3], seed: 0 },
+//! let box_at_half_a_metre = ObjectInstance {
+//!     model_index: 0,
+//!     obj_id: 1,
+//!     cam_from_obj: Pose::new(DMat3::IDENTITY, DVec3::new(0.0, 0.0, 0.5)),
+//!     brightness: 1.0,
+//!     specular: 0.2,
+//!     shininess: 32.0,
+//!     tint: [1.0; 3],
+//!     hue_deg: 0.0,
 //! };
+//! // Only the box, flat-lit, on black: no lights, ground or walls.
+//! let scene = FrameScene::bare(0, Intrinsics::LINEMOD, vec![box_at_half_a_metre]);
 //! let frame = renderer.render(&scene)?;
 //! let centre = 242 * 640 + 325;
 //! assert_eq!(frame.instance[centre], 1);

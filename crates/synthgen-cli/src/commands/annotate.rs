@@ -9,9 +9,8 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 use synthgen_assets::Units;
-use synthgen_core::sample::{BackgroundSample, ObjectInstance};
-use synthgen_core::scene::BackgroundKind;
-use synthgen_core::{annotate, FrameScene, GtInfo, Pose, Progress};
+use synthgen_core::sample::ObjectInstance;
+use synthgen_core::{annotate, FrameScene, GtInfo, Progress};
 use synthgen_dataset::bop::image::encode_gray8_png;
 use synthgen_dataset::bop::{write_map, BopDataset, BopScene, PngCompression, SCENE_GT_INFO};
 use synthgen_dataset::io::{atomic_write, create_dir_all};
@@ -140,22 +139,7 @@ fn annotate_frame(
             hue_deg: 0.0,
         })
         .collect();
-    let frame_scene = FrameScene {
-        frame_index: u64::from(im_id),
-        intrinsics: camera.intrinsics(w, h),
-        world_from_cam: Pose::IDENTITY,
-        objects,
-        distractors: vec![],
-        lights: vec![],
-        ambient: 1.0,
-        ground: None,
-        walls: vec![],
-        background: BackgroundSample {
-            kind: BackgroundKind::Color,
-            color: [0.0; 3],
-            seed: 0,
-        },
-    };
+    let frame_scene = FrameScene::bare(u64::from(im_id), camera.intrinsics(w, h), objects);
     let frame = renderer.render(&frame_scene)?;
     let depth_path = scene.depth_path(im_id);
     let (depth, real) = if depth_path.is_file() {
