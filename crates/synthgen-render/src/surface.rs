@@ -68,19 +68,20 @@ fn resample(img: &[[f32; 3]], w: usize, h: usize, nw: usize, nh: usize) -> Vec<[
     if (w, h) == (nw, nh) {
         return img.to_vec();
     }
+    // Output index i of n_out samples source positions i0 and i1 (wrapped) of n_src, weight f
+    // on i1.
+    let taps = |i: usize, n_src: usize, n_out: usize| {
+        let s = (i as f64 + 0.5) * n_src as f64 / n_out as f64 - 0.5;
+        let i0 = s.floor();
+        let f = (s - i0) as f32;
+        let i0 = (i0 as i64).rem_euclid(n_src as i64) as usize;
+        (i0, (i0 + 1) % n_src, f)
+    };
     let mut out = Vec::with_capacity(nw * nh);
     for y in 0..nh {
-        let sy = (y as f64 + 0.5) * h as f64 / nh as f64 - 0.5;
-        let y0 = sy.floor();
-        let fy = (sy - y0) as f32;
-        let y0 = (y0 as i64).rem_euclid(h as i64) as usize;
-        let y1 = (y0 + 1) % h;
+        let (y0, y1, fy) = taps(y, h, nh);
         for x in 0..nw {
-            let sx = (x as f64 + 0.5) * w as f64 / nw as f64 - 0.5;
-            let x0 = sx.floor();
-            let fx = (sx - x0) as f32;
-            let x0 = (x0 as i64).rem_euclid(w as i64) as usize;
-            let x1 = (x0 + 1) % w;
+            let (x0, x1, fx) = taps(x, w, nw);
             let p = |xx: usize, yy: usize| img[yy * w + xx];
             let (a, b, c, d) = (p(x0, y0), p(x1, y0), p(x0, y1), p(x1, y1));
             out.push(std::array::from_fn(|k| {
