@@ -34,7 +34,7 @@ use synthgen_core::{Model, Progress};
 pub use error::Error;
 pub use texture::{load_images_in_dir, load_images_in_dir_strict, TextureCache};
 pub use units::{Units, AUTO_MM_THRESHOLD};
-pub use write::write_ply;
+pub use write::{write_obj, write_ply};
 
 /// File extensions [`load_model`] understands (lowercase, without the dot).
 pub const SUPPORTED_EXTENSIONS: &[&str] = &["ply", "obj", "gltf", "glb"];

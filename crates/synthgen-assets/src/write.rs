@@ -65,8 +65,6 @@ fn encode_ply(model: &Model, scale: f32) -> Result<Vec<u8>, String> {
             }
             None => None,
         };
-        let base = prim.material.base_color;
-        let texture = prim.material.texture.as_deref().zip(prim.uvs.as_deref());
         for (i, p) in prim.positions_m.iter().enumerate() {
             for c in (*p * scale).to_array() {
                 out.extend_from_slice(&c.to_le_bytes());
@@ -77,19 +75,8 @@ fn encode_ply(model: &Model, scale: f32) -> Result<Vec<u8>, String> {
                     out.extend_from_slice(&c.to_le_bytes());
                 }
             }
-            let mut rgb = prim
-                .colors
-                .as_ref()
-                .and_then(|c| c.get(i).copied())
-                .unwrap_or([1.0; 3]);
-            if let Some((tex, uvs)) = texture {
-                if let Some(&uv) = uvs.get(i) {
-                    let t = sample_bilinear(tex, uv);
-                    rgb = [rgb[0] * t[0], rgb[1] * t[1], rgb[2] * t[2]];
-                }
-            }
-            for (c, b) in rgb.iter().zip(base) {
-                out.push(to_u8(c * b));
+            for c in shown_color(prim, i) {
+                out.push(to_u8(c));
             }
             out.push(255);
         }
@@ -107,6 +94,86 @@ fn encode_ply(model: &Model, scale: f32) -> Result<Vec<u8>, String> {
         base += prim.positions_m.len() as u32;
     }
     Ok(out)
+}
+
+/// The colour a renderer shows at vertex `i`: vertex colour × base colour × texture at its uv.
+fn shown_color(prim: &synthgen_core::Primitive, i: usize) -> [f32; 3] {
+    let mut rgb = prim
+        .colors
+        .as_ref()
+        .and_then(|c| c.get(i).copied())
+        .unwrap_or([1.0; 3]);
+    let texture = prim.material.texture.as_deref().zip(prim.uvs.as_deref());
+    if let Some((tex, uvs)) = texture {
+        if let Some(&uv) = uvs.get(i) {
+            let t = sample_bilinear(tex, uv);
+            rgb = [rgb[0] * t[0], rgb[1] * t[1], rgb[2] * t[2]];
+        }
+    }
+    let base = prim.material.base_color;
+    [rgb[0] * base[0], rgb[1] * base[1], rgb[2] * base[2]]
+}
+
+/// Writes `model` as one OBJ with positions multiplied by `scale`, the colour a renderer
+/// shows as vertex colours (`v x y z r g b`, as YCB-Video's `textured_simple.obj` has them),
+/// vertex normals when any primitive has them, and beside it `<file>.mtl` with one white,
+/// opaque material (`Kd 1 1 1`, `d 1`), so that loaders show the vertex colours alone.
+/// Textures become per-vertex colour, as coarse as the mesh. Both files are written
+/// atomically.
+pub fn write_obj(path: &Path, model: &Model, scale: f32) -> Result<(), Error> {
+    use std::fmt::Write as _;
+    let file_name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "model.obj".into());
+    let mtl_name = format!("{file_name}.mtl");
+    let with_normals = model.primitives.iter().any(|p| p.normals.is_some());
+    let mut out = String::with_capacity(model.vertex_count() * 80 + model.triangle_count() * 30);
+    let _ = writeln!(out, "# synthgen {}", synthgen_core::VERSION);
+    let _ = writeln!(out, "mtllib ./{mtl_name}");
+    let _ = writeln!(out, "usemtl material_0");
+    for prim in &model.primitives {
+        let computed;
+        let normals: Option<&[Vec3]> = match &prim.normals {
+            Some(n) => Some(n),
+            None if with_normals => {
+                computed = smooth_normals(&prim.positions_m, &prim.triangles);
+                Some(&computed)
+            }
+            None => None,
+        };
+        for (i, p) in prim.positions_m.iter().enumerate() {
+            if let Some(n) = normals {
+                let n = n.get(i).copied().unwrap_or(Vec3::Z);
+                let _ = writeln!(out, "vn {} {} {}", n.x, n.y, n.z);
+            }
+            let p = *p * scale;
+            let [r, g, b] = shown_color(prim, i).map(|c| c.clamp(0.0, 1.0));
+            let _ = writeln!(out, "v {} {} {} {r:.6} {g:.6} {b:.6}", p.x, p.y, p.z);
+        }
+    }
+    let mut base = 1usize;
+    for prim in &model.primitives {
+        for tri in &prim.triangles {
+            let [a, b, c] = tri.map(|i| base + i as usize);
+            if with_normals {
+                let _ = writeln!(out, "f {a}//{a} {b}//{b} {c}//{c}");
+            } else {
+                let _ = writeln!(out, "f {a} {b} {c}");
+            }
+        }
+        base += prim.positions_m.len();
+    }
+    let mtl = "newmtl material_0\nKa 0.200000 0.200000 0.200000\nKd 1.000000 1.000000 1.000000\n\
+               Ks 0.000000 0.000000 0.000000\nd 1.000000\nillum 1\n";
+    let write = |p: &Path, bytes: &[u8]| {
+        synthgen_core::atomic::write_atomic(p, bytes, true).map_err(|(_, source)| Error::Write {
+            path: p.to_path_buf(),
+            source,
+        })
+    };
+    write(&path.with_file_name(&mtl_name), mtl.as_bytes())?;
+    write(path, out.as_bytes())
 }
 
 fn to_u8(x: f32) -> u8 {

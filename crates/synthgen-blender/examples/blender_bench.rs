@@ -86,7 +86,7 @@ fn main() -> anyhow::Result<()> {
     for sc in &scenes {
         let (t, c0) = (Instant::now(), cpu_s());
         let f = raster.render(sc)?;
-        synthgen_core::annotate(f.width, f.height, &f.depth_m, &f.alone, 0.015);
+        synthgen_core::annotate(&sc.intrinsics, &f.depth_m, &f.alone, 0.015);
         raster_s.push(t.elapsed().as_secs_f64());
         raster_cpu.push(cpu_s() - c0);
     }
@@ -108,7 +108,7 @@ fn main() -> anyhow::Result<()> {
     for (i, sc) in scenes.iter().enumerate() {
         let (t, c0) = (Instant::now(), cpu_s());
         let f = blender.render(sc)?;
-        synthgen_core::annotate(f.width, f.height, &f.depth_m, &f.alone, 0.015);
+        synthgen_core::annotate(&sc.intrinsics, &f.depth_m, &f.alone, 0.015);
         cycles_s.push(t.elapsed().as_secs_f64());
         cycles_cpu.push(cpu_s() - c0);
         if rss_every > 0 && (i as u64 % rss_every == 0 || i as u64 + 1 == frames) {

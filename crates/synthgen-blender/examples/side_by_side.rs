@@ -34,7 +34,7 @@ fn main() -> anyhow::Result<()> {
         },
     )?;
     let (b, raster) = r.render_with_raster(&scene)?;
-    let ann = synthgen_core::annotate(b.width, b.height, &b.depth_m, &b.alone, 0.015);
+    let ann = synthgen_core::annotate(&scene.intrinsics, &b.depth_m, &b.alone, 0.015);
     let (w, h) = (b.width as usize, b.height as usize);
     let tints = [
         [255u8, 60, 60],

@@ -29,6 +29,10 @@ pub struct Cli {
     /// Print only warnings and errors; no progress bar.
     #[arg(long, short, global = true)]
     pub quiet: bool,
+    /// Largest max(|det R − 1|, |R Rᵀ − I|) accepted in rotations read from files (real
+    /// annotations are approximate: LM-O's reach 1.4e-2).
+    #[arg(long, global = true, value_name = "TOL", default_value_t = synthgen_core::pose::DEFAULT_ROTATION_TOLERANCE)]
+    pub rotation_tolerance: f64,
 
     #[command(subcommand)]
     pub command: Command,
@@ -42,7 +46,8 @@ pub enum Command {
     /// Draw a reproducible mix of a real and a synthetic dataset, with a held-out real test split.
     #[command(after_long_help = MIX_EXAMPLES)]
     Mix(MixArgs),
-    /// Count frames, objects and instances; show visibility, distance and elevation distributions.
+    /// Count frames, objects and instances; show visibility, distance, elevation and in-plane
+    /// rotation distributions, of one dataset or several side by side.
     #[command(after_long_help = STATS_EXAMPLES)]
     Stats(StatsArgs),
     /// Draw a contact sheet of frames with their ground-truth poses overlaid.
@@ -54,10 +59,10 @@ pub enum Command {
     /// Compute masks and scene_gt_info.json from the GT poses of a BOP dataset (real captures).
     #[command(after_long_help = ANNOTATE_EXAMPLES)]
     Annotate(AnnotateArgs),
-    /// Convert a dataset between the BOP and Linemod layouts.
+    /// Convert a dataset between the BOP, Linemod and YCB-Video layouts.
     #[command(after_long_help = CONVERT_EXAMPLES)]
     Convert(ConvertArgs),
-    /// Check a BOP or Linemod dataset: files, image sizes, poses, masks, depth, ids.
+    /// Check a BOP, Linemod or YCB-Video dataset: files, image sizes, poses, masks, depth, ids.
     #[command(after_long_help = VALIDATE_EXAMPLES)]
     Validate(ValidateArgs),
     /// Train a pose model (TNet, RNet, Full) on a BOP dataset; checkpoints, metrics and a curve.
@@ -81,16 +86,41 @@ const ANNOTATE_EXAMPLES: &str = "Examples:
   # Only the test split, a 10 mm visibility tolerance:
   synthgen annotate data/real --split test --visib-delta-m 0.01
 
+  # Compare the computed visible masks with YCB-Video's own label.png; write nothing there:
+  synthgen annotate ../shared/data/ycbv_real --compare --report iou.json --overlay overlays/
+
 Writes mask/ and mask_visib/ PNGs and scene_gt_info.json in each scene folder, as
 bop_toolkit's calc_gt_masks.py and calc_gt_info.py: every object is rendered alone at its
-pose with the embedded renderer (models/obj_XXXXXX.ply, millimetres); a pixel is visible
-when the object's depth is within the tolerance of the real depth PNG (bop19 rule), or of
-the rendered scene depth where the frame has no depth PNG.";
+pose with the embedded renderer (models/obj_XXXXXX.ply, millimetres); a pixel of its
+silhouette is visible when the object's surface is at most --visib-delta-m behind the real
+depth PNG's along the pixel's ray, or the depth PNG has no reading there (bop19 rule); without
+a depth PNG the rendered scene depth is used. When the dataset already has visible masks,
+the computed ones are compared with them first (IoU per instance: median and 10th
+percentile per scene and per object).";
 
 #[derive(Debug, Args)]
 pub struct AnnotateArgs {
-    /// Dataset folder (BOP) with models/ and per scene scene_camera.json and scene_gt.json.
+    /// Dataset folder: BOP with models/ and per scene scene_camera.json and scene_gt.json; with
+    /// --compare any layout (YCB-Video, Linemod).
     pub dir: PathBuf,
+
+    /// Compute the visible masks and compare them with the dataset's own; write nothing into
+    /// the dataset.
+    #[arg(long)]
+    pub compare: bool,
+
+    /// Write the comparison (per instance, per scene, per object) as JSON to this file.
+    #[arg(long, value_name = "FILE")]
+    pub report: Option<PathBuf>,
+
+    /// Write overlay PNGs of computed (red) and dataset (blue) visible masks, green where both
+    /// agree, into this folder.
+    #[arg(long, value_name = "DIR")]
+    pub overlay: Option<PathBuf>,
+
+    /// How many frames get an overlay (spread evenly).
+    #[arg(long, default_value_t = 12, value_name = "N")]
+    pub overlay_count: usize,
 
     /// Only this split (default: all).
     #[arg(long)]
@@ -158,9 +188,14 @@ const STATS_EXAMPLES: &str = "Examples:
   synthgen stats data/mix --json > stats.json
   synthgen stats data/real --plot plots/
 
+  # Real frames next to a synthetic set of the same objects (shares of each one's instances):
+  synthgen stats out/ycbv_bop out/synth --plot plots/
+
 Distances are ||cam_t_m2c|| per instance. Elevations are the camera's angle above the world
-xy plane seen from the object when scene_camera.json has cam_R_w2c/cam_t_w2c (synthgen's and
-BlenderProc's data), else above the object's own xy plane.";
+xy plane seen from the object when scene_camera.json has cam_R_w2c/cam_t_w2c (synthgen's,
+BlenderProc's and YCB-Video's data), else above the object's own xy plane. In-plane rotation
+is the camera's roll about the ray to the object: the angle from the image's up to the world's
+(else the object's) up seen there; 0 is an upright camera.";
 
 const PREVIEW_EXAMPLES: &str = "Examples:
   synthgen preview data/synth --out sheet.png
@@ -172,8 +207,10 @@ dataset with models_info.json.";
 
 #[derive(Debug, Args)]
 pub struct StatsArgs {
-    /// Dataset folder (BOP).
-    pub dir: PathBuf,
+    /// Dataset folder (BOP, Linemod or YCB-Video); several (up to 4) are shown side by side on
+    /// shared bins, e.g. real frames next to a synthetic set.
+    #[arg(value_name = "DIR", required = true, num_args = 1..=4)]
+    pub dirs: Vec<PathBuf>,
 
     /// Print JSON instead of a table.
     #[arg(long)]
@@ -304,6 +341,16 @@ const CONVERT_EXAMPLES: &str = "Examples:
   # DenseFusion's Linemod_preprocessed into BOP (for bop_toolkit):
   synthgen convert --from linemod --to bop Linemod_preprocessed data/lm_bop
 
+  # YCB-Video (PoseCNN's layout) into BOP, and back:
+  synthgen convert --to bop ../shared/data/ycbv_real out/ycbv_bop
+  synthgen convert --to ycbv out/ycbv_bop out/ycbv_again
+
+YCB-Video -> BOP: poses copied (t metres -> mm), label.png -> mask_visib, models/<class>/
+textured_simple.obj -> models/obj_NNNNNN.ply (mm); mask/ and scene_gt_info.json from the
+models rendered at the GT poses (the visible counts from the labels). BOP -> YCB-Video: the
+label from mask_visib; vertmap, center and -box.txt from the render; -meta.mat with the keys,
+shapes and types scipy.io.loadmat gives for YCB-Video's own.
+
 What maps to what (docs/formats.md has the details):
   cam_R_m2c, cam_t_m2c (mm), obj_id, cam_K   both ways, exactly
   rgb, depth                                 both ways; depth values copied when the depth
@@ -328,6 +375,9 @@ pub enum FormatArg {
     Bop,
     /// DenseFusion's Linemod_preprocessed: data/NN/{rgb,depth,mask}, gt.yml, info.yml.
     Linemod,
+    /// YCB-Video (PoseCNN, DenseFusion): data/NNNN/NNNNNN-{color,depth,label}.png, -meta.mat,
+    /// -box.txt, classes.txt, models/<class>/.
+    Ycbv,
 }
 
 #[derive(Debug, Args)]
@@ -349,9 +399,13 @@ pub struct ConvertArgs {
     pub output: PathBuf,
 
     /// Depth PNG unit of the output in millimetres (default: 1.0 for Linemod, as DenseFusion
-    /// assumes; the source's for BOP).
+    /// assumes; the source's for BOP; 0.1 for YCB-Video, i.e. factor_depth 10000).
     #[arg(long)]
     pub depth_scale: Option<f64>,
+    /// To YCB-Video: the classes.txt to write (line i names object id i). Default: the names a
+    /// conversion from YCB-Video recorded in IN/synthgen.json, else obj_NNNNNN.
+    #[arg(long, value_name = "FILE")]
+    pub classes: Option<PathBuf>,
 
     /// To Linemod: an object gets a folder entry (rgb, depth, mask) for a frame when its
     /// visib_fract is at least this.
@@ -369,7 +423,8 @@ pub struct ValidateArgs {
     #[arg(value_name = "DIR")]
     pub dir: PathBuf,
 
-    /// Layout of DIR (default: camera.json means BOP, data/NN/gt.yml means Linemod).
+    /// Layout of DIR (default: camera.json means BOP, classes.txt beside data/ YCB-Video,
+    /// data/NN/gt.yml Linemod).
     #[arg(long, value_enum)]
     pub format: Option<FormatArg>,
 
@@ -479,7 +534,8 @@ pub struct RenderArgs {
     #[arg(long, value_name = "FILE")]
     pub scene: Option<PathBuf>,
 
-    /// Camera preset: linemod, d455, d455-720, ycbv.
+    /// Camera preset: linemod, d455, d455-720, ycbv (YCB-Video's UW rig, scenes 0-59),
+    /// ycbv-cmu (its CMU rig, scenes 60-91).
     #[arg(long)]
     pub camera: Option<String>,
 
@@ -532,8 +588,8 @@ pub struct RenderArgs {
     pub jpg_quality: u8,
 
     /// Depth PNG unit in millimetres: stored value = depth_mm / depth_scale. 0.1 (BlenderProc's
-    /// PBR sets; the default for --format bop) reaches 6.5 m; 1.0 (the default for --format
-    /// linemod) reaches 65 m.
+    /// PBR sets; the default for --format bop and ycbv, where it is factor_depth 10000)
+    /// reaches 6.5 m; 1.0 (the default for --format linemod) reaches 65 m.
     #[arg(long)]
     pub depth_scale: Option<f64>,
 

@@ -34,6 +34,10 @@ impl From<ExitStatus> for ExitCode {
 pub fn main() -> ExitCode {
     let cli = cli::Cli::parse();
     let printer = Printer::new(cli.quiet);
+    if let Err(e) = synthgen_core::pose::set_rotation_tolerance(cli.rotation_tolerance) {
+        eprintln!("error: --rotation-tolerance: {e}");
+        return ExitStatus::Failure.into();
+    }
     let result = match cli.command {
         cli::Command::Render(args) => commands::render::run(*args, &printer),
         cli::Command::Mix(args) => commands::mix::run(args, &printer),

@@ -3,6 +3,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::Intrinsics;
+
 /// Depth of one object rendered alone, on a window of a canvas three times the image size
 /// (the image sits in its middle), as bop_toolkit renders it for `bbox_obj` and
 /// `px_count_all`. Coordinates are image pixels: `x0`, `y0` may be negative.
@@ -111,19 +113,61 @@ pub fn mask_bbox(mask: &[u8], width: u32) -> [i32; 4] {
     acc.bbox()
 }
 
-/// Computes masks and gt info for every object of a frame.
+/// BOP's `[x, y, w, h]` of an object's whole silhouette (on the 3x canvas, so it may start
+/// at negative coordinates); `[-1, -1, -1, -1]` when it covers no pixel.
+pub fn silhouette_bbox(a: &AloneDepth, width: u32, height: u32) -> [i32; 4] {
+    let (w, h) = (width as i32, height as i32);
+    let mut acc = BboxAcc::default();
+    for ly in 0..a.height as i32 {
+        let y = a.y0 + ly;
+        let row = &a.depth_m[(ly as usize) * a.width as usize..][..a.width as usize];
+        for (lx, &d) in row.iter().enumerate() {
+            let x = a.x0 + lx as i32;
+            if d > 0.0 && x >= -w && y >= -h && x < 2 * w && y < 2 * h {
+                acc.add(x, y);
+            }
+        }
+    }
+    acc.bbox()
+}
+
+/// bop_toolkit's "bop19" visibility of one silhouette pixel (x, y) whose object depth is
+/// `object_m`, against the scene depth `scene_m` (0 = no reading, which counts as visible):
+/// the object's surface is at most `delta_m` behind the scene's *along the pixel's ray*
+/// (bop_toolkit compares distance images, `depth_im_to_dist_im_fast`: depth ×
+/// √(((x − cx)/fx)² + ((y − cy)/fy)² + 1)).
+#[inline]
+pub fn visible_bop19(
+    k: &Intrinsics,
+    x: i32,
+    y: i32,
+    object_m: f32,
+    scene_m: f32,
+    delta_m: f32,
+) -> bool {
+    let behind = object_m - scene_m;
+    if scene_m == 0.0 || behind <= 0.0 {
+        return true;
+    }
+    let u = (f64::from(x) - k.cx) / k.fx;
+    let v = (f64::from(y) - k.cy) / k.fy;
+    behind * ((u * u + v * v + 1.0).sqrt() as f32) <= delta_m
+}
+
+/// Computes masks and gt info for every object of a frame, as bop_toolkit's `calc_gt_info`
+/// and `calc_gt_masks` do.
 ///
-/// `scene_depth_m` is the depth the visibility test compares against (the rendered scene depth,
-/// or a sensor's depth with holes: bop_toolkit's "bop19" rule counts a pixel as visible when
-/// the object's own depth is at most `delta_m` behind the scene depth, or the scene depth is
-/// missing there). `px_count_valid` counts silhouette pixels with scene depth > 0.
+/// `scene_depth_m` is the depth the visibility test ([`visible_bop19`]) compares against: the
+/// rendered scene depth, or a sensor's depth with holes.
+/// `px_count_valid` counts silhouette pixels with scene depth > 0; `bbox_obj` is
+/// `[-1, -1, -1, -1]` when no pixel is visible, as bop_toolkit leaves it.
 pub fn annotate(
-    width: u32,
-    height: u32,
+    k: &Intrinsics,
     scene_depth_m: &[f32],
     alone: &[AloneDepth],
     delta_m: f32,
 ) -> Vec<ObjectAnnotation> {
+    let (width, height) = (k.width, k.height);
     let (w, h) = (width as i32, height as i32);
     let n = (width * height) as usize;
     alone
@@ -157,7 +201,7 @@ pub fn annotate(
                     if ds > 0.0 {
                         px_valid += 1;
                     }
-                    if d - ds <= delta_m || ds == 0.0 {
+                    if visible_bop19(k, x, y, d, ds, delta_m) {
                         mask_visib[i] = 255;
                         px_visib += 1;
                         visib.add(x, y);
@@ -173,7 +217,7 @@ pub fn annotate(
                 mask,
                 mask_visib,
                 info: GtInfo {
-                    bbox_obj: all.bbox(),
+                    bbox_obj: if px_visib > 0 { all.bbox() } else { [-1; 4] },
                     bbox_visib: visib.bbox(),
                     px_count_all: px_all,
                     px_count_valid: px_valid,
@@ -188,6 +232,52 @@ pub fn annotate(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn k(width: u32, height: u32) -> Intrinsics {
+        Intrinsics {
+            width,
+            height,
+            fx: 500.0,
+            fy: 500.0,
+            cx: f64::from(width) / 2.0,
+            cy: f64::from(height) / 2.0,
+        }
+    }
+
+    /// bop_toolkit compares distances along the ray, not depths: 14 mm behind in depth is
+    /// visible on the optical axis and hidden far off it, where the ray is 1.2x longer.
+    #[test]
+    fn visibility_compares_distances_along_the_ray() {
+        let k = Intrinsics {
+            width: 2,
+            height: 1,
+            fx: 1.0,
+            fy: 1.0,
+            cx: 0.0,
+            cy: 0.0,
+        };
+        // Pixel (0, 0) is on the axis; pixel (1, 0) at 45° (ray factor √2).
+        let a = AloneDepth {
+            x0: 0,
+            y0: 0,
+            width: 2,
+            height: 1,
+            depth_m: vec![1.014, 1.014],
+        };
+        let ann = annotate(&k, &[1.0, 1.0], &[a], DEFAULT_VISIB_DELTA_M);
+        assert_eq!(ann[0].mask_visib, [255, 0]);
+        // Nothing visible: no bbox_obj either, as bop_toolkit.
+        let hidden = AloneDepth {
+            x0: 0,
+            y0: 0,
+            width: 1,
+            height: 1,
+            depth_m: vec![2.0],
+        };
+        let ann = annotate(&k, &[1.0, 1.0], &[hidden], DEFAULT_VISIB_DELTA_M);
+        assert_eq!(ann[0].info.px_count_all, 1);
+        assert_eq!(ann[0].info.bbox_obj, [-1; 4]);
+    }
 
     fn square(x0: i32, y0: i32, side: u32, depth: f32) -> AloneDepth {
         AloneDepth {
@@ -218,7 +308,7 @@ mod tests {
                 }
             }
         }
-        let ann = annotate(w, h, &depth, &[far, near], DEFAULT_VISIB_DELTA_M);
+        let ann = annotate(&k(w, h), &depth, &[far, near], DEFAULT_VISIB_DELTA_M);
         let f = &ann[0].info;
         assert_eq!(f.px_count_all, 36);
         assert_eq!(f.px_count_visib, 36 - 16);
@@ -238,7 +328,7 @@ mod tests {
         let (w, h) = (10u32, 10u32);
         let a = square(-3, 7, 5, 1.0);
         let depth = vec![0f32; 100];
-        let ann = annotate(w, h, &depth, &[a], DEFAULT_VISIB_DELTA_M);
+        let ann = annotate(&k(w, h), &depth, &[a], DEFAULT_VISIB_DELTA_M);
         let i = &ann[0].info;
         assert_eq!(i.px_count_all, 25);
         assert_eq!(i.bbox_obj, [-3, 7, 4, 4]);
@@ -250,7 +340,7 @@ mod tests {
 
     #[test]
     fn invisible_object_has_minus_one_boxes() {
-        let ann = annotate(4, 4, &[0.0; 16], &[AloneDepth::default()], 0.015);
+        let ann = annotate(&k(4, 4), &[0.0; 16], &[AloneDepth::default()], 0.015);
         assert_eq!(ann[0].info.bbox_obj, [-1; 4]);
         assert_eq!(ann[0].info.bbox_visib, [-1; 4]);
         assert_eq!(ann[0].info.visib_fract, 0.0);

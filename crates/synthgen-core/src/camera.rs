@@ -18,7 +18,7 @@ pub struct Intrinsics {
 }
 
 /// Named camera presets (`--camera NAME`).
-pub const CAMERA_PRESETS: &[&str] = &["linemod", "d455", "d455-720", "ycbv"];
+pub const CAMERA_PRESETS: &[&str] = &["linemod", "d455", "d455-720", "ycbv", "ycbv-cmu"];
 
 impl Intrinsics {
     /// The Linemod (Kinect v1) camera, as in BOP's lm/lmo `camera.json`.
@@ -49,7 +49,8 @@ impl Intrinsics {
         cx: 640.305,
         cy: 360.758,
     };
-    /// The YCB-Video camera (BOP ycbv `camera_uw.json`).
+    /// The YCB-Video camera of the UW rig, scenes 0–59 (BOP ycbv `camera_uw.json`, YCB-Video's
+    /// `asus-uw.json`): an Asus Xtion Pro Live.
     pub const YCBV: Intrinsics = Intrinsics {
         width: 640,
         height: 480,
@@ -58,13 +59,24 @@ impl Intrinsics {
         cx: 312.9869,
         cy: 241.3109,
     };
+    /// The YCB-Video camera of the CMU rig, scenes 60–91 (BOP ycbv `camera_cmu.json`,
+    /// YCB-Video's `asus-cmu.json`).
+    pub const YCBV_CMU: Intrinsics = Intrinsics {
+        width: 640,
+        height: 480,
+        fx: 1077.836,
+        fy: 1078.189,
+        cx: 323.7872,
+        cy: 279.6921,
+    };
 
     pub fn preset(name: &str) -> Result<Intrinsics, Error> {
         match name.to_ascii_lowercase().as_str() {
             "linemod" | "lm" | "lmo" => Ok(Self::LINEMOD),
             "d455" | "d455-640" => Ok(Self::D455_640),
             "d455-720" | "d455-1280" => Ok(Self::D455_1280),
-            "ycbv" | "ycb-video" => Ok(Self::YCBV),
+            "ycbv" | "ycb-video" | "ycbv-uw" => Ok(Self::YCBV),
+            "ycbv-cmu" => Ok(Self::YCBV_CMU),
             _ => Err(Error::UnknownCamera(name.to_string())),
         }
     }
@@ -146,6 +158,22 @@ mod tests {
             assert!(Intrinsics::preset(name).unwrap().validate().is_ok());
         }
         assert!(Intrinsics::preset("kinect9").is_err());
+    }
+
+    /// The YCB-Video rigs' colour cameras, exactly as asus-uw.json / asus-cmu.json give them.
+    #[test]
+    fn ycbv_presets_are_exact() {
+        let uw = Intrinsics::preset("ycbv").unwrap();
+        assert_eq!(
+            (uw.fx, uw.fy, uw.cx, uw.cy),
+            (1066.778, 1067.487, 312.9869, 241.3109)
+        );
+        let cmu = Intrinsics::preset("ycbv-cmu").unwrap();
+        assert_eq!(
+            (cmu.fx, cmu.fy, cmu.cx, cmu.cy),
+            (1077.836, 1078.189, 323.7872, 279.6921)
+        );
+        assert_eq!((cmu.width, cmu.height), (640, 480));
     }
 
     #[test]

@@ -12,7 +12,7 @@ pub enum Error {
     ParseSpec { message: String, path: PathBuf },
     #[error("invalid scene spec: {0}")]
     InvalidSpec(String),
-    #[error("unknown camera preset {0:?} (known: linemod, d455, d455-720, ycbv)")]
+    #[error("unknown camera preset {0:?} (known: linemod, d455, d455-720, ycbv, ycbv-cmu)")]
     UnknownCamera(String),
     #[error("invalid pose: {0}")]
     InvalidPose(String),

@@ -58,6 +58,12 @@ pub enum Error {
     /// Options of a command that do not fit together (counts, ratios).
     #[error("{0}")]
     InvalidRequest(String),
+    /// A model file that cannot be loaded or written (the message names the file).
+    #[error("{source}")]
+    Model {
+        source: synthgen_assets::Error,
+        path: PathBuf,
+    },
     /// A value that JSON cannot hold (NaN, infinity) in data to be written.
     #[error("cannot write non-finite number in {what}: {path}")]
     NonFinite { what: String, path: PathBuf },
@@ -116,6 +122,13 @@ impl Error {
         }
     }
 
+    pub(crate) fn model(path: &Path, source: synthgen_assets::Error) -> Error {
+        Error::Model {
+            source,
+            path: path.to_path_buf(),
+        }
+    }
+
     pub(crate) fn malformed(path: &Path, message: impl Into<String>) -> Error {
         Error::Malformed {
             file: file_name(path),
@@ -136,6 +149,7 @@ impl Error {
             | Error::Encode { path, .. }
             | Error::Decode { path, .. }
             | Error::NonFinite { path, .. }
+            | Error::Model { path, .. }
             | Error::NotEnoughFrames { path, .. } => Some(path),
             Error::InvalidFrame { .. } | Error::InvalidOptions(_) | Error::InvalidRequest(_) => {
                 None

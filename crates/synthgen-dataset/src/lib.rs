@@ -1,6 +1,7 @@
 //! Dataset formats of synthgen: the BOP reader and writer (byte-compatible with bop_toolkit
-//! and BlenderProc), the Linemod (DenseFusion's Linemod_preprocessed) reader and writer,
-//! conversion between them, validation, the `synthgen.json` manifest and atomic file output.
+//! and BlenderProc), the Linemod (DenseFusion's Linemod_preprocessed) and YCB-Video (PoseCNN's
+//! layout, MAT v5 `-meta.mat`) readers and writers, conversion between them, validation, the
+//! `synthgen.json` manifest and atomic file output.
 //!
 //! ```no_run
 //! use std::path::Path;
@@ -13,7 +14,7 @@
 //! let writer = BopWriter::create(root, BopWriterOptions::new(synthgen_core::Intrinsics::LINEMOD))?;
 //! writer.write_camera_json()?;
 //! for (scene, frame) in frames() {
-//!     let ann = annotate(frame.width, frame.height, &frame.depth_m, &frame.alone, DEFAULT_VISIB_DELTA_M);
+//!     let ann = annotate(&scene.intrinsics, &frame.depth_m, &frame.alone, DEFAULT_VISIB_DELTA_M);
 //!     let record = writer.write_frame(scene.frame_index, &scene, &frame, &ann)?;
 //!     writer.add_record(record)?;
 //! }
@@ -28,6 +29,7 @@
 //! # Ok(()) }
 //! ```
 
+pub mod annotate;
 pub mod bop;
 pub mod coco;
 pub mod convert;
@@ -41,6 +43,7 @@ pub mod preview;
 pub mod source;
 pub mod stats;
 pub mod validate;
+pub mod ycbv;
 
 pub use error::{Error, Result};
 pub use manifest::{read_manifest, write_manifest, Manifest};

@@ -1,16 +1,58 @@
 //! Frames of a dataset on disk, independent of its layout: what `mix`, `stats` and `preview`
 //! read, and what `train` and `eval` learn from. BOP is implemented here, Linemod in
-//! [`crate::linemod::source`]; [`open_source`] tells them apart.
+//! [`crate::linemod::source`], YCB-Video in [`crate::ycbv::source`]; [`open_source`] tells
+//! them apart.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use synthgen_assets::Units;
 use synthgen_core::GtInfo;
 
+use crate::bop::image::{read_label, read_mask, Plane};
 use crate::bop::{BopDataset, CameraInfo, GtEntry, ModelInfo, SceneCamera};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::linemod::source::LinemodSource;
 use crate::validate::{detect_layout, Layout};
+use crate::ycbv::YcbvSource;
+
+/// One instance's mask in a dataset's files.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum MaskRef {
+    /// A PNG whose non-zero pixels are the mask (BOP's `mask/`, `mask_visib/`; Linemod's
+    /// `mask/`).
+    File(PathBuf),
+    /// The pixels of a label image equal to `value` (YCB-Video's `-label.png`).
+    Label { path: PathBuf, value: u16 },
+}
+
+impl MaskRef {
+    /// The file the mask is read from.
+    pub fn path(&self) -> &Path {
+        match self {
+            MaskRef::File(p) | MaskRef::Label { path: p, .. } => p,
+        }
+    }
+
+    /// The mask: 0 outside; inside, the file's value (BOP: 255) or 255 for a label.
+    pub fn read(&self) -> Result<Plane<u8>> {
+        match self {
+            MaskRef::File(p) => read_mask(p),
+            MaskRef::Label { path, value } => {
+                let l = read_label(path)?;
+                Ok(Plane {
+                    width: l.width,
+                    height: l.height,
+                    data: l
+                        .data
+                        .iter()
+                        .map(|&v| if v == *value { 255 } else { 0 })
+                        .collect(),
+                })
+            }
+        }
+    }
+}
 
 /// Where a frame lives in its dataset.
 #[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize)]
@@ -32,9 +74,9 @@ pub struct SourceFrame {
     pub rgb: PathBuf,
     /// Depth PNG, when present.
     pub depth: Option<PathBuf>,
-    /// Per gt id: `mask/` and `mask_visib/` PNGs, each when present.
-    pub masks: Vec<Option<PathBuf>>,
-    pub masks_visib: Vec<Option<PathBuf>>,
+    /// Per gt id: the full and the visible mask, each when the dataset has it.
+    pub masks: Vec<Option<MaskRef>>,
+    pub masks_visib: Vec<Option<MaskRef>>,
 }
 
 impl SourceFrame {
@@ -58,8 +100,12 @@ pub trait FrameSource: Send + Sync {
     fn models_info(&self) -> Option<&BTreeMap<u32, ModelInfo>>;
     /// Where `models_info` is read from (present or not).
     fn models_info_path(&self) -> PathBuf;
-    /// Where the model file of an object (millimetres) belongs (present or not).
+    /// Where the model file of an object belongs (present or not).
     fn model_file(&self, obj_id: u32) -> PathBuf;
+    /// Units of the model files: millimetres (BOP, Linemod) unless the layout says otherwise.
+    fn model_units(&self) -> Units {
+        Units::Mm
+    }
     /// The model file of an object, when present.
     fn model_path(&self, obj_id: u32) -> Option<PathBuf> {
         let p = self.model_file(obj_id);
@@ -111,7 +157,7 @@ impl FrameSource for BopDataset {
                     let gt = scene.gt.get(&im_id).cloned().unwrap_or_default();
                     let gt_info = scene.gt_info.as_ref().and_then(|m| m.get(&im_id).cloned());
                     let depth = Some(scene.depth_path(im_id)).filter(|p| p.is_file());
-                    let existing = |p: PathBuf| p.is_file().then_some(p);
+                    let existing = |p: PathBuf| p.is_file().then_some(MaskRef::File(p));
                     let masks = (0..gt.len())
                         .map(|g| existing(scene.mask_path(im_id, g)))
                         .collect();
@@ -139,11 +185,34 @@ impl FrameSource for BopDataset {
     }
 }
 
-/// Opens a dataset folder in whichever layout it has: Linemod when it has no `camera.json`
-/// but `data/NN/gt.yml` folders, else BOP (whose errors then name what is missing).
+/// Opens a dataset folder in whichever layout it has (see [`detect_layout`]): Linemod,
+/// YCB-Video, else BOP (whose errors then name what is missing).
 pub fn open_source(root: &Path) -> Result<Box<dyn FrameSource>> {
-    if detect_layout(root) == Some(Layout::Linemod) {
-        return Ok(Box::new(LinemodSource::open(root)?));
+    match detect_layout(root) {
+        Some(Layout::Linemod) => Ok(Box::new(LinemodSource::open(root)?)),
+        Some(Layout::Ycbv) => Ok(Box::new(YcbvSource::open(root)?)),
+        _ => Ok(Box::new(BopDataset::open(root)?)),
     }
-    Ok(Box::new(BopDataset::open(root)?))
+}
+
+/// Writes an object's model into a BOP `models/` folder as `obj_NNNNNN.ply` (millimetres):
+/// hard-linked or copied when the source's file already is one, else loaded and written
+/// (a YCB-Video OBJ in metres). Returns whether the file was converted.
+pub fn write_bop_model(source: &dyn FrameSource, obj_id: u32, dst: &Path) -> Result<bool> {
+    let src = source.model_file(obj_id);
+    let is_ply = src
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("ply"));
+    if is_ply && source.model_units() == Units::Mm {
+        if std::fs::hard_link(&src, dst).is_err() {
+            let bytes = crate::io::read(&src)?;
+            crate::io::atomic_write(dst, &bytes)?;
+        }
+        return Ok(false);
+    }
+    let loaded =
+        synthgen_assets::load_model(&src, source.model_units(), &synthgen_core::NoProgress)
+            .map_err(|e| Error::model(&src, e))?;
+    synthgen_assets::write_ply(dst, &loaded.model, 1000.0).map_err(|e| Error::model(dst, e))?;
+    Ok(true)
 }

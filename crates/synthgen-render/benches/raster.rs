@@ -46,8 +46,8 @@ fn setup() -> (CpuRenderer, Vec<FrameScene>) {
     (CpuRenderer::new(models, vec![]).unwrap(), scenes)
 }
 
-fn annotate_frame(f: &RenderedFrame) -> usize {
-    annotate(f.width, f.height, &f.depth_m, &f.alone, 0.015).len()
+fn annotate_frame(s: &FrameScene, f: &RenderedFrame) -> usize {
+    annotate(&s.intrinsics, &f.depth_m, &f.alone, 0.015).len()
 }
 
 fn bench(c: &mut Criterion) {
@@ -73,7 +73,7 @@ fn bench(c: &mut Criterion) {
         b.iter(|| {
             i = (i + 1) % scenes.len();
             let f = r.render(&scenes[i]).unwrap();
-            annotate_frame(&f)
+            annotate_frame(&scenes[i], &f)
         })
     });
     g.throughput(Throughput::Elements(SCENES));
@@ -85,7 +85,7 @@ fn bench(c: &mut Criterion) {
             use rayon::prelude::*;
             scenes
                 .par_iter()
-                .map(|s| annotate_frame(&r.render(s).unwrap()))
+                .map(|s| annotate_frame(s, &r.render(s).unwrap()))
                 .sum::<usize>()
         })
     });

@@ -5,37 +5,16 @@
 //!
 //! `cargo run --release -p synthgen-render --example frame_timing [rounds]`
 
-use std::path::PathBuf;
+mod common;
+
 use std::time::Instant;
 
-use synthgen_assets::Units;
-use synthgen_core::{annotate, NoProgress, RenderedFrame, SceneObject, SceneSampler, SceneSpec};
+use synthgen_core::{annotate, RenderedFrame, SceneSampler, SceneSpec};
 use synthgen_render::CpuRenderer;
 
 fn main() -> anyhow::Result<()> {
-    let rounds: usize = std::env::args()
-        .nth(1)
-        .map(|s| s.parse())
-        .transpose()?
-        .unwrap_or(5);
-    let root = std::env::var_os("SYNTHGEN_LMO_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| {
-            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/lmo")
-        });
-    let ids = [1u32, 5, 6, 8, 9];
-    let models = ids
-        .iter()
-        .map(|id| {
-            let path = root.join(format!("models/obj_{id:06}.ply"));
-            synthgen_assets::load_model(&path, Units::Mm, &NoProgress).map(|m| m.model)
-        })
-        .collect::<Result<Vec<_>, _>>()?;
-    let objects = models
-        .iter()
-        .enumerate()
-        .map(|(i, m)| SceneObject::new(i, ids[i], m))
-        .collect();
+    let rounds = common::rounds_arg()?;
+    let (models, objects) = common::lmo_models()?;
     let sampler = SceneSampler::new(SceneSpec::default(), objects, 2024)?;
     let scenes = (0..32)
         .map(|i| sampler.sample(i))
@@ -48,13 +27,7 @@ fn main() -> anyhow::Result<()> {
             let t0 = Instant::now();
             r.render_into(s, &mut out)?;
             let t1 = Instant::now();
-            std::hint::black_box(annotate(
-                out.width,
-                out.height,
-                &out.depth_m,
-                &out.alone,
-                0.015,
-            ));
+            std::hint::black_box(annotate(&s.intrinsics, &out.depth_m, &out.alone, 0.015));
             let t2 = Instant::now();
             render_ms.push((t1 - t0).as_secs_f64() * 1e3);
             ann_ms.push((t2 - t1).as_secs_f64() * 1e3);

@@ -6,11 +6,12 @@
 //! `cargo run --release -p synthgen-render --example surface_timing [rounds]`
 //! (Linemod models from `SYNTHGEN_LMO_DIR`, default ../shared/data/lmo next to the repo.)
 
+mod common;
+
 use std::path::PathBuf;
 use std::time::Instant;
 
-use synthgen_assets::Units;
-use synthgen_core::{NoProgress, RenderedFrame, SceneObject, SceneSampler, SceneSpec};
+use synthgen_core::{RenderedFrame, SceneSampler, SceneSpec};
 use synthgen_render::CpuRenderer;
 
 fn median(v: &mut [f64]) -> f64 {
@@ -19,28 +20,9 @@ fn median(v: &mut [f64]) -> f64 {
 }
 
 fn main() -> anyhow::Result<()> {
-    let rounds: usize = std::env::args()
-        .nth(1)
-        .map(|s| s.parse())
-        .transpose()?
-        .unwrap_or(5);
+    let rounds = common::rounds_arg()?;
     let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let lmo = std::env::var_os("SYNTHGEN_LMO_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| repo.join("../shared/data/lmo"));
-    let ids = [1u32, 5, 6, 8, 9];
-    let models = ids
-        .iter()
-        .map(|id| {
-            let path = lmo.join(format!("models/obj_{id:06}.ply"));
-            synthgen_assets::load_model(&path, Units::Mm, &NoProgress).map(|m| m.model)
-        })
-        .collect::<Result<Vec<_>, _>>()?;
-    let objects: Vec<SceneObject> = models
-        .iter()
-        .enumerate()
-        .map(|(i, m)| SceneObject::new(i, ids[i], m))
-        .collect();
+    let (models, objects) = common::lmo_models()?;
     let preset = SceneSpec::from_toml_file(&repo.join("scenes/tabletop.toml"))?;
     let load = |dir: &Option<PathBuf>| -> anyhow::Result<Vec<_>> {
         Ok(match dir {

@@ -24,7 +24,7 @@
 //! let centre = 242 * 640 + 325;
 //! assert_eq!(frame.instance[centre], 1);
 //! assert!((frame.depth_m[centre] - 0.45).abs() < 1e-4); // the box's front face
-//! let info = synthgen_core::annotate(640, 480, &frame.depth_m, &frame.alone, 0.015);
+//! let info = synthgen_core::annotate(&scene.intrinsics, &frame.depth_m, &frame.alone, 0.015);
 //! assert_eq!(info[0].info.visib_fract, 1.0);
 //! # Ok::<(), synthgen_render::Error>(())
 //! ```
@@ -116,6 +116,7 @@ mod color;
 mod cpu;
 mod error;
 mod ground;
+mod object_renderer;
 mod prepare;
 pub mod procedural;
 mod raster;
@@ -126,6 +127,7 @@ mod view_check;
 
 pub use cpu::{render_frames, CpuOptions, CpuRenderer};
 pub use error::Error;
+pub use object_renderer::ObjectRenderer;
 pub use sensor::SensorModel;
 pub use view_check::ViewChecker;
 

@@ -2,7 +2,7 @@
 //! target alone on the 3x canvas, distractors on the image, the ground plane and walls where
 //! a target is) and BOP's pixel counts, with no shading, background or mask images.
 
-use synthgen_core::annotate::DEFAULT_VISIB_DELTA_M;
+use synthgen_core::annotate::{visible_bop19, DEFAULT_VISIB_DELTA_M};
 use synthgen_core::{AloneDepth, FrameScene, ViewCheck, Visibility};
 
 use crate::cpu::{composite, raster_into};
@@ -105,7 +105,7 @@ impl ViewChecker {
                         }
                         v.px_in_image += 1;
                         let ds = depth[y as usize * w + x as usize];
-                        if d - ds <= self.delta_m || ds == 0.0 {
+                        if visible_bop19(k, x, y, d, ds, self.delta_m) {
                             v.px_visib += 1;
                         }
                     }
@@ -191,13 +191,7 @@ mod tests {
                 frame.instance.iter().all(|&i| i <= 2),
                 "distractor ids leak"
             );
-            let ann = annotate(
-                frame.width,
-                frame.height,
-                &frame.depth_m,
-                &frame.alone,
-                0.015,
-            );
+            let ann = annotate(&scene.intrinsics, &frame.depth_m, &frame.alone, 0.015);
             let vis = check.count(&scene).unwrap();
             for (a, v) in ann.iter().zip(&vis) {
                 assert_eq!(a.info.px_count_all, v.px_all, "frame {f}");
@@ -219,13 +213,7 @@ mod tests {
         for f in 0..12 {
             let scene = sampler.sample(f).unwrap();
             let frame = renderer.render(&scene).unwrap();
-            let ann = annotate(
-                frame.width,
-                frame.height,
-                &frame.depth_m,
-                &frame.alone,
-                0.015,
-            );
+            let ann = annotate(&scene.intrinsics, &frame.depth_m, &frame.alone, 0.015);
             for a in &ann {
                 assert!(
                     a.info.visib_fract >= 0.8,

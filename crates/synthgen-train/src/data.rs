@@ -12,7 +12,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use synthgen_core::rng::splitmix64;
 use synthgen_core::{GtInfo, Pose, Progress};
-use synthgen_dataset::bop::{read_depth_m, read_mask, read_rgb};
+use synthgen_dataset::bop::{read_depth_m, read_rgb};
 use synthgen_dataset::source::{open_source, FrameSource, SourceFrame};
 
 use crate::error::{Error, Result};
@@ -168,11 +168,12 @@ fn load_frame(frame: &SourceFrame, opts: &DataOptions) -> Result<Vec<Outcome>> {
     for gt_id in wanted {
         // No visible mask (a Linemod object without a folder entry for the frame): no
         // visible pixels.
-        let Some(mask_path) = frame.masks_visib.get(gt_id).and_then(Option::as_ref) else {
+        let Some(mask_ref) = frame.masks_visib.get(gt_id).and_then(Option::as_ref) else {
             out.push(Outcome::FewPixels);
             continue;
         };
-        let mask = read_mask(mask_path)?;
+        let mask_path = mask_ref.path();
+        let mask = mask_ref.read()?;
         if mask.width != depth.width || mask.height != depth.height {
             return Err(Error::Malformed {
                 what: "mask",
@@ -180,7 +181,7 @@ fn load_frame(frame: &SourceFrame, opts: &DataOptions) -> Result<Vec<Outcome>> {
                     "size {}x{} differs from the depth image's {}x{}",
                     mask.width, mask.height, depth.width, depth.height
                 ),
-                path: mask_path.clone(),
+                path: mask_path.to_path_buf(),
             });
         }
         let valid: Vec<usize> = (0..mask.data.len())

@@ -72,7 +72,7 @@ pub fn symmetry_poses(sym: &Symmetries, continuous_steps: usize) -> Vec<Pose> {
     let mut out = vec![Pose::IDENTITY];
     for s in &sym.symmetries_discrete {
         let r = [s[0], s[1], s[2], s[4], s[5], s[6], s[8], s[9], s[10]];
-        out.push(Pose::from_bop(&r, &[s[3], s[7], s[11]]));
+        out.push(Pose::from_bop(&r, &[s[3], s[7], s[11]]).orthonormalized());
     }
     for c in &sym.symmetries_continuous {
         let axis = DVec3::from_array(c.axis).normalize_or_zero();

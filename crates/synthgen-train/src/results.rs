@@ -56,8 +56,12 @@ fn parse_line(line: &str) -> std::result::Result<Estimate, String> {
     let time_s: f64 = f[6]
         .parse()
         .map_err(|_| format!("time: not a number: {:?}", f[6]))?;
+    // Estimates, like annotations, may store rotations with a few digits: accepted within the
+    // reading tolerance, scored with the nearest proper rotation.
     let pose = Pose::from_bop(&r, &t);
-    pose.validate(1e-3).map_err(|e| format!("R: {e}"))?;
+    pose.validate(synthgen_core::pose::rotation_tolerance())
+        .map_err(|e| format!("R: {e}"))?;
+    let pose = pose.orthonormalized();
     Ok(Estimate {
         scene_id: id(f[0], "scene_id")?,
         im_id: id(f[1], "im_id")?,

@@ -45,7 +45,8 @@ Output (in --out):
 
 #[derive(Debug, Args)]
 pub struct ExperimentMixArgs {
-    /// The real dataset (BOP, or Linemod/DenseFusion layout): its held-out frames are the test set.
+    /// The real dataset (BOP, Linemod/DenseFusion or YCB-Video layout; the latter two are
+    /// converted to BOP once): its held-out frames are the test set.
     #[arg(long, value_name = "DIR", required_unless_present = "real_proxy")]
     pub real: Option<PathBuf>,
 

@@ -1,13 +1,19 @@
-//! `synthgen convert`: BOP ⇄ Linemod.
+//! `synthgen convert`: BOP ⇄ Linemod, YCB-Video → BOP and Linemod, BOP and Linemod → YCB-Video.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
 use synthgen_core::Progress;
-use synthgen_dataset::convert::{bop_to_linemod, linemod_to_bop, ConvertOptions};
+use synthgen_dataset::convert::ycbv::{source_to_ycbv, ycbv_to_bop, YcbvConvertOptions};
+use synthgen_dataset::convert::{bop_to_linemod, linemod_to_bop, ConvertOptions, ConvertSummary};
 use synthgen_dataset::manifest::{write_manifest, Manifest};
+use synthgen_dataset::source::{open_source, FrameSource};
 use synthgen_dataset::validate::{detect_layout, Layout};
+use synthgen_dataset::ycbv::{YcbvSource, YcbvWriterOptions};
+use synthgen_render::ObjectRenderer;
+
+use crate::commands::object_models::{frame_obj_ids, object_renderer};
 
 use crate::cli::{ConvertArgs, FormatArg};
 use crate::commands::user_error;
@@ -16,10 +22,7 @@ use crate::{ExitStatus, Printer};
 /// The layout of `dir`: `--format`/`--from` when given, else detected.
 pub fn layout_of(dir: &Path, given: Option<FormatArg>, flag: &str) -> Result<Layout> {
     if let Some(f) = given {
-        return Ok(match f {
-            FormatArg::Bop => Layout::Bop,
-            FormatArg::Linemod => Layout::Linemod,
-        });
+        return Ok(layout(f));
     }
     if !dir.is_dir() {
         return Err(user_error(
@@ -30,21 +33,26 @@ pub fn layout_of(dir: &Path, given: Option<FormatArg>, flag: &str) -> Result<Lay
     detect_layout(dir).ok_or_else(|| {
         user_error(
             format!(
-                "cannot tell the layout of {}: no camera.json (BOP) and no data/NN/gt.yml (Linemod)",
+                "cannot tell the layout of {}: no camera.json (BOP), no classes.txt beside data/ (YCB-Video) and no data/NN/gt.yml (Linemod)",
                 dir.display()
             ),
-            format!("pass {flag} bop or {flag} linemod"),
+            format!("pass {flag} bop, {flag} linemod or {flag} ycbv"),
         )
     })
+}
+
+fn layout(f: FormatArg) -> Layout {
+    match f {
+        FormatArg::Bop => Layout::Bop,
+        FormatArg::Linemod => Layout::Linemod,
+        FormatArg::Ycbv => Layout::Ycbv,
+    }
 }
 
 pub fn run(args: ConvertArgs, printer: &Printer) -> Result<ExitStatus> {
     let started = Instant::now();
     let from = layout_of(&args.input, args.from, "--from")?;
-    let to = match args.to {
-        FormatArg::Bop => Layout::Bop,
-        FormatArg::Linemod => Layout::Linemod,
-    };
+    let to = layout(args.to);
     if from == to {
         return Err(user_error(
             format!("{} is already a {from} dataset", args.input.display()),
@@ -80,12 +88,19 @@ pub fn run(args: ConvertArgs, printer: &Printer) -> Result<ExitStatus> {
         depth_scale: args.depth_scale,
         min_visib_fract: args.min_visib_fract,
     };
-    let summary = match to {
-        Layout::Linemod => bop_to_linemod(&args.input, &args.output, &opts, printer),
-        Layout::Bop => linemod_to_bop(&args.input, &args.output, &opts, printer),
-    }
-    .with_context(|| format!("cannot convert {} to {to}", args.input.display()))?;
+    // A failed conversion leaves no half-written dataset behind in a folder it created.
+    let created = !args.output.exists();
+    let result = convert(&args, from, to, &opts, printer);
     printer.finish();
+    let (summary, classes) = match result {
+        Ok(r) => r,
+        Err(e) => {
+            if created && args.output.exists() {
+                let _ = std::fs::remove_dir_all(&args.output);
+            }
+            return Err(e.context(format!("cannot convert {} to {to}", args.input.display())));
+        }
+    };
 
     let mut manifest = Manifest::new(std::env::args().collect(), 0);
     manifest.frames = summary.frames;
@@ -96,6 +111,7 @@ pub fn run(args: ConvertArgs, printer: &Printer) -> Result<ExitStatus> {
             "source": args.input,
             "depth_scale": args.depth_scale,
             "min_visib_fract": args.min_visib_fract,
+            "ycbv_classes": classes,
         }
     });
     write_manifest(&args.output, &manifest)?;
@@ -113,7 +129,11 @@ pub fn run(args: ConvertArgs, printer: &Printer) -> Result<ExitStatus> {
             if n == 1 { "" } else { "s" }
         ),
         (Layout::Bop, n) => format!(
-            " {n} object instance{} had no Linemod mask and got an empty mask_visib.",
+            " {n} object instance{} had no {from} mask and got an empty mask_visib.",
+            if n == 1 { "" } else { "s" }
+        ),
+        (Layout::Ycbv, n) => format!(
+            " {n} object instance{} had no visible pixel in the label image.",
             if n == 1 { "" } else { "s" }
         ),
     };
@@ -130,4 +150,103 @@ pub fn run(args: ConvertArgs, printer: &Printer) -> Result<ExitStatus> {
         args.output.display()
     ));
     Ok(ExitStatus::Success)
+}
+
+/// Runs the conversion; returns what it did and, when the source is YCB-Video, its class
+/// list (kept in the manifest, so a conversion back restores the names).
+fn convert(
+    args: &ConvertArgs,
+    from: Layout,
+    to: Layout,
+    opts: &ConvertOptions,
+    printer: &Printer,
+) -> Result<(ConvertSummary, Option<Vec<String>>)> {
+    let (src, dst) = (&args.input, &args.output);
+    Ok(match (from, to) {
+        (Layout::Bop, Layout::Linemod) => (bop_to_linemod(src, dst, opts, printer)?, None),
+        (Layout::Linemod, Layout::Bop) => (linemod_to_bop(src, dst, opts, printer)?, None),
+        (Layout::Ycbv, Layout::Bop) => {
+            let (renderer, classes) = ycbv_renderer(src, printer)?;
+            let s = ycbv_to_bop(src, dst, renderer.as_ref().map(|r| r as _), printer)?;
+            (s, Some(classes))
+        }
+        (Layout::Ycbv, Layout::Linemod) => {
+            // Through BOP, which carries the visible fractions Linemod's folders need.
+            let tmp = PathBuf::from(format!("{}.synthgen-tmp-bop", dst.display()));
+            if tmp.exists() {
+                std::fs::remove_dir_all(&tmp)
+                    .with_context(|| format!("cannot remove {}", tmp.display()))?;
+            }
+            let (renderer, classes) = ycbv_renderer(src, printer)?;
+            let r = ycbv_to_bop(src, &tmp, renderer.as_ref().map(|r| r as _), printer)
+                .map_err(anyhow::Error::from)
+                .and_then(|_| Ok(bop_to_linemod(&tmp, dst, opts, printer)?));
+            let _ = std::fs::remove_dir_all(&tmp);
+            (r?, Some(classes))
+        }
+        (Layout::Bop | Layout::Linemod, Layout::Ycbv) => {
+            let source = open_source(src)?;
+            let frames = source.frames(&[])?;
+            let renderer = object_renderer(source.as_ref(), &frame_obj_ids(&frames), printer)?;
+            let classes = match &args.classes {
+                Some(path) => Some(read_classes(path)?),
+                None => manifest_classes(src),
+            };
+            let factor_depth = 1000.0 / args.depth_scale.unwrap_or(0.1);
+            let yopts = YcbvConvertOptions {
+                classes,
+                writer: YcbvWriterOptions {
+                    factor_depth,
+                    ..YcbvWriterOptions::default()
+                },
+            };
+            let s = source_to_ycbv(source.as_ref(), dst, &yopts, &renderer, printer)?;
+            (s, None)
+        }
+        (a, b) => anyhow::bail!("internal: no conversion from {a} to {b}"),
+    })
+}
+
+/// The renderer of a YCB-Video dataset's used classes (for BOP's mask/ and scene_gt_info),
+/// `None` with a warning when a model is missing; and the class list.
+fn ycbv_renderer(src: &Path, printer: &Printer) -> Result<(Option<ObjectRenderer>, Vec<String>)> {
+    let source = YcbvSource::open(src)?;
+    let frames = source.frames(&[])?;
+    let ids = frame_obj_ids(&frames);
+    let missing: Vec<PathBuf> = ids
+        .iter()
+        .map(|&id| source.model_file(id))
+        .filter(|p| !p.is_file())
+        .collect();
+    let classes = source.dataset.classes.clone();
+    if let Some(first) = missing.first() {
+        printer.warning(format!(
+            "{} model file(s) missing (first: {}): mask/ and scene_gt_info.json are not written",
+            missing.len(),
+            first.display()
+        ));
+        printer.hint("add the models, or compute them later with `synthgen annotate OUT`");
+        return Ok((None, classes));
+    }
+    Ok((Some(object_renderer(&source, &ids, printer)?), classes))
+}
+
+/// `classes.txt`: one class name per line.
+fn read_classes(path: &Path) -> Result<Vec<String>> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read the class list {}", path.display()))?;
+    let mut classes: Vec<String> = text.lines().map(|l| l.trim().to_string()).collect();
+    while classes.last().is_some_and(String::is_empty) {
+        classes.pop();
+    }
+    Ok(classes)
+}
+
+/// The YCB-Video class list a conversion from YCB-Video recorded in the manifest.
+fn manifest_classes(src: &Path) -> Option<Vec<String>> {
+    let m = synthgen_dataset::read_manifest(src).ok()?;
+    let list = m.extra.get("convert")?.get("ycbv_classes")?.as_array()?;
+    list.iter()
+        .map(|v| v.as_str().map(str::to_string))
+        .collect()
 }

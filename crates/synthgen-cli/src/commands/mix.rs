@@ -4,10 +4,13 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use synthgen_dataset::mix::{write_mix, MixCounts, MixOptions, PROVENANCE_FILE};
-use synthgen_dataset::source::open_source;
+use synthgen_core::PoseRenderer;
+use synthgen_dataset::mix::{write_mix, Completion, MixCounts, MixOptions, PROVENANCE_FILE};
+use synthgen_dataset::source::{open_source, FrameSource};
+use synthgen_render::ObjectRenderer;
 
 use crate::cli::{MixArgs, PathOrCount};
+use crate::commands::object_models::{frame_obj_ids, object_renderer};
 use crate::commands::user_error;
 use crate::config::{self, Config, CONFIG_FILE};
 use crate::{ExitStatus, Printer};
@@ -44,22 +47,36 @@ pub fn run(args: MixArgs, printer: &Printer) -> Result<ExitStatus> {
         command_line: std::env::args().collect(),
         force: args.force,
     };
-    let report = write_mix(real_ds.as_ref(), synth_ds.as_ref(), &out, &opts, printer).map_err(
-        |e| match e {
-            synthgen_dataset::Error::InvalidRequest(m) if m.contains("--force") => user_error(
-                m,
-                "choose another --out, or add --force to replace the mix there",
-            ),
-            synthgen_dataset::Error::NotEnoughFrames { .. } => {
-                let msg = e.to_string();
-                user_error(
-                    msg,
-                    "lower the counts (or --test-count), or render more frames",
-                )
-            }
-            e => anyhow::Error::new(e),
-        },
-    )?;
+    // Frames without mask/ and scene_gt_info (YCB-Video, Linemod) get them computed from
+    // their poses and models, so the mix is a complete BOP dataset.
+    let real_r = completion_renderer(real_ds.as_ref(), printer)?;
+    let synth_r = completion_renderer(synth_ds.as_ref(), printer)?;
+    let completion = Completion {
+        real: real_r.as_ref().map(|r| r as &dyn PoseRenderer),
+        synth: synth_r.as_ref().map(|r| r as &dyn PoseRenderer),
+    };
+    let report = write_mix(
+        real_ds.as_ref(),
+        synth_ds.as_ref(),
+        &out,
+        &opts,
+        completion,
+        printer,
+    )
+    .map_err(|e| match e {
+        synthgen_dataset::Error::InvalidRequest(m) if m.contains("--force") => user_error(
+            m,
+            "choose another --out, or add --force to replace the mix there",
+        ),
+        synthgen_dataset::Error::NotEnoughFrames { .. } => {
+            let msg = e.to_string();
+            user_error(
+                msg,
+                "lower the counts (or --test-count), or render more frames",
+            )
+        }
+        e => anyhow::Error::new(e),
+    })?;
     for w in &report.warnings {
         printer.warning(w);
     }
@@ -139,4 +156,25 @@ fn counts(args: &MixArgs) -> Result<MixCounts> {
         synth: pick("synth", &args.synth, args.synth_count)?,
         test: args.test_count,
     })
+}
+
+/// A renderer of the dataset's objects when some of its frames lack scene_gt_info (a
+/// YCB-Video or Linemod set), else `None`.
+fn completion_renderer(
+    source: &dyn FrameSource,
+    printer: &Printer,
+) -> Result<Option<ObjectRenderer>> {
+    let frames = source.frames(&[])?;
+    if frames.iter().all(|f| f.gt_info.is_some()) {
+        return Ok(None);
+    }
+    printer.info(format!(
+        "{}: computing mask/ and scene_gt_info from the poses and models (as `synthgen annotate`)",
+        source.root().display()
+    ));
+    Ok(Some(object_renderer(
+        source,
+        &frame_obj_ids(&frames),
+        printer,
+    )?))
 }

@@ -7,6 +7,7 @@ pub mod experiment;
 pub mod export;
 pub mod merge;
 pub mod mix;
+mod object_models;
 pub mod preview;
 pub mod render;
 mod render_extras;
@@ -65,7 +66,23 @@ pub fn user_error(message: impl Into<String>, hint: impl Into<String>) -> anyhow
 }
 
 pub fn hint_for(err: &anyhow::Error) -> Option<String> {
-    err.chain()
+    let given = err
+        .chain()
         .find_map(|c| c.downcast_ref::<UserError>())
-        .and_then(|u| u.hint.clone())
+        .and_then(|u| u.hint.clone());
+    given.or_else(|| {
+        // A rotation beyond the reading tolerance: say how to accept it if it is real data.
+        err.chain()
+            .any(|c| {
+                let s = c.to_string();
+                s.contains("rotation") && s.contains("(tolerance ")
+            })
+            .then(|| {
+                format!(
+                    "real annotations store approximate rotations; if this one is acceptable, raise \
+                     --rotation-tolerance (now {})",
+                    synthgen_core::pose::rotation_tolerance()
+                )
+            })
+    })
 }

@@ -69,7 +69,12 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
         .context("cannot start worker threads")?;
 
     let intrinsics = spec.camera.intrinsics()?;
-    let writer = Sink::create(&args, intrinsics, frame_range.clone())?;
+    let writer = Sink::create(
+        &args,
+        intrinsics,
+        frame_range.clone(),
+        &ycbv_classes(&sources, &ids),
+    )?;
     let mut manifest = base_manifest(&args, &spec, &sources, &ids, &frame_range)?;
     let done = render_resume::begin(&args, &manifest, &writer, frame_range.clone())?;
     let symmetries: Vec<Option<Symmetries>> = sources
@@ -157,8 +162,7 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
                         let scene = sampler.sample(i)?;
                         let mut frame = renderer.render(&scene)?;
                         let ann = synthgen_core::annotate(
-                            frame.width,
-                            frame.height,
+                            &scene.intrinsics,
                             &frame.depth_m,
                             &frame.alone,
                             delta_m,
@@ -507,10 +511,35 @@ fn collect_sources(args: &RenderArgs, spec: &SceneSpec) -> Result<Vec<ObjectSour
 }
 
 /// The number in BOP-style names such as `obj_000008.ply` or `obj_08.ply`.
+/// The id a model's path implies: BOP's `obj_000008.ply` → 8; a YCB-Video model
+/// (`models/025_mug/textured_simple.obj`) → its class index (14), BOP `ycbv`'s obj_id.
 fn id_from_name(path: &Path) -> Option<u32> {
     let stem = path.file_stem()?.to_str()?;
-    let digits = stem.strip_prefix("obj_")?;
-    digits.parse::<u32>().ok().filter(|&v| v > 0)
+    if let Some(digits) = stem.strip_prefix("obj_") {
+        return digits.parse::<u32>().ok().filter(|&v| v > 0);
+    }
+    ycbv_class_index(path)
+}
+
+/// The YCB-Video class index of a model whose folder is named after the class.
+fn ycbv_class_index(path: &Path) -> Option<u32> {
+    let folder = path.parent()?.file_name()?.to_str()?;
+    let i = synthgen_dataset::ycbv::YCBV_CLASSES
+        .iter()
+        .position(|c| *c == folder)?;
+    u32::try_from(i + 1).ok()
+}
+
+/// `classes.txt` of a YCB-Video output: YCB-Video's name for an object whose model sits in
+/// that class's folder under that class's id, else `obj_NNNNNN`; ids up to the largest.
+fn ycbv_classes(sources: &[ObjectSource], ids: &[u32]) -> Vec<String> {
+    let mut names = synthgen_dataset::ycbv::class_list(ids, false);
+    for (s, &id) in sources.iter().zip(ids) {
+        if ycbv_class_index(&s.path) == Some(id) {
+            names[id as usize - 1] = synthgen_dataset::ycbv::YCBV_CLASSES[id as usize - 1].into();
+        }
+    }
+    names
 }
 
 /// Object ids in source order: explicit ids first, then file-name ids, then the smallest free.

@@ -1,4 +1,4 @@
-//! Where `synthgen render` writes: the BOP writer or the Linemod writer, behind one small
+//! Where `synthgen render` writes: the BOP, Linemod or YCB-Video writer, behind one small
 //! interface so `render.rs` stays format-agnostic.
 
 use std::collections::BTreeMap;
@@ -12,17 +12,27 @@ use synthgen_dataset::bop::{
 };
 use synthgen_dataset::linemod::writer::LinemodRecord;
 use synthgen_dataset::linemod::{LinemodWriter, LinemodWriterOptions, ListFile};
+use synthgen_dataset::ycbv::{YcbvFrame, YcbvObject, YcbvPose, YcbvWriter, YcbvWriterOptions};
 
 use crate::cli::{FormatArg, RenderArgs, RgbFormat as RgbArg};
 
 pub enum Sink {
     Bop(BopWriter),
     Linemod(LinemodWriter),
+    Ycbv(YcbvSink),
 }
 
 pub enum Record {
     Bop(FrameRecord),
     Linemod(LinemodRecord),
+    Ycbv,
+}
+
+/// The YCB-Video writer and how frame indices become (scene, image) ids.
+pub struct YcbvSink {
+    writer: YcbvWriter,
+    split: String,
+    chunk_size: u32,
 }
 
 /// What was written.
@@ -36,7 +46,7 @@ pub struct SinkSummary {
 /// The depth scale of `--depth-scale`, or the format's default.
 pub fn depth_scale(args: &RenderArgs) -> f64 {
     args.depth_scale.unwrap_or(match args.format {
-        FormatArg::Bop => 0.1,
+        FormatArg::Bop | FormatArg::Ycbv => 0.1,
         FormatArg::Linemod => 1.0,
     })
 }
@@ -45,7 +55,11 @@ pub fn depth_scale(args: &RenderArgs) -> f64 {
 /// `synthgen merge` can check that runs match).
 pub fn dataset_options(args: &RenderArgs) -> serde_json::Value {
     serde_json::json!({
-        "format": match args.format { FormatArg::Bop => "bop", FormatArg::Linemod => "linemod" },
+        "format": match args.format {
+            FormatArg::Bop => "bop",
+            FormatArg::Linemod => "linemod",
+            FormatArg::Ycbv => "ycbv",
+        },
         "split": args.split,
         "chunk_size": args.chunk_size,
         "rgb_format": match args.rgb_format { RgbArg::Png => "png", RgbArg::Jpg => "jpg" },
@@ -56,7 +70,13 @@ pub fn dataset_options(args: &RenderArgs) -> serde_json::Value {
 }
 
 impl Sink {
-    pub fn create(args: &RenderArgs, intrinsics: Intrinsics, frames: Range<u64>) -> Result<Sink> {
+    /// `classes`: the YCB-Video class list (line i = obj_id i), for `--format ycbv`.
+    pub fn create(
+        args: &RenderArgs,
+        intrinsics: Intrinsics,
+        frames: Range<u64>,
+        classes: &[String],
+    ) -> Result<Sink> {
         Ok(match args.format {
             FormatArg::Bop => {
                 let w = BopWriter::create(
@@ -89,6 +109,23 @@ impl Sink {
                     ..LinemodWriterOptions::default()
                 },
             )?),
+            FormatArg::Ycbv => {
+                if args.chunk_size == 0 {
+                    anyhow::bail!("--chunk-size must be at least 1");
+                }
+                Sink::Ycbv(YcbvSink {
+                    writer: YcbvWriter::create(
+                        &args.out,
+                        classes.to_vec(),
+                        YcbvWriterOptions {
+                            factor_depth: 1000.0 / depth_scale(args),
+                            ..YcbvWriterOptions::default()
+                        },
+                    )?,
+                    split: args.split.clone(),
+                    chunk_size: args.chunk_size,
+                })
+            }
         })
     }
 
@@ -109,6 +146,11 @@ impl Sink {
             let path = match self {
                 Sink::Bop(w) => w.model_ply_path(id)?,
                 Sink::Linemod(w) => w.model_ply_path(id),
+                Sink::Ycbv(y) => {
+                    y.writer.write_model(id, m)?;
+                    infos.insert(id, ModelInfo::from_model(m));
+                    continue;
+                }
             };
             synthgen_assets::write_ply(&path, m, 1000.0)
                 .with_context(|| format!("cannot write model {}", path.display()))?;
@@ -126,6 +168,8 @@ impl Sink {
             Sink::Linemod(w) => {
                 w.write_models_info(&infos)?;
             }
+            // YCB-Video has no models_info; its evaluation uses points.xyz.
+            Sink::Ycbv(_) => {}
         }
         Ok(())
     }
@@ -143,6 +187,11 @@ impl Sink {
                 let f = w.frame_from_render(scene, frame, ann)?;
                 Record::Linemod(w.write_frame(&f, ListFile::Train)?)
             }
+            Sink::Ycbv(y) => {
+                y.writer
+                    .write_frame(&y.frame_from_render(i, scene, frame)?)?;
+                Record::Ycbv
+            }
         })
     }
 
@@ -150,7 +199,9 @@ impl Sink {
     pub fn resume(&self) -> Result<DoneFrames> {
         match self {
             Sink::Bop(w) => Ok(w.resume()?),
-            Sink::Linemod(_) => anyhow::bail!("internal error: resuming a Linemod dataset"),
+            Sink::Linemod(_) | Sink::Ycbv(_) => {
+                anyhow::bail!("internal error: resuming a Linemod or YCB-Video dataset")
+            }
         }
     }
 
@@ -160,6 +211,7 @@ impl Sink {
                 w.add_record(r)?;
             }
             (Sink::Linemod(w), Record::Linemod(r)) => w.add_record(r),
+            (Sink::Ycbv(_), Record::Ycbv) => {}
             _ => anyhow::bail!("internal error: a record of the other format"),
         }
         Ok(())
@@ -193,6 +245,103 @@ impl Sink {
                     ),
                 }
             }
+            Sink::Ycbv(y) => {
+                let overflow = y.depth_out_of_range_px();
+                let s = y.writer.finish()?;
+                SinkSummary {
+                    frames: s.frames,
+                    depth_out_of_range_px: overflow,
+                    description: format!(
+                        "a YCB-Video dataset to {} ({} under data/)",
+                        out.display(),
+                        plural(s.scenes, "scene folder")
+                    ),
+                }
+            }
+        })
+    }
+}
+
+impl YcbvSink {
+    fn depth_out_of_range_px(&self) -> u64 {
+        self.writer.depth_out_of_range_px()
+    }
+
+    /// A rendered frame in YCB-Video's terms: the label from the instance ids (distractors are
+    /// 0 there), the vertmap from each object's own clean depth (the sensor model only touched
+    /// the frame's `depth_m`), scene `i / chunk_size`, image `i % chunk_size`.
+    fn frame_from_render(
+        &self,
+        i: u64,
+        scene: &FrameScene,
+        frame: &RenderedFrame,
+    ) -> Result<YcbvFrame> {
+        let k = &scene.intrinsics;
+        let (w, h) = (frame.width, frame.height);
+        let cs = u64::from(self.chunk_size);
+        let scene_id = u32::try_from(i / cs).context("scene id over u32")?;
+        let ids: Vec<u8> = scene
+            .objects
+            .iter()
+            .map(|o| u8::try_from(o.obj_id))
+            .collect::<Result<_, _>>()
+            .map_err(|_| {
+                anyhow::anyhow!("object ids over 255 do not fit YCB-Video's 8-bit label image")
+            })?;
+        let label: Vec<u8> = frame
+            .instance
+            .iter()
+            .map(|&v| {
+                if v == 0 {
+                    0
+                } else {
+                    ids.get(usize::from(v) - 1).copied().unwrap_or(0)
+                }
+            })
+            .collect();
+        let obj_from_cam: Vec<_> = scene
+            .objects
+            .iter()
+            .map(|o| o.cam_from_obj.inverse())
+            .collect();
+        let mut vertmap = vec![0f32; label.len() * 3];
+        for (p, &v) in frame.instance.iter().enumerate() {
+            if v == 0 {
+                continue;
+            }
+            let o = usize::from(v) - 1;
+            let (x, y) = ((p % w as usize) as i32, (p / w as usize) as i32);
+            let z = frame.alone.get(o).map_or(0.0, |a| a.at(x, y));
+            if z > 0.0 {
+                let q = obj_from_cam[o].transform_point(k.back_project(
+                    f64::from(x),
+                    f64::from(y),
+                    f64::from(z),
+                ));
+                vertmap[3 * p..3 * p + 3].copy_from_slice(&q.as_vec3().to_array());
+            }
+        }
+        let depth = self.writer.depth_values(&frame.depth_m);
+        Ok(YcbvFrame {
+            split: self.split.clone(),
+            scene_id,
+            im_id: (i % cs) as u32,
+            width: w,
+            height: h,
+            rgb: frame.rgb.clone(),
+            depth,
+            label,
+            vertmap,
+            cam_k: k.k_row_major(),
+            cam_from_world: Some(YcbvPose::from_pose(&scene.world_from_cam.inverse())),
+            objects: scene
+                .objects
+                .iter()
+                .map(|o| YcbvObject {
+                    obj_id: o.obj_id,
+                    pose: YcbvPose::from_pose(&o.cam_from_obj),
+                })
+                .collect(),
         })
     }
 }

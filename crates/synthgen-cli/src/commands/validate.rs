@@ -13,6 +13,9 @@ pub fn run(args: ValidateArgs, printer: &Printer) -> Result<ExitStatus> {
     let checks = Checks::default();
     let report = validate(&args.dir, layout, &checks, printer);
     printer.finish();
+    for w in &report.warnings {
+        printer.warning(format!("{}: {}", w.path.display(), w.message));
+    }
     if args.json {
         let text = serde_json::to_string_pretty(&report).context("cannot write the report")?;
         println!("{text}");

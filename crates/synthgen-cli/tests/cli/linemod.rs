@@ -276,7 +276,7 @@ fn validate_names_the_file_of_each_planted_linemod_problem() {
     assert!(line("cannot decode image", &rgb), "{stdout}");
     assert!(line("missing file", &mask), "{stdout}");
     assert!(line("rotation determinant", "gt.yml"), "{stdout}");
-    assert!(stdout.contains("tolerance 0.001"), "{stdout}");
+    assert!(stdout.contains("tolerance 0.02"), "{stdout}");
     assert!(err.contains("error: 3 problems"), "{err}");
 
     // A gt.yml with a missing key: the parse error names the file, the key and the line.

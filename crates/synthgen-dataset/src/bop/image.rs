@@ -273,6 +273,47 @@ pub fn read_mask(path: &Path) -> Result<Plane<u8>> {
     })
 }
 
+/// Reads a label PNG (one class index per pixel, as YCB-Video's `-label.png`): 8- or 16-bit
+/// grayscale values, or the palette indexes of an indexed 8-bit PNG.
+pub fn read_label(path: &Path) -> Result<Plane<u16>> {
+    let bytes = io::read(path)?;
+    let mut dec = png::Decoder::new(Cursor::new(bytes));
+    // No EXPAND: a palette image's values are its indexes, not colours.
+    dec.set_transformations(png::Transformations::IDENTITY);
+    let mut reader = dec
+        .read_info()
+        .map_err(|e| decode_err(path, e.to_string()))?;
+    let size = reader
+        .output_buffer_size()
+        .ok_or_else(|| decode_err(path, "image too large"))?;
+    let mut buf = vec![0u8; size];
+    let info = reader
+        .next_frame(&mut buf)
+        .map_err(|e| decode_err(path, e.to_string()))?;
+    buf.truncate(info.buffer_size());
+    use png::{BitDepth, ColorType};
+    let data: Vec<u16> = match (info.color_type, info.bit_depth) {
+        (ColorType::Grayscale | ColorType::Indexed, BitDepth::Eight) => {
+            buf.iter().map(|&v| u16::from(v)).collect()
+        }
+        (ColorType::Grayscale, BitDepth::Sixteen) => buf
+            .chunks_exact(2)
+            .map(|b| u16::from_be_bytes([b[0], b[1]]))
+            .collect(),
+        (c, d) => {
+            return Err(decode_err(
+                path,
+                format!("expected an 8- or 16-bit grayscale (or 8-bit indexed) label PNG, found {c:?} {d:?}"),
+            ))
+        }
+    };
+    Ok(Plane {
+        width: info.width,
+        height: info.height,
+        data,
+    })
+}
+
 /// Reads an RGB image (PNG or JPEG) as RGB8.
 pub fn read_rgb(path: &Path) -> Result<RgbImage> {
     let bytes = io::read(path)?;

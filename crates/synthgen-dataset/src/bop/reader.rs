@@ -12,10 +12,6 @@ use super::types::{CameraInfo, GtEntry, ModelInfo, SceneCamera};
 use crate::error::{Error, Result};
 use crate::io;
 
-/// Largest deviation of a rotation from orthonormal the reader accepts (BOP files store
-/// rotations with 6–8 significant digits).
-pub const ROTATION_TOLERANCE: f64 = 1e-3;
-
 /// Reads and deserializes a JSON file; syntax and type errors carry serde's line and column.
 pub fn read_json<T: DeserializeOwned>(path: &Path) -> Result<T> {
     let bytes = io::read(path)?;
@@ -34,11 +30,14 @@ pub(crate) fn check_finite(path: &Path, what: &str, values: &[f64]) -> Result<()
     }
 }
 
+/// Checks a pose as the file stores it: finite, and a rotation within
+/// [`synthgen_core::pose::rotation_tolerance`] (real BOP files store ~6 digits of hand-made
+/// annotations).
 fn check_pose(path: &Path, what: &str, r: &[f64; 9], t: &[f64; 3]) -> Result<Pose> {
     check_finite(path, what, r)?;
     check_finite(path, what, t)?;
     let pose = Pose::from_bop(r, t);
-    pose.validate(ROTATION_TOLERANCE)
+    pose.validate(synthgen_core::pose::rotation_tolerance())
         .map_err(|e| Error::malformed(path, format!("{what}: {e}")))?;
     Ok(pose)
 }
@@ -80,8 +79,11 @@ pub fn read_models_info(path: &Path) -> Result<BTreeMap<u32, ModelInfo>> {
                 format!("{what}: diameter must be positive"),
             ));
         }
-        for s in &info.symmetries.symmetries_discrete {
+        for (k, s) in info.symmetries.symmetries_discrete.iter().enumerate() {
             check_finite(path, &what, s)?;
+            let r = [s[0], s[1], s[2], s[4], s[5], s[6], s[8], s[9], s[10]];
+            let sym = format!("{what}, symmetries_discrete[{k}]");
+            check_pose(path, &sym, &r, &[s[3], s[7], s[11]])?;
         }
         for s in &info.symmetries.symmetries_continuous {
             check_finite(path, &what, &s.axis)?;

@@ -109,9 +109,10 @@ impl SceneCamera {
         Intrinsics::from_k(&self.cam_k, width, height)
     }
 
-    /// `cam_from_world`, when the file has it.
+    /// `cam_from_world`, when the file has it, with the nearest proper rotation (files store
+    /// approximate ones; see [`synthgen_core::pose`]).
     pub fn cam_from_world(&self) -> Option<Pose> {
-        Some(Pose::from_bop(&self.cam_r_w2c?, &self.cam_t_w2c?))
+        Some(Pose::from_bop(&self.cam_r_w2c?, &self.cam_t_w2c?).orthonormalized())
     }
 }
 
@@ -135,7 +136,14 @@ impl GtEntry {
         }
     }
 
+    /// `cam_from_obj` with the nearest proper rotation (the file's may be approximate; see
+    /// [`synthgen_core::pose`]). Writers copy `cam_r_m2c` itself, keeping the file's numbers.
     pub fn cam_from_obj(&self) -> Pose {
+        self.cam_from_obj_as_stored().orthonormalized()
+    }
+
+    /// `cam_from_obj` exactly as the file stores it.
+    pub fn cam_from_obj_as_stored(&self) -> Pose {
         Pose::from_bop(&self.cam_r_m2c, &self.cam_t_m2c)
     }
 }

@@ -17,7 +17,6 @@ use super::image::{
 };
 use super::journal;
 use super::json::save_json_object;
-use super::reader::ROTATION_TOLERANCE;
 use super::types::{no_negative_zero, CameraInfo, GtEntry, ModelInfo, SceneCamera};
 use crate::error::{Error, Result};
 use crate::io::{atomic_write, create_dir_all, remove_stale_temp_files};
@@ -276,13 +275,13 @@ impl BopWriter {
         let mut gt = Vec::with_capacity(ann.len());
         for (i, o) in scene.objects.iter().enumerate() {
             o.cam_from_obj
-                .validate(ROTATION_TOLERANCE)
+                .validate(synthgen_core::pose::rotation_tolerance())
                 .map_err(|e| invalid(format!("object {i}: {e}")))?;
             gt.push(GtEntry::new(o.obj_id, &o.cam_from_obj));
         }
         let cam_from_world = scene.world_from_cam.inverse();
         cam_from_world
-            .validate(ROTATION_TOLERANCE)
+            .validate(synthgen_core::pose::rotation_tolerance())
             .map_err(|e| invalid(format!("camera: {e}")))?;
         let k_row = k.k_row_major();
         if k_row.iter().any(|v| !v.is_finite()) {

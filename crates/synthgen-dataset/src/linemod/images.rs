@@ -141,20 +141,20 @@ pub fn image_gts(
         .collect()
 }
 
-/// Every GT rotation of the folders is a rotation (within the BOP reader's tolerance); the
-/// error names the folder's gt.yml and the frame.
+/// Every GT rotation of the folders is a rotation (within
+/// [`synthgen_core::pose::rotation_tolerance`]); the error names the folder's gt.yml, the
+/// frame and the entry.
 pub fn validate_gt_rotations(folders: &[super::LinemodFolder]) -> crate::error::Result<()> {
+    let tol = synthgen_core::pose::rotation_tolerance();
     for f in folders {
         for (frame, gts) in &f.gt {
-            for g in gts {
-                g.cam_from_obj()
-                    .validate(crate::bop::reader::ROTATION_TOLERANCE)
-                    .map_err(|e| {
-                        crate::error::Error::malformed(
-                            &f.dir.join("gt.yml"),
-                            format!("frame {frame}: {e}"),
-                        )
-                    })?;
+            for (i, g) in gts.iter().enumerate() {
+                g.cam_from_obj_as_stored().validate(tol).map_err(|e| {
+                    crate::error::Error::malformed(
+                        &f.dir.join("gt.yml"),
+                        format!("frame {frame}, entry {i}: {e}"),
+                    )
+                })?;
             }
         }
     }

@@ -47,7 +47,13 @@ pub struct LinemodGt {
 }
 
 impl LinemodGt {
+    /// `cam_from_obj` with the nearest proper rotation (see [`crate::bop::GtEntry::cam_from_obj`]).
     pub fn cam_from_obj(&self) -> Pose {
+        self.cam_from_obj_as_stored().orthonormalized()
+    }
+
+    /// `cam_from_obj` exactly as `gt.yml` stores it.
+    pub fn cam_from_obj_as_stored(&self) -> Pose {
         Pose::from_bop(&self.cam_r_m2c, &self.cam_t_m2c)
     }
 }

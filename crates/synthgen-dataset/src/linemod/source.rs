@@ -9,7 +9,7 @@ use super::images::{image_gts, plan_images, validate_gt_rotations, LinemodImage}
 use super::{LinemodDataset, LinemodFolder};
 use crate::bop::{CameraInfo, GtEntry, ModelInfo, SceneCamera};
 use crate::error::{Error, Result};
-use crate::source::{FrameLocation, FrameSource, SourceFrame};
+use crate::source::{FrameLocation, FrameSource, MaskRef, SourceFrame};
 
 /// An opened Linemod dataset: its folders read and its images planned.
 #[derive(Debug, Clone)]
@@ -128,6 +128,7 @@ impl FrameSource for LinemodSource {
                         owner
                             .map(|i| self.folders[i].mask_path(frame))
                             .filter(|p| p.is_file())
+                            .map(MaskRef::File)
                     })
                     .collect(),
             });

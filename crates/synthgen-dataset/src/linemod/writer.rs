@@ -14,7 +14,6 @@ use synthgen_core::{FrameScene, ObjectAnnotation, RenderedFrame};
 use super::yaml::{gt_yml_text, info_yml_text, models_info_yml_text};
 use super::{folder_name, frame_file, LinemodGt, LinemodInfo, DEFAULT_MIN_VISIB_FRACT};
 use crate::bop::image::{depth_to_png_values, encode_gray16_png, encode_gray8_png, encode_rgb_png};
-use crate::bop::reader::ROTATION_TOLERANCE;
 use crate::bop::types::no_negative_zero;
 use crate::bop::{ModelInfo, PngCompression};
 use crate::error::{Error, Result};
@@ -230,7 +229,7 @@ impl LinemodWriter {
         let mut objects = Vec::with_capacity(ann.len());
         for (i, (o, a)) in scene.objects.iter().zip(ann).enumerate() {
             o.cam_from_obj
-                .validate(ROTATION_TOLERANCE)
+                .validate(synthgen_core::pose::rotation_tolerance())
                 .map_err(|e| invalid(format!("object {i}: {e}")))?;
             objects.push(LinemodObject {
                 gt: LinemodGt {

@@ -18,15 +18,17 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 use synthgen_core::rng::splitmix64;
-use synthgen_core::{GtInfo, Progress};
+use synthgen_core::{GtInfo, PoseRenderer, Progress};
 
+use crate::annotate::complete_annotations;
+use crate::bop::image::encode_gray8_png;
 use crate::bop::json::{save_json_dict, save_json_object};
 use crate::bop::write_map;
-use crate::bop::{GtEntry, ModelInfo, SceneCamera};
+use crate::bop::{GtEntry, ModelInfo, PngCompression, SceneCamera};
 use crate::error::{Error, Result};
 use crate::io::{atomic_write, create_dir_all};
 use crate::manifest::{write_manifest, Manifest};
-use crate::source::{FrameSource, SourceFrame};
+use crate::source::{write_bop_model, FrameSource, MaskRef, SourceFrame};
 
 /// Output split of the training frames.
 pub const TRAIN_SPLIT: &str = "train";
@@ -234,6 +236,16 @@ pub struct MixOptions {
     pub force: bool,
 }
 
+/// Renderers that fill in what a source's frames lack, one per source: BOP's `mask/` and
+/// `scene_gt_info.json` (YCB-Video and Linemod frames have only visible masks), computed
+/// from the poses and models ([`crate::annotate::complete_annotations`]). `None` leaves such
+/// frames as they are, with a warning.
+#[derive(Default, Clone, Copy)]
+pub struct Completion<'a> {
+    pub real: Option<&'a dyn PoseRenderer>,
+    pub synth: Option<&'a dyn PoseRenderer>,
+}
+
 /// What a mix wrote.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct MixReport {
@@ -245,6 +257,8 @@ pub struct MixReport {
     pub copied: usize,
     /// Non-fatal findings (differing cameras or models).
     pub warnings: Vec<String>,
+    /// Frames whose mask/ and scene_gt_info entries were computed (see [`Completion`]).
+    pub completed: usize,
 }
 
 /// Draws the mix and writes it as a BOP dataset at `out`: `train/` and `test/` scene
@@ -256,6 +270,7 @@ pub fn write_mix(
     synth: &dyn FrameSource,
     out: &Path,
     opts: &MixOptions,
+    completion: Completion,
     progress: &dyn Progress,
 ) -> Result<MixReport> {
     let real_frames = real.frames(&[])?;
@@ -309,9 +324,9 @@ pub fn write_mix(
     for (split, list) in [(TRAIN_SPLIT, &plan.train), (TEST_SPLIT, &test)] {
         let mut scenes: BTreeMap<u32, SceneJson> = BTreeMap::new();
         for (n, &(origin, i)) in list.iter().enumerate() {
-            let (source, frame) = match origin {
-                Origin::Real => (real, &real_frames[i]),
-                Origin::Synth => (synth, &synth_frames[i]),
+            let (source, frame, renderer) = match origin {
+                Origin::Real => (real, &real_frames[i], completion.real),
+                Origin::Synth => (synth, &synth_frames[i], completion.synth),
             };
             let scene_id = (n / SCENE_SIZE) as u32;
             let im_id = (n % SCENE_SIZE) as u32;
@@ -320,8 +335,17 @@ pub fn write_mix(
             let scene = scenes.entry(scene_id).or_default();
             scene.camera.insert(im_id, frame.camera);
             scene.gt.insert(im_id, frame.gt.clone());
-            if let Some(info) = &frame.gt_info {
-                scene.gt_info.insert(im_id, info.clone());
+            match (&frame.gt_info, renderer) {
+                (Some(info), _) => {
+                    scene.gt_info.insert(im_id, info.clone());
+                }
+                (None, Some(r)) => {
+                    let cam = source.camera();
+                    let info = complete_frame(r, frame, &dir, im_id, (cam.width, cam.height))?;
+                    scene.gt_info.insert(im_id, info);
+                    report.completed += 1;
+                }
+                (None, None) => {}
             }
             match (split, origin) {
                 (TEST_SPLIT, _) => {}
@@ -346,6 +370,7 @@ pub fn write_mix(
     }
     progress.finish();
     if provenance.iter().any(|p| p.origin == Origin::Real)
+        && completion.real.is_none()
         && real_frames.iter().any(|f| f.gt_info.is_none())
     {
         report.warnings.push(
@@ -450,12 +475,12 @@ fn copy_frame_files(
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_else(|| "png".into());
-    let rgb_dir = frame
-        .rgb
-        .parent()
-        .and_then(Path::file_name)
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "rgb".into());
+    // itodd keeps grayscale images in gray/; everything else (BOP rgb/, Linemod rgb/,
+    // YCB-Video's -color files) goes to rgb/.
+    let rgb_dir = match frame.rgb.parent().and_then(Path::file_name) {
+        Some(n) if n == "gray" => "gray",
+        _ => "rgb",
+    };
     link_or_copy(
         &frame.rgb,
         &dir.join(rgb_dir).join(format!("{im_id:06}.{ext}")),
@@ -470,13 +495,56 @@ fn copy_frame_files(
     }
     for (folder, masks) in [("mask", &frame.masks), ("mask_visib", &frame.masks_visib)] {
         for (gt_id, mask) in masks.iter().enumerate() {
-            if let Some(m) = mask {
-                let name = format!("{im_id:06}_{gt_id:06}.png");
-                link_or_copy(m, &dir.join(folder).join(name), report)?;
+            let dst = dir.join(folder).join(format!("{im_id:06}_{gt_id:06}.png"));
+            match mask {
+                Some(MaskRef::File(m)) => link_or_copy(m, &dst, report)?,
+                // A label image's instance becomes a BOP 0/255 mask of its own.
+                Some(label @ MaskRef::Label { .. }) => {
+                    let m = label.read()?;
+                    create_dir_all(&dir.join(folder))?;
+                    let png =
+                        encode_gray8_png(&m.data, m.width, m.height, PngCompression::Fast, &dst)?;
+                    atomic_write(&dst, &png)?;
+                    report.copied += 1;
+                }
+                None => {}
             }
         }
     }
     Ok(())
+}
+
+/// Writes the frame's `mask/` (the silhouettes rendered at its poses, see
+/// [`crate::annotate::complete_annotations`]) and returns its `scene_gt_info` entries, whose
+/// visible counts are those of the frame's visible masks.
+fn complete_frame(
+    renderer: &dyn PoseRenderer,
+    frame: &SourceFrame,
+    dir: &Path,
+    im_id: u32,
+    (w, h): (u32, u32),
+) -> Result<Vec<GtInfo>> {
+    let mut visib = Vec::with_capacity(frame.gt.len());
+    for gt_id in 0..frame.gt.len() {
+        visib.push(
+            match frame.masks_visib.get(gt_id).and_then(Option::as_ref) {
+                Some(m) => m.read()?.data,
+                None => vec![0; (w * h) as usize],
+            },
+        );
+    }
+    create_dir_all(&dir.join("mask"))?;
+    let mut infos = Vec::with_capacity(frame.gt.len());
+    for (gt_id, (mask, info)) in complete_annotations(renderer, frame, &visib, (w, h))?
+        .into_iter()
+        .enumerate()
+    {
+        let p = dir.join("mask").join(format!("{im_id:06}_{gt_id:06}.png"));
+        let png = encode_gray8_png(&mask, w, h, PngCompression::Fast, &p)?;
+        atomic_write(&p, &png)?;
+        infos.push(info);
+    }
+    Ok(infos)
 }
 
 /// Models and models_info.json: the real set's, plus the synthetic set's objects the real
@@ -488,7 +556,7 @@ fn write_models(
     report: &mut MixReport,
 ) -> Result<()> {
     let mut info: BTreeMap<u32, ModelInfo> = BTreeMap::new();
-    let mut files: BTreeMap<u32, PathBuf> = BTreeMap::new();
+    let mut files: BTreeMap<u32, &dyn FrameSource> = BTreeMap::new();
     for (name, src) in [("real", real), ("synthetic", synth)] {
         for (&id, mi) in src.models_info().into_iter().flatten() {
             match info.get(&id) {
@@ -503,8 +571,8 @@ fn write_models(
                 }
                 None => {
                     info.insert(id, mi.clone());
-                    if let Some(p) = src.model_path(id) {
-                        files.insert(id, p);
+                    if src.model_path(id).is_some() {
+                        files.insert(id, src);
                     }
                 }
             }
@@ -515,8 +583,13 @@ fn write_models(
     }
     let models = out.join("models");
     create_dir_all(&models)?;
-    for (id, src) in &files {
-        link_or_copy(src, &models.join(format!("obj_{id:06}.ply")), report)?;
+    for (&id, &src) in &files {
+        let dst = models.join(format!("obj_{id:06}.ply"));
+        if write_bop_model(src, id, &dst)? {
+            report.copied += 1;
+        } else {
+            report.linked += 1;
+        }
     }
     let path = models.join("models_info.json");
     let mut entries = Vec::with_capacity(info.len());

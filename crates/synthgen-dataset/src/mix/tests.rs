@@ -161,7 +161,14 @@ proptest! {
         let mut texts = Vec::new();
         for out in ["a", "b"] {
             let out = dir.path().join(out);
-            let r = write_mix(&real, &synth, &out, &opts, &synthgen_core::NoProgress).unwrap();
+            let r = write_mix(
+                &real,
+                &synth,
+                &out,
+                &opts,
+                Completion::default(),
+                &synthgen_core::NoProgress,
+            ).unwrap();
             prop_assert_eq!((r.train_real, r.train_synth, r.test), (real_count, 5, 3));
             texts.push((
                 std::fs::read(out.join("synthgen.json")).unwrap(),

@@ -107,7 +107,7 @@ pub fn test_frame(frame_index: u64) -> TestFrame {
         depth[5] = 0.0;
         depth[6] = 7.0;
     }
-    let ann = annotate(W, H, &depth, &alone, DEFAULT_VISIB_DELTA_M);
+    let ann = annotate(&intrinsics(), &depth, &alone, DEFAULT_VISIB_DELTA_M);
     let rgb = (0..n * 3)
         .map(|i| ((i * 37 + frame_index as usize * 11) % 251) as u8)
         .collect();

@@ -35,7 +35,7 @@ fn scene_json_text_matches_bop_toolkit() {
         depth[p] = 0.8;
     }
     depth[6] = 0.5;
-    let ann = annotate(4, 3, &depth, &alone, DEFAULT_VISIB_DELTA_M);
+    let ann = annotate(&k, &depth, &alone, DEFAULT_VISIB_DELTA_M);
     let rotation = DMat3::from_cols(DVec3::Y, -DVec3::X, DVec3::Z);
     let mut s = scene(
         1002,

@@ -127,7 +127,7 @@ fn truncated_object_keeps_its_whole_silhouette() {
         .unwrap();
     let a = &f.alone[0];
     assert!(a.x0 < 0, "window starts at {}", a.x0);
-    let ann = annotate(640, 480, &f.depth_m, &f.alone, 0.015);
+    let ann = annotate(&k, &f.depth_m, &f.alone, 0.015);
     let info = ann[0].info;
     let in_image = f.instance.iter().filter(|&&v| v == 1).count() as u64;
     assert_eq!(info.px_count_visib, in_image);
@@ -248,7 +248,7 @@ fn top_left_rule_covers_each_pixel_once() {
         let r = CpuRenderer::new(models, vec![]).unwrap();
         let objs = (0..n).map(|i| instance(i, pose)).collect();
         let f = r.render(&scene(k, objs)).unwrap();
-        let ann = annotate(64, 64, &f.depth_m, &f.alone, 0.015);
+        let ann = annotate(&k, &f.depth_m, &f.alone, 0.015);
         ann.iter().map(|a| a.info.px_count_all).collect::<Vec<_>>()
     };
     assert_eq!(count(vec![square_model(None)]), vec![400]);

@@ -44,7 +44,7 @@ fn linemod_frame_round_trip_and_check_images() {
         .find(|(_, f)| f.depth_m.iter().filter(|&&d| d == 0.0).count() > 10_000)
         .expect("a frame with background among the first 40");
     let k = scene.intrinsics;
-    let ann = annotate(k.width, k.height, &f.depth_m, &f.alone, 0.015);
+    let ann = annotate(&k, &f.depth_m, &f.alone, 0.015);
 
     // Every object's visible pixels back-project onto its mesh.
     let mut rng = TestRng::new(17);

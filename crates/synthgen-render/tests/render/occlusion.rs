@@ -61,7 +61,7 @@ fn near_cube_hides_part_of_far_cube() {
             }
         }
     }
-    let ann = annotate(640, 480, &f.depth_m, &f.alone, 0.015);
+    let ann = annotate(&k, &f.depth_m, &f.alone, 0.015);
     let info = ann[0].info;
     assert!(
         vis < 0.9 * all && vis > 0.3 * all,
@@ -117,7 +117,7 @@ fn ground_occludes_and_carries_instance_zero() {
     s2.objects[0].cam_from_obj = at(DMat3::IDENTITY, 0.0, 0.0, 1.2);
     let f2 = r.render(&s2).unwrap();
     assert!(f2.instance.iter().all(|&v| v == 0));
-    let ann = annotate(640, 480, &f2.depth_m, &f2.alone, 0.015);
+    let ann = annotate(&k, &f2.depth_m, &f2.alone, 0.015);
     assert!(ann[0].info.px_count_all > 1000);
     assert_eq!(ann[0].info.px_count_visib, 0);
 }

@@ -67,7 +67,7 @@ fn walls_occlude_have_depth_and_instance_zero() {
     assert!((f.depth_m[px(w - 5, 5)] - 3.0).abs() < 1e-3);
     assert!(f.depth_m.iter().all(|&d| d > 0.0));
     // The cube's alone depth is whole: the wall hides it only in the composite.
-    let info = synthgen_core::annotate(k.width, k.height, &f.depth_m, &f.alone, 0.015);
+    let info = synthgen_core::annotate(&k, &f.depth_m, &f.alone, 0.015);
     assert!(info[0].info.visib_fract < 0.6 && info[0].info.visib_fract > 0.4);
 }
 

@@ -10,7 +10,7 @@ use synthgen_core::NoProgress;
 use synthgen_dataset::bop::BopDataset;
 use synthgen_dataset::io::atomic_write;
 use synthgen_dataset::mix::{
-    write_mix, MixCounts, MixOptions, PROVENANCE_FILE, TEST_SPLIT, TRAIN_SPLIT,
+    write_mix, Completion, MixCounts, MixOptions, PROVENANCE_FILE, TEST_SPLIT, TRAIN_SPLIT,
 };
 use synthgen_dataset::source::FrameSource;
 use synthgen_train::data::{load_instances, DataOptions, Instance};
@@ -179,7 +179,15 @@ pub fn run(ctx: &RowContext, spec: &RowSpec) -> Result<RowRecord> {
         command_line: std::env::args().collect(),
         force: false,
     };
-    let report = write_mix(ctx.real, ctx.synth, &mix_dir, &opts, &NoProgress)?;
+    // The sources are BOP datasets with scene_gt_info (sources.rs converts other layouts).
+    let report = write_mix(
+        ctx.real,
+        ctx.synth,
+        &mix_dir,
+        &opts,
+        Completion::default(),
+        &NoProgress,
+    )?;
     for w in &report.warnings {
         // Same warnings every row (cameras, models): show them once.
         if spec.name == specs(s)[0].name {

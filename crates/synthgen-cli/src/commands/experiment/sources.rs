@@ -72,7 +72,9 @@ pub fn plan(
         Some(dir) => {
             let dir = existing(dir, "real")?;
             let layout = crate::commands::convert::layout_of(&dir, None, "--real")?;
-            let settings = if layout == Layout::Linemod {
+            // Linemod and YCB-Video sets are converted to BOP once: the mixes need BOP's
+            // mask/ and scene_gt_info, which the conversion computes.
+            let settings = if matches!(layout, Layout::Linemod | Layout::Ycbv) {
                 SourceSettings {
                     path: sources.join("real_bop"),
                     rendered: None,
@@ -281,7 +283,8 @@ pub fn ensure(plan: &SourcePlan, out: &Path, printer: &Printer) -> Result<PathBu
     Ok(dir)
 }
 
-/// Converts a Linemod-layout real set to BOP once (`OUT/sources/real_bop`), for `mix`.
+/// Converts a Linemod- or YCB-Video-layout real set to BOP once (`OUT/sources/real_bop`),
+/// for `mix`.
 fn convert(from: &Path, dir: &Path, marker: &Path, printer: &Printer) -> Result<PathBuf> {
     let record = format!("{}\n", from.display());
     if std::fs::read_to_string(marker).is_ok_and(|t| t == record) && dir.is_dir() {
@@ -294,15 +297,13 @@ fn convert(from: &Path, dir: &Path, marker: &Path, printer: &Printer) -> Result<
     let argv = [
         "synthgen".to_string(),
         "convert".into(),
-        "--from".into(),
-        "linemod".into(),
         "--to".into(),
         "bop".into(),
         from.display().to_string(),
         dir.display().to_string(),
     ];
     printer.info(format!(
-        "the real set is in the Linemod layout: {}",
+        "the real set is not in the BOP layout: {}",
         argv[1..].join(" ")
     ));
     let cli = Cli::try_parse_from(argv).context("internal: the convert arguments do not parse")?;

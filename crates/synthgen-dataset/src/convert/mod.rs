@@ -1,5 +1,8 @@
-//! Conversion between the BOP and Linemod layouts, lossless for what both can express (poses,
-//! K, RGB, depth, visible masks); docs/formats.md lists what maps to what and what is lost.
+//! Conversion between the BOP, Linemod and YCB-Video layouts, lossless for what both sides
+//! can express (poses, K, RGB, depth, visible masks); docs/formats.md lists what maps to what
+//! and what is lost. YCB-Video in [`ycbv`].
+
+pub mod ycbv;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

@@ -1,0 +1,33 @@
+//! The object models of a dataset loaded into an [`ObjectRenderer`], for the commands that
+//! render real frames at their GT poses (annotate, convert).
+
+use anyhow::{Context, Result};
+use synthgen_dataset::source::FrameSource;
+use synthgen_render::ObjectRenderer;
+
+use crate::Printer;
+
+/// Loads the model of every object in `obj_ids` from the dataset's model files (in the
+/// dataset's units; a missing texture is a warning, a missing model an error naming it).
+pub fn object_renderer(
+    source: &dyn FrameSource,
+    obj_ids: &[u32],
+    printer: &Printer,
+) -> Result<ObjectRenderer> {
+    let mut models = Vec::with_capacity(obj_ids.len());
+    for &id in obj_ids {
+        let path = source.model_file(id);
+        let loaded = synthgen_assets::load_model(&path, source.model_units(), printer)
+            .with_context(|| format!("cannot load the model of object {id}"))?;
+        models.push((id, loaded.model));
+    }
+    Ok(ObjectRenderer::new(models)?)
+}
+
+/// The distinct object ids of the frames, sorted.
+pub fn frame_obj_ids(frames: &[synthgen_dataset::source::SourceFrame]) -> Vec<u32> {
+    let mut ids: Vec<u32> = frames.iter().flat_map(|f| f.object_set()).collect();
+    ids.sort_unstable();
+    ids.dedup();
+    ids
+}

@@ -1,0 +1,351 @@
+//! YCB-Video's own layout, as PoseCNN and DenseFusion read it: `data/NNNN/NNNNNN-color.png`,
+//! `-depth.png` (uint16, metres = value / `factor_depth`), `-label.png` (per-pixel class
+//! index = the visible masks), `-meta.mat` (MAT v5: `poses` 3x4xN object-to-camera in metres,
+//! `cls_indexes`, `intrinsic_matrix`, `factor_depth`, `center`, `vertmap`,
+//! `rotation_translation_matrix`), `-box.txt`; `classes.txt`; `models/<class>/`
+//! `textured_simple.obj` (metres) and `points.xyz`; `image_sets/*.txt`.
+//!
+//! In BOP terms (as BOP's own `ycbv`): class index i = obj_id i, scene id = the video number,
+//! image id = the frame number (`0049/000012` → scene 49, image 12).
+
+pub mod mat;
+mod meta;
+pub mod source;
+pub mod writer;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+pub(crate) use meta::read_meta_with;
+pub use meta::{encode_meta, read_meta, YcbvMeta, YcbvPose};
+pub use source::YcbvSource;
+pub use writer::{YcbvFrame, YcbvObject, YcbvWriter, YcbvWriterOptions};
+
+use crate::error::{Error, Result};
+use crate::io;
+
+/// YCB-Video's 21 classes in `classes.txt` order: line i (1-based) is class index i, which
+/// is BOP `ycbv` obj_id i.
+pub const YCBV_CLASSES: [&str; 21] = [
+    "002_master_chef_can",
+    "003_cracker_box",
+    "004_sugar_box",
+    "005_tomato_soup_can",
+    "006_mustard_bottle",
+    "007_tuna_fish_can",
+    "008_pudding_box",
+    "009_gelatin_box",
+    "010_potted_meat_can",
+    "011_banana",
+    "019_pitcher_base",
+    "021_bleach_cleanser",
+    "024_bowl",
+    "025_mug",
+    "035_power_drill",
+    "036_wood_block",
+    "037_scissors",
+    "040_large_marker",
+    "051_large_clamp",
+    "052_extra_large_clamp",
+    "061_foam_brick",
+];
+
+pub const CLASSES_FILE: &str = "classes.txt";
+/// The model file of a class, under `models/<class>/`.
+pub const MODEL_FILE: &str = "textured_simple.obj";
+/// YCB-Video's own evaluation points of a class (metres, one `x y z` per line).
+pub const POINTS_FILE: &str = "points.xyz";
+
+/// Where one frame's files are: `data/{scene:04}/{im:06}-*`.
+#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord)]
+pub struct YcbvFrameFiles {
+    pub split: String,
+    pub scene_id: u32,
+    pub im_id: u32,
+    /// `data/NNNN` (the folder name as found, e.g. `0049`).
+    pub dir: PathBuf,
+}
+
+impl YcbvFrameFiles {
+    fn file(&self, suffix: &str) -> PathBuf {
+        self.dir.join(format!("{:06}-{suffix}", self.im_id))
+    }
+
+    /// `-color.png`, or `-color.jpg` where only that exists.
+    pub fn color_path(&self) -> PathBuf {
+        let png = self.file("color.png");
+        if !png.is_file() {
+            let jpg = self.file("color.jpg");
+            if jpg.is_file() {
+                return jpg;
+            }
+        }
+        png
+    }
+
+    pub fn depth_path(&self) -> PathBuf {
+        self.file("depth.png")
+    }
+
+    pub fn label_path(&self) -> PathBuf {
+        self.file("label.png")
+    }
+
+    pub fn meta_path(&self) -> PathBuf {
+        self.file("meta.mat")
+    }
+
+    pub fn box_path(&self) -> PathBuf {
+        self.file("box.txt")
+    }
+}
+
+/// Frames listed in a test list (`keyframe.txt`, `val.txt`, `test*.txt`, as YCB-Video's
+/// keyframes and validation frames are its test set) form split `test`; the other lists
+/// (`train.txt`, `trainval.txt`, ...) split `train`.
+fn list_is_test(stem: &str) -> bool {
+    let s = stem.to_ascii_lowercase();
+    s == "keyframe" || s == "val" || s.starts_with("test")
+}
+
+/// A YCB-Video dataset on disk: its classes and frames (files not read yet).
+#[derive(Debug, Clone)]
+pub struct YcbvDataset {
+    pub root: PathBuf,
+    /// `classes.txt`, line order: `classes[i - 1]` is class index i.
+    pub classes: Vec<String>,
+    /// Sorted by (split, scene, image).
+    pub frames: Vec<YcbvFrameFiles>,
+}
+
+/// Whether `root` looks like a YCB-Video dataset: `classes.txt` beside a `data/` folder with
+/// numbered scene folders.
+pub fn is_ycbv(root: &Path) -> bool {
+    root.join(CLASSES_FILE).is_file() && root.join("data").is_dir()
+}
+
+fn numbered_dirs(dir: &Path) -> Result<Vec<(u32, PathBuf)>> {
+    let entries = std::fs::read_dir(dir).map_err(|e| Error::io("read", dir, e))?;
+    let mut out = Vec::new();
+    for e in entries {
+        let e = e.map_err(|e| Error::io("list directory", dir, e))?;
+        let name = e.file_name().to_string_lossy().into_owned();
+        let is_dir = e.file_type().map(|t| t.is_dir()).unwrap_or(false);
+        if let (true, Some(id)) = (is_dir, parse_number(&name)) {
+            out.push((id, e.path()));
+        }
+    }
+    out.sort();
+    Ok(out)
+}
+
+fn parse_number(s: &str) -> Option<u32> {
+    (!s.is_empty() && s.bytes().all(|b| b.is_ascii_digit()))
+        .then(|| s.parse().ok())
+        .flatten()
+}
+
+impl YcbvDataset {
+    /// Reads `classes.txt` and lists the frames: those of `image_sets/*.txt` when the folder
+    /// has lists, else every `data/NNNN/NNNNNN-meta.mat` (split `train`).
+    pub fn open(root: &Path) -> Result<YcbvDataset> {
+        let classes_path = root.join(CLASSES_FILE);
+        let text = io::read(&classes_path)?;
+        let mut classes: Vec<String> = String::from_utf8_lossy(&text)
+            .lines()
+            .map(|l| l.trim().to_string())
+            .collect();
+        while classes.last().is_some_and(String::is_empty) {
+            classes.pop();
+        }
+        if classes.is_empty() {
+            return Err(Error::malformed(&classes_path, "no class names"));
+        }
+        if let Some(i) = classes.iter().position(|c| c.is_empty() || c.contains('/')) {
+            return Err(Error::malformed(
+                &classes_path,
+                format!("line {}: a class name must be non-empty without '/'", i + 1),
+            ));
+        }
+        let data = root.join("data");
+        let scenes: BTreeMap<u32, PathBuf> = numbered_dirs(&data)?.into_iter().collect();
+        let sets = root.join("image_sets");
+        let lists = list_files(&sets)?;
+        let mut frames = Vec::new();
+        if lists.is_empty() {
+            for (&scene_id, dir) in &scenes {
+                for im_id in meta_ids(dir)? {
+                    frames.push(YcbvFrameFiles {
+                        split: "train".into(),
+                        scene_id,
+                        im_id,
+                        dir: dir.clone(),
+                    });
+                }
+            }
+        } else {
+            let mut split_of: BTreeMap<(u32, u32), bool> = BTreeMap::new();
+            for (stem, path) in &lists {
+                let test = list_is_test(stem);
+                for (scene_id, im_id) in read_list(path)? {
+                    let e = split_of.entry((scene_id, im_id)).or_insert(test);
+                    *e |= test;
+                }
+            }
+            for ((scene_id, im_id), test) in split_of {
+                let dir = scenes
+                    .get(&scene_id)
+                    .cloned()
+                    .unwrap_or_else(|| data.join(format!("{scene_id:04}")));
+                let f = YcbvFrameFiles {
+                    split: if test { "test" } else { "train" }.into(),
+                    scene_id,
+                    im_id,
+                    dir,
+                };
+                if !f.meta_path().is_file() {
+                    return Err(Error::MissingFile {
+                        path: f.meta_path(),
+                    });
+                }
+                frames.push(f);
+            }
+        }
+        if frames.is_empty() {
+            return Err(Error::malformed(
+                &data,
+                "no frames (expected data/NNNN/NNNNNN-meta.mat)",
+            ));
+        }
+        frames.sort();
+        Ok(YcbvDataset {
+            root: root.to_path_buf(),
+            classes,
+            frames,
+        })
+    }
+
+    /// The class name of an object id (class index), when `classes.txt` has it.
+    pub fn class_name(&self, obj_id: u32) -> Option<&str> {
+        let i = usize::try_from(obj_id).ok()?.checked_sub(1)?;
+        self.classes.get(i).map(String::as_str)
+    }
+
+    /// `models/<class>/textured_simple.obj` (present or not); `None` for an unknown id.
+    pub fn model_path(&self, obj_id: u32) -> Option<PathBuf> {
+        let class = self.class_name(obj_id)?;
+        Some(self.root.join("models").join(class).join(MODEL_FILE))
+    }
+
+    /// Reads a frame's `-meta.mat`, checking its class indexes against `classes.txt`.
+    pub fn read_meta(&self, frame: &YcbvFrameFiles) -> Result<YcbvMeta> {
+        read_meta(&frame.meta_path(), Some(self.classes.len()))
+    }
+}
+
+/// `image_sets/*.txt` by file stem, sorted.
+fn list_files(dir: &Path) -> Result<Vec<(String, PathBuf)>> {
+    if !dir.is_dir() {
+        return Ok(Vec::new());
+    }
+    let entries = std::fs::read_dir(dir).map_err(|e| Error::io("read", dir, e))?;
+    let mut out = Vec::new();
+    for e in entries {
+        let e = e.map_err(|e| Error::io("list directory", dir, e))?;
+        let name = e.file_name().to_string_lossy().into_owned();
+        if let Some(stem) = name.strip_suffix(".txt") {
+            if !stem.starts_with('.') {
+                out.push((stem.to_string(), e.path()));
+            }
+        }
+    }
+    out.sort();
+    Ok(out)
+}
+
+/// The `scene/frame` lines of an image set (`0048/000001`).
+fn read_list(path: &Path) -> Result<Vec<(u32, u32)>> {
+    let text = io::read(path)?;
+    let mut out = Vec::new();
+    for (i, line) in String::from_utf8_lossy(&text).lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() {
+            continue;
+        }
+        let parsed = line
+            .split_once('/')
+            .and_then(|(s, f)| Some((parse_number(s)?, parse_number(f)?)));
+        match parsed {
+            Some(p) => out.push(p),
+            None => {
+                return Err(Error::malformed(
+                    path,
+                    format!(
+                        "line {}: expected SCENE/FRAME like 0048/000001, found {line:?}",
+                        i + 1
+                    ),
+                ))
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Frame ids of the `NNNNNN-meta.mat` files in a scene folder, sorted.
+fn meta_ids(dir: &Path) -> Result<Vec<u32>> {
+    let entries = std::fs::read_dir(dir).map_err(|e| Error::io("read", dir, e))?;
+    let mut ids = Vec::new();
+    for e in entries {
+        let e = e.map_err(|e| Error::io("list directory", dir, e))?;
+        let name = e.file_name().to_string_lossy().into_owned();
+        if let Some(id) = name.strip_suffix("-meta.mat").and_then(parse_number) {
+            ids.push(id);
+        }
+    }
+    ids.sort_unstable();
+    Ok(ids)
+}
+
+/// The class list a YCB-Video dataset written from BOP object ids needs: line i names
+/// obj_id i. Known ids keep YCB-Video's class names when `ycbv_names` (the objects are
+/// YCB-Video's), others are `obj_NNNNNN`; ids up to the largest one are listed.
+pub fn class_list(obj_ids: &[u32], ycbv_names: bool) -> Vec<String> {
+    let max = obj_ids.iter().copied().max().unwrap_or(0);
+    (1..=max)
+        .map(|id| {
+            let known = ycbv_names
+                .then(|| YCBV_CLASSES.get(id as usize - 1))
+                .flatten();
+            known.map_or_else(|| format!("obj_{id:06}"), |s| s.to_string())
+        })
+        .collect()
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn test_lists_and_class_names() {
+        assert!(list_is_test("keyframe") && list_is_test("val") && list_is_test("test_real"));
+        assert!(!list_is_test("train") && !list_is_test("trainval"));
+        assert_eq!(
+            class_list(&[2, 3], true),
+            ["002_master_chef_can", "003_cracker_box", "004_sugar_box"]
+        );
+        assert_eq!(class_list(&[2, 30], false)[29], "obj_000030");
+        assert_eq!(class_list(&[22], true)[21], "obj_000022");
+    }
+
+    #[test]
+    fn image_set_lines_are_checked() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("train.txt");
+        std::fs::write(&p, "0048/000001\n\n0049/000012\n").unwrap();
+        assert_eq!(read_list(&p).unwrap(), [(48, 1), (49, 12)]);
+        std::fs::write(&p, "0048/000001\n0048-000002\n").unwrap();
+        let e = read_list(&p).unwrap_err().to_string();
+        assert!(e.contains("line 2") && e.contains("train.txt"), "{e}");
+    }
+}
