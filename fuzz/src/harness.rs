@@ -102,3 +102,12 @@ pub fn fuzz_scene_toml(data: &[u8]) {
     std::fs::write(&p, data).unwrap();
     let _ = synthgen_core::SceneSpec::from_toml_file(&p);
 }
+
+/// A YCB-Video `-meta.mat` through the MAT v5 reader and `read_meta`'s checks.
+pub fn fuzz_ycbv_mat(data: &[u8]) {
+    let dir = scratch();
+    let p = dir.join("000001-meta.mat");
+    std::fs::write(&p, data).unwrap();
+    let _ = synthgen_dataset::ycbv::read_meta(&p, Some(21));
+    let _ = synthgen_dataset::ycbv::mat::read_mat(std::io::Cursor::new(data), None);
+}

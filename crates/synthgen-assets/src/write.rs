@@ -56,20 +56,12 @@ fn encode_ply(model: &Model, scale: f32) -> Result<Vec<u8>, String> {
     out.extend_from_slice(header.as_bytes());
 
     for prim in &model.primitives {
-        let computed;
-        let normals: Option<&[Vec3]> = match &prim.normals {
-            Some(n) => Some(n),
-            None if with_normals => {
-                computed = smooth_normals(&prim.positions_m, &prim.triangles);
-                Some(&computed)
-            }
-            None => None,
-        };
+        let normals = vertex_normals(prim, with_normals);
         for (i, p) in prim.positions_m.iter().enumerate() {
             for c in (*p * scale).to_array() {
                 out.extend_from_slice(&c.to_le_bytes());
             }
-            if let Some(n) = normals {
+            if let Some(n) = &normals {
                 let n = n.get(i).copied().unwrap_or(Vec3::Z);
                 for c in n.to_array() {
                     out.extend_from_slice(&c.to_le_bytes());
@@ -94,6 +86,15 @@ fn encode_ply(model: &Model, scale: f32) -> Result<Vec<u8>, String> {
         base += prim.positions_m.len() as u32;
     }
     Ok(out)
+}
+
+/// A primitive's vertex normals: its own, else smooth ones when the file gets normals.
+fn vertex_normals(prim: &synthgen_core::Primitive, with_normals: bool) -> Option<Vec<Vec3>> {
+    match &prim.normals {
+        Some(n) => Some(n.clone()),
+        None if with_normals => Some(smooth_normals(&prim.positions_m, &prim.triangles)),
+        None => None,
+    }
 }
 
 /// The colour a renderer shows at vertex `i`: vertex colour × base colour × texture at its uv.
@@ -133,17 +134,9 @@ pub fn write_obj(path: &Path, model: &Model, scale: f32) -> Result<(), Error> {
     let _ = writeln!(out, "mtllib ./{mtl_name}");
     let _ = writeln!(out, "usemtl material_0");
     for prim in &model.primitives {
-        let computed;
-        let normals: Option<&[Vec3]> = match &prim.normals {
-            Some(n) => Some(n),
-            None if with_normals => {
-                computed = smooth_normals(&prim.positions_m, &prim.triangles);
-                Some(&computed)
-            }
-            None => None,
-        };
+        let normals = vertex_normals(prim, with_normals);
         for (i, p) in prim.positions_m.iter().enumerate() {
-            if let Some(n) = normals {
+            if let Some(n) = &normals {
                 let n = n.get(i).copied().unwrap_or(Vec3::Z);
                 let _ = writeln!(out, "vn {} {} {}", n.x, n.y, n.z);
             }

@@ -9,9 +9,13 @@ use synthgen_core::annotate::{
 };
 use synthgen_core::{GtInfo, Intrinsics, PoseRenderer, RenderedFrame};
 
-use crate::bop::image::{read_depth_m, read_depth_raw, RgbImage};
+use std::path::Path;
+
+use crate::bop::image::{encode_gray8_png, read_depth_m, read_depth_raw, RgbImage};
+use crate::bop::PngCompression;
 use crate::draw::Canvas;
 use crate::error::{Error, Result};
+use crate::io::{atomic_write, create_dir_all};
 use crate::source::SourceFrame;
 
 /// One frame's objects rendered at their GT poses and the annotations computed from them.
@@ -144,6 +148,32 @@ pub fn complete_annotations(
         ));
     }
     Ok(out)
+}
+
+/// [`complete_annotations`], writing each full mask as `scene_dir/mask/{im:06}_{gt:06}.png`;
+/// returns the frame's `scene_gt_info` entries.
+pub fn write_completed_masks(
+    renderer: &dyn PoseRenderer,
+    frame: &SourceFrame,
+    visib: &[Vec<u8>],
+    scene_dir: &Path,
+    im_id: u32,
+    (w, h): (u32, u32),
+) -> Result<Vec<GtInfo>> {
+    create_dir_all(&scene_dir.join("mask"))?;
+    let mut infos = Vec::with_capacity(frame.gt.len());
+    for (gt_id, (mask, info)) in complete_annotations(renderer, frame, visib, (w, h))?
+        .into_iter()
+        .enumerate()
+    {
+        let p = scene_dir
+            .join("mask")
+            .join(format!("{im_id:06}_{gt_id:06}.png"));
+        let png = encode_gray8_png(&mask, w, h, PngCompression::Fast, &p)?;
+        atomic_write(&p, &png)?;
+        infos.push(info);
+    }
+    Ok(infos)
 }
 
 /// Intersection over union of two masks (non-zero = inside); `None` when both are empty.

@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use synthgen_assets::Units;
-use synthgen_core::GtInfo;
+use synthgen_core::{GtInfo, Model, Progress};
 
 use crate::bop::image::{read_label, read_mask, Plane};
 use crate::bop::{BopDataset, CameraInfo, GtEntry, ModelInfo, SceneCamera};
@@ -105,6 +105,14 @@ pub trait FrameSource: Send + Sync {
     /// Units of the model files: millimetres (BOP, Linemod) unless the layout says otherwise.
     fn model_units(&self) -> Units {
         Units::Mm
+    }
+    /// Loads an object's model (metres) from its model file; the loader's warnings (a
+    /// missing texture) go to `progress`.
+    fn load_model(&self, obj_id: u32, progress: &dyn Progress) -> Result<Model> {
+        let path = self.model_file(obj_id);
+        synthgen_assets::load_model(&path, self.model_units(), progress)
+            .map(|l| l.model)
+            .map_err(|e| Error::model(&path, e))
     }
     /// The model file of an object, when present.
     fn model_path(&self, obj_id: u32) -> Option<PathBuf> {
@@ -210,9 +218,7 @@ pub fn write_bop_model(source: &dyn FrameSource, obj_id: u32, dst: &Path) -> Res
         }
         return Ok(false);
     }
-    let loaded =
-        synthgen_assets::load_model(&src, source.model_units(), &synthgen_core::NoProgress)
-            .map_err(|e| Error::model(&src, e))?;
-    synthgen_assets::write_ply(dst, &loaded.model, 1000.0).map_err(|e| Error::model(dst, e))?;
+    let model = source.load_model(obj_id, &synthgen_core::NoProgress)?;
+    synthgen_assets::write_ply(dst, &model, 1000.0).map_err(|e| Error::model(dst, e))?;
     Ok(true)
 }

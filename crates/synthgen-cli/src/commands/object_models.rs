@@ -16,10 +16,10 @@ pub fn object_renderer(
 ) -> Result<ObjectRenderer> {
     let mut models = Vec::with_capacity(obj_ids.len());
     for &id in obj_ids {
-        let path = source.model_file(id);
-        let loaded = synthgen_assets::load_model(&path, source.model_units(), printer)
+        let model = source
+            .load_model(id, printer)
             .with_context(|| format!("cannot load the model of object {id}"))?;
-        models.push((id, loaded.model));
+        models.push((id, model));
     }
     Ok(ObjectRenderer::new(models)?)
 }

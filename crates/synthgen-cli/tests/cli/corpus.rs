@@ -58,6 +58,11 @@ fn fuzz_corpus_scene_toml() {
     replay("scene_toml", harness::fuzz_scene_toml);
 }
 
+#[test]
+fn fuzz_corpus_ycbv_mat() {
+    replay("ycbv_mat", harness::fuzz_ycbv_mat);
+}
+
 /// tobj 4.0.5 panics (unwrap in parse_float3) on an MTL colour with fewer than 3 numbers.
 #[test]
 fn tobj_mtl_short_colour_is_an_error_not_a_panic() {

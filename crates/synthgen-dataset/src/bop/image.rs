@@ -205,10 +205,17 @@ fn decode_err(path: &Path, message: impl Into<String>) -> Error {
 }
 
 fn decode_png(path: &Path) -> Result<(png::OutputInfo, Vec<u8>)> {
+    // Unpack low bit depths and palettes to 8 bits; keep 16 bits as they are.
+    decode_png_with(path, png::Transformations::EXPAND)
+}
+
+fn decode_png_with(
+    path: &Path,
+    transformations: png::Transformations,
+) -> Result<(png::OutputInfo, Vec<u8>)> {
     let bytes = io::read(path)?;
     let mut dec = png::Decoder::new(Cursor::new(bytes));
-    // Unpack low bit depths and palettes to 8 bits; keep 16 bits as they are.
-    dec.set_transformations(png::Transformations::EXPAND);
+    dec.set_transformations(transformations);
     let mut reader = dec
         .read_info()
         .map_err(|e| decode_err(path, e.to_string()))?;
@@ -276,21 +283,8 @@ pub fn read_mask(path: &Path) -> Result<Plane<u8>> {
 /// Reads a label PNG (one class index per pixel, as YCB-Video's `-label.png`): 8- or 16-bit
 /// grayscale values, or the palette indexes of an indexed 8-bit PNG.
 pub fn read_label(path: &Path) -> Result<Plane<u16>> {
-    let bytes = io::read(path)?;
-    let mut dec = png::Decoder::new(Cursor::new(bytes));
     // No EXPAND: a palette image's values are its indexes, not colours.
-    dec.set_transformations(png::Transformations::IDENTITY);
-    let mut reader = dec
-        .read_info()
-        .map_err(|e| decode_err(path, e.to_string()))?;
-    let size = reader
-        .output_buffer_size()
-        .ok_or_else(|| decode_err(path, "image too large"))?;
-    let mut buf = vec![0u8; size];
-    let info = reader
-        .next_frame(&mut buf)
-        .map_err(|e| decode_err(path, e.to_string()))?;
-    buf.truncate(info.buffer_size());
+    let (info, buf) = decode_png_with(path, png::Transformations::IDENTITY)?;
     use png::{BitDepth, ColorType};
     let data: Vec<u16> = match (info.color_type, info.bit_depth) {
         (ColorType::Grayscale | ColorType::Indexed, BitDepth::Eight) => {

@@ -181,14 +181,7 @@ impl BopWriter {
     pub fn write_camera_json(&self) -> Result<PathBuf> {
         let path = self.root.join("camera.json");
         let cam = CameraInfo::new(&self.opts.intrinsics, self.opts.depth_scale);
-        let text = serde_json::to_value(cam)
-            .ok()
-            .and_then(|v| save_json_object(&v).ok())
-            .ok_or_else(|| Error::NonFinite {
-                what: "camera intrinsics".into(),
-                path: path.clone(),
-            })?;
-        atomic_write(&path, text.as_bytes())?;
+        write_camera_info(&path, &cam)?;
         Ok(path)
     }
 
@@ -533,4 +526,16 @@ impl DoneFrames {
     pub fn count(&self) -> u64 {
         self.count
     }
+}
+
+/// Writes a dataset's `camera.json` in bop_toolkit's layout.
+pub fn write_camera_info(path: &Path, cam: &CameraInfo) -> Result<()> {
+    let text = serde_json::to_value(cam)
+        .ok()
+        .and_then(|v| save_json_object(&v).ok())
+        .ok_or_else(|| Error::NonFinite {
+            what: "camera intrinsics".into(),
+            path: path.to_path_buf(),
+        })?;
+    atomic_write(path, text.as_bytes())
 }

@@ -12,6 +12,7 @@ use synthgen_core::Progress;
 
 use crate::bop::chunk::write_map;
 use crate::bop::image::{encode_gray16_png, encode_gray8_png, read_depth_raw, read_mask, read_rgb};
+use crate::bop::writer::write_camera_info;
 use crate::bop::{BopDataset, CameraInfo, GtEntry, PngCompression, SceneCamera};
 use crate::error::{Error, Result};
 use crate::io::{self, atomic_write, create_dir_all};
@@ -334,16 +335,8 @@ pub fn linemod_to_bop(
         write_map(&dir.join("scene_gt.json"), gt, false)?;
         write_map(&dir.join("scene_camera.json"), camera, false)?;
     }
-    let cam_path = dst.join("camera.json");
     if let Some(cam) = camera_json {
-        let text = serde_json::to_value(cam)
-            .ok()
-            .and_then(|v| crate::bop::json::save_json_object(&v).ok())
-            .ok_or_else(|| Error::NonFinite {
-                what: "camera intrinsics".into(),
-                path: cam_path.clone(),
-            })?;
-        atomic_write(&cam_path, text.as_bytes())?;
+        write_camera_info(&dst.join("camera.json"), &cam)?;
     } else {
         return Err(Error::malformed(
             &src.join("data"),

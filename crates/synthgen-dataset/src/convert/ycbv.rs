@@ -10,10 +10,10 @@ use synthgen_core::glam::DVec3;
 use synthgen_core::{GtInfo, Intrinsics, PoseRenderer, Progress};
 
 use super::rescale_depth;
-use crate::annotate::{annotate_frame, complete_annotations};
+use crate::annotate::{annotate_frame, write_completed_masks};
 use crate::bop::chunk::write_map;
 use crate::bop::image::{encode_gray8_png, read_depth_raw, read_label, read_rgb};
-use crate::bop::json::save_json_dict;
+use crate::bop::writer::write_camera_info;
 use crate::bop::{GtEntry, ModelInfo, PngCompression, SceneCamera};
 use crate::error::{Error, Result};
 use crate::io::{self, atomic_write, create_dir_all};
@@ -21,6 +21,14 @@ use crate::source::{FrameSource, SourceFrame};
 use crate::ycbv::{YcbvFrame, YcbvObject, YcbvPose, YcbvSource, YcbvWriter, YcbvWriterOptions};
 
 use super::ConvertSummary;
+
+/// An object's model from a dataset's model file, in the dataset's units.
+fn load_source_model(source: &dyn FrameSource, obj_id: u32) -> Result<synthgen_core::Model> {
+    let path = source.model_file(obj_id);
+    synthgen_assets::load_model(&path, source.model_units(), &synthgen_core::NoProgress)
+        .map(|l| l.model)
+        .map_err(|e| Error::model(&path, e))
+}
 
 /// Image sizes of one frame's files, checked before anything is written.
 fn check_sizes(files: &[&Path], want: (u32, u32)) -> Result<()> {
@@ -95,30 +103,14 @@ pub fn ycbv_to_bop(
         if !path.is_file() {
             continue;
         }
-        let loaded =
-            synthgen_assets::load_model(&path, source.model_units(), &synthgen_core::NoProgress)
-                .map_err(|e| Error::model(&path, e))?;
+        let model = load_source_model(&source, id)?;
         let ply = models_dir.join(format!("obj_{id:06}.ply"));
-        synthgen_assets::write_ply(&ply, &loaded.model, 1000.0)
-            .map_err(|e| Error::model(&ply, e))?;
-        infos.insert(id, ModelInfo::from_model(&loaded.model));
+        synthgen_assets::write_ply(&ply, &model, 1000.0).map_err(|e| Error::model(&ply, e))?;
+        infos.insert(id, ModelInfo::from_model(&model));
         summary.models += 1;
     }
     if !infos.is_empty() {
-        let path = models_dir.join("models_info.json");
-        let mut entries = Vec::with_capacity(infos.len());
-        for (id, mi) in &infos {
-            entries.push((
-                id,
-                serde_json::to_value(mi).map_err(|e| Error::json(&path, e))?,
-            ));
-        }
-        let text =
-            save_json_dict(entries.iter().map(|(k, v)| (k, v))).map_err(|_| Error::NonFinite {
-                what: "models_info".into(),
-                path: path.clone(),
-            })?;
-        atomic_write(&path, text.as_bytes())?;
+        write_map(&models_dir.join("models_info.json"), &infos, false)?;
     }
 
     progress.start("converting", frames.len() as u64);
@@ -170,7 +162,9 @@ pub fn ycbv_to_bop(
             atomic_write(&p, &png)?;
         }
         let info = match renderer {
-            Some(r) => Some(write_full_masks(r, f, &scene_dir, &visib, size)?),
+            Some(r) => Some(write_completed_masks(
+                r, f, &visib, &scene_dir, loc.im_id, size,
+            )?),
             None => None,
         };
         summary.instances += f.gt.len() as u64;
@@ -193,42 +187,9 @@ pub fn ycbv_to_bop(
         write_map(&dir.join("scene_gt.json"), gt, false)?;
         write_map(&dir.join("scene_camera.json"), camera, false)?;
     }
-    let cam_path = dst.join("camera.json");
-    let text = serde_json::to_value(cam)
-        .ok()
-        .and_then(|v| crate::bop::json::save_json_object(&v).ok())
-        .ok_or_else(|| Error::NonFinite {
-            what: "camera intrinsics".into(),
-            path: cam_path.clone(),
-        })?;
-    atomic_write(&cam_path, text.as_bytes())?;
+    write_camera_info(&dst.join("camera.json"), &cam)?;
     progress.finish();
     Ok(summary)
-}
-
-/// Renders the frame's objects and writes `mask/` (see [`complete_annotations`]); returns the
-/// frame's `scene_gt_info` entries.
-fn write_full_masks(
-    renderer: &dyn PoseRenderer,
-    f: &SourceFrame,
-    scene_dir: &Path,
-    visib: &[Vec<u8>],
-    (w, h): (u32, u32),
-) -> Result<Vec<GtInfo>> {
-    create_dir_all(&scene_dir.join("mask"))?;
-    let mut infos = Vec::with_capacity(f.gt.len());
-    for (gt_id, (mask, info)) in complete_annotations(renderer, f, visib, (w, h))?
-        .into_iter()
-        .enumerate()
-    {
-        let p = scene_dir
-            .join("mask")
-            .join(format!("{:06}_{gt_id:06}.png", f.location.im_id));
-        let png = encode_gray8_png(&mask, w, h, PngCompression::Fast, &p)?;
-        atomic_write(&p, &png)?;
-        infos.push(info);
-    }
-    Ok(infos)
 }
 
 /// Options of [`source_to_ycbv`].
@@ -300,10 +261,7 @@ pub fn source_to_ycbv(
         if !path.is_file() {
             continue;
         }
-        let loaded =
-            synthgen_assets::load_model(&path, source.model_units(), &synthgen_core::NoProgress)
-                .map_err(|e| Error::model(&path, e))?;
-        writer.write_model(id, &loaded.model)?;
+        writer.write_model(id, &load_source_model(source, id)?)?;
         summary.models += 1;
     }
     progress.start("converting", frames.len() as u64);

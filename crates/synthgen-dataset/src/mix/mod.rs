@@ -20,10 +20,10 @@ use serde::Serialize;
 use synthgen_core::rng::splitmix64;
 use synthgen_core::{GtInfo, PoseRenderer, Progress};
 
-use crate::annotate::complete_annotations;
+use crate::annotate::write_completed_masks;
 use crate::bop::image::encode_gray8_png;
-use crate::bop::json::{save_json_dict, save_json_object};
 use crate::bop::write_map;
+use crate::bop::writer::write_camera_info;
 use crate::bop::{GtEntry, ModelInfo, PngCompression, SceneCamera};
 use crate::error::{Error, Result};
 use crate::io::{atomic_write, create_dir_all};
@@ -308,13 +308,7 @@ pub fn write_mix(
             rc.width, rc.height, sc.width, sc.height
         ));
     }
-    let camera_path = out.join("camera.json");
-    let camera_json = serde_json::to_value(rc).map_err(|e| Error::json(&camera_path, e))?;
-    let text = save_json_object(&camera_json).map_err(|_| Error::NonFinite {
-        what: "camera".into(),
-        path: camera_path.clone(),
-    })?;
-    atomic_write(&camera_path, text.as_bytes())?;
+    write_camera_info(&out.join("camera.json"), &rc)?;
     write_models(real, synth, out, &mut report)?;
 
     let total = plan.test.len() + plan.train.len();
@@ -533,18 +527,7 @@ fn complete_frame(
             },
         );
     }
-    create_dir_all(&dir.join("mask"))?;
-    let mut infos = Vec::with_capacity(frame.gt.len());
-    for (gt_id, (mask, info)) in complete_annotations(renderer, frame, &visib, (w, h))?
-        .into_iter()
-        .enumerate()
-    {
-        let p = dir.join("mask").join(format!("{im_id:06}_{gt_id:06}.png"));
-        let png = encode_gray8_png(&mask, w, h, PngCompression::Fast, &p)?;
-        atomic_write(&p, &png)?;
-        infos.push(info);
-    }
-    Ok(infos)
+    write_completed_masks(renderer, frame, &visib, dir, im_id, (w, h))
 }
 
 /// Models and models_info.json: the real set's, plus the synthetic set's objects the real
@@ -591,20 +574,7 @@ fn write_models(
             report.linked += 1;
         }
     }
-    let path = models.join("models_info.json");
-    let mut entries = Vec::with_capacity(info.len());
-    for (id, mi) in &info {
-        entries.push((
-            id,
-            serde_json::to_value(mi).map_err(|e| Error::json(&path, e))?,
-        ));
-    }
-    let text =
-        save_json_dict(entries.iter().map(|(k, v)| (k, v))).map_err(|_| Error::NonFinite {
-            what: "models_info".into(),
-            path: path.clone(),
-        })?;
-    atomic_write(&path, text.as_bytes())
+    write_map(&models.join("models_info.json"), &info, false)
 }
 
 #[cfg(test)]

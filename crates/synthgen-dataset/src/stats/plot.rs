@@ -28,30 +28,32 @@ pub fn bar_chart(counts: &[u64], lo: &str, hi: &str) -> Canvas {
             [70, 120, 200],
         );
     }
+    axes(&mut c, (margin, plot_w, plot_h), lo, hi, &max.to_string());
+    c
+}
+
+/// The x and y axes of a chart whose plot area starts at `margin` and is `plot_w` x `plot_h`,
+/// the range's ends under the x axis and `top` (the tallest bar's value) above the y axis.
+fn axes(c: &mut Canvas, (margin, plot_w, plot_h): (i64, i64, i64), lo: &str, hi: &str, top: &str) {
     let base = (margin + plot_h) as f64;
+    let black = [0, 0, 0];
     c.line(
         (margin as f64, base),
         ((margin + plot_w) as f64, base),
-        [0, 0, 0],
+        black,
         1,
     );
     c.line(
         (margin as f64, margin as f64),
         (margin as f64, base),
-        [0, 0, 0],
+        black,
         1,
     );
-    c.text(margin, base as i64 + 6, lo, 2, [255, 255, 255]);
+    let white = [255, 255, 255];
+    c.text(margin, base as i64 + 6, lo, 2, white);
     let hi_w = hi.chars().count() as i64 * 8;
-    c.text(
-        margin + plot_w - hi_w,
-        base as i64 + 6,
-        hi,
-        2,
-        [255, 255, 255],
-    );
-    c.text(margin + 4, 6, &max.to_string(), 2, [255, 255, 255]);
-    c
+    c.text(margin + plot_w - hi_w, base as i64 + 6, hi, 2, white);
+    c.text(margin + 4, 6, top, 2, white);
 }
 
 /// Writes `visib_fract.png`, `distance_m.png`, `elevation_deg.png` and
@@ -129,36 +131,9 @@ pub fn grouped_bar_chart(series: &[Vec<f64>], lo: &str, hi: &str) -> Canvas {
             c.fill_rect(x0 + 1 + s as i64 * bw, margin + plot_h - bh, bw, bh, colour);
         }
     }
-    let base = (margin + plot_h) as f64;
-    c.line(
-        (margin as f64, base),
-        ((margin + plot_w) as f64, base),
-        [0, 0, 0],
-        1,
-    );
-    c.line(
-        (margin as f64, margin as f64),
-        (margin as f64, base),
-        [0, 0, 0],
-        1,
-    );
-    c.text(margin, base as i64 + 6, lo, 2, [255, 255, 255]);
-    let hi_w = hi.chars().count() as i64 * 8;
-    c.text(
-        margin + plot_w - hi_w,
-        base as i64 + 6,
-        hi,
-        2,
-        [255, 255, 255],
-    );
     // The peak share in percent.
-    c.text(
-        margin + 4,
-        6,
-        &format!("{:.0}", 100.0 * max),
-        2,
-        [255, 255, 255],
-    );
+    let top = format!("{:.0}", 100.0 * max);
+    axes(&mut c, (margin, plot_w, plot_h), lo, hi, &top);
     c
 }
 
