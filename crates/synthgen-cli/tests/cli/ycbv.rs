@@ -220,6 +220,31 @@ fn reading_commands_take_the_ycbv_layout() {
         !out.contains("  -\n"),
         "every object has a mean visib_fract: {out}"
     );
+    // experiment mix converts the YCB-Video set to BOP once and mixes it with the rendered one.
+    let out = ok(synthgen()
+        .args([
+            "experiment",
+            "mix",
+            "--quick",
+            "--ratios",
+            "30/0,0/30",
+            "--epochs",
+            "1",
+        ])
+        .args(["--test-count", "10", "--real"])
+        .arg(&real)
+        .arg("--synth")
+        .arg(d.join("synth"))
+        .arg("--out")
+        .arg(d.join("exp")));
+    assert!(
+        out.contains("the real set is not in the BOP layout"),
+        "{out}"
+    );
+    assert!(d
+        .join("exp/sources/real_bop/train/000002/scene_gt_info.json")
+        .is_file());
+    assert!(d.join("exp/table.csv").is_file());
     let o = crate::train::train(&real, &d.join("run"), "1", &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     let out = ok(synthgen()

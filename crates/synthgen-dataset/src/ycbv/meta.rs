@@ -425,6 +425,32 @@ mod tests {
         );
     }
 
+    /// YCB-Video poses are checked like BOP's: a rotation rounded to 6 digits with det 1.01 is
+    /// read (its numbers kept), one with det 1.05 is an error naming the instance.
+    #[test]
+    fn approximate_rotations_are_read_as_stored() {
+        let d = tempfile::tempdir().unwrap();
+        let path = d.path().join("000003-meta.mat");
+        let mut m = meta(2);
+        let s = 1.01f64.cbrt();
+        let round6 = |v: f64| -> f64 { format!("{v:.5e}").parse().unwrap() };
+        m.poses[1].r_row_major = m.poses[1].r_row_major.map(|v| round6(v * s));
+        let vm = vec![0f32; 12];
+        std::fs::write(&path, encode_meta(&m, &vm, 2, 2, &path).unwrap()).unwrap();
+        let back = read_meta(&path, None).unwrap();
+        assert_eq!(back.poses[1], m.poses[1]);
+        let e = back.poses[1].as_stored().orthonormality_error();
+        assert!(e > 9e-3 && e < 2e-2, "{e}");
+        let s = 1.05f64.cbrt();
+        m.poses[1].r_row_major = meta(2).poses[1].r_row_major.map(|v| v * s);
+        std::fs::write(&path, encode_meta(&m, &vm, 2, 2, &path).unwrap()).unwrap();
+        let e = read_meta(&path, None).unwrap_err().to_string();
+        assert!(
+            e.contains("poses of instance 1 (class 2)") && e.contains("determinant 1.05"),
+            "{e}"
+        );
+    }
+
     #[test]
     fn bad_poses_are_named() {
         let d = tempfile::tempdir().unwrap();
