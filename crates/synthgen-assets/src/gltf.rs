@@ -62,6 +62,22 @@ fn load_gltf_unguarded(
             .map_err(gltf_err)?
             .map_err(|e| gltf_err(e.to_string()))?;
     let base = crate::model_dir(path);
+    // import_buffers reports a missing .bin as a bare "No such file or directory": name it.
+    for buffer in document.buffers() {
+        if let ::gltf::buffer::Source::Uri(uri) = buffer.source() {
+            if uri.starts_with("data:") {
+                continue;
+            }
+            let file = base.join(percent_decode(uri));
+            if !file.is_file() {
+                return Err(gltf_err(format!(
+                    "buffer {} ({uri:?}) is missing: {}",
+                    buffer.index(),
+                    file.display()
+                )));
+            }
+        }
+    }
     let buffers = crate::guard_parser("gltf", || {
         ::gltf::import_buffers(&document, Some(&base), blob)
     })
@@ -331,6 +347,31 @@ pub(crate) fn linear_to_srgb(x: f32) -> f32 {
     } else {
         1.055 * x.powf(1.0 / 2.4) - 0.055
     }
+}
+
+/// A URI's %XX escapes decoded (glTF buffer URIs are URI references: `my%20mesh.bin`).
+fn percent_decode(uri: &str) -> String {
+    let b = uri.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        let hex = |c: u8| (c as char).to_digit(16);
+        match (
+            b[i],
+            b.get(i + 1).copied().and_then(hex),
+            b.get(i + 2).copied().and_then(hex),
+        ) {
+            (b'%', Some(h), Some(l)) => {
+                out.push((h * 16 + l) as u8);
+                i += 3;
+            }
+            (c, _, _) => {
+                out.push(c);
+                i += 1;
+            }
+        }
+    }
+    String::from_utf8_lossy(&out).into_owned()
 }
 
 #[cfg(test)]

@@ -111,7 +111,7 @@ fn main() -> anyhow::Result<()> {
         synthgen_core::annotate(&sc.intrinsics, &f.depth_m, &f.alone, 0.015);
         cycles_s.push(t.elapsed().as_secs_f64());
         cycles_cpu.push(cpu_s() - c0);
-        if rss_every > 0 && (i as u64 % rss_every == 0 || i as u64 + 1 == frames) {
+        if rss_every > 0 && ((i as u64).is_multiple_of(rss_every) || i as u64 + 1 == frames) {
             rss.push((i, rss_mib()));
         }
     }

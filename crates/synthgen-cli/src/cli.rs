@@ -23,7 +23,14 @@ pub use train::{DeviceArg, EvalArgs, ModelArg, ScheduleArg, TrainArgs};
     after_long_help = "Examples:\n  \
         synthgen render --objects drill.obj\n  \
         synthgen render --objects obj_000008.ply obj_000001.ply --camera linemod --frames 1000 --seed 7 --out out/lm\n  \
-        synthgen render --scene scenes/tabletop.toml --objects drill.obj --frames 200"
+        synthgen render --scene scenes/tabletop.toml --objects drill.obj --frames 200\n\n\
+        Output: data you ask for (tables, JSON, problem lists) on stdout; progress, summaries,\n\
+        warnings and errors on stderr.\n\n\
+        Exit status:\n  \
+        0  success\n  \
+        1  bad input: a usage error, a missing or broken file, an inconsistent dataset, frames or\n     \
+        rows that failed (the others are written and reported), a diverged training\n  \
+        2  internal error: a bug in synthgen (please report it)"
 )]
 pub struct Cli {
     /// Print only warnings and errors; no progress bar.
@@ -31,7 +38,7 @@ pub struct Cli {
     pub quiet: bool,
     /// Largest max(|det R − 1|, |R Rᵀ − I|) accepted in rotations read from files (real
     /// annotations are approximate: LM-O's reach 1.4e-2).
-    #[arg(long, global = true, value_name = "TOL", default_value_t = synthgen_core::pose::DEFAULT_ROTATION_TOLERANCE)]
+    #[arg(long, allow_negative_numbers = true, global = true, value_name = "TOL", default_value_t = synthgen_core::pose::DEFAULT_ROTATION_TOLERANCE)]
     pub rotation_tolerance: f64,
 
     #[command(subcommand)]
@@ -127,7 +134,7 @@ pub struct AnnotateArgs {
     pub split: Option<String>,
 
     /// Visibility tolerance in metres (bop_toolkit's delta).
-    #[arg(long, default_value_t = 0.015)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.015)]
     pub visib_delta_m: f64,
 
     /// Stop at the first frame that fails instead of reporting failures at the end.
@@ -175,7 +182,7 @@ pub struct CocoArgs {
     pub out: Option<PathBuf>,
 
     /// Mark instances with visib_fract below this as "ignore".
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.1)]
     pub ignore_below: f64,
 
     /// RLE flavour of the masks.
@@ -309,7 +316,7 @@ pub struct MixArgs {
     pub synth_count: Option<usize>,
 
     /// Synthetic fraction of the training frames (0..1), with --total.
-    #[arg(long, requires = "total")]
+    #[arg(long, allow_negative_numbers = true, requires = "total")]
     pub ratio: Option<f64>,
 
     /// Training frames in all, with --ratio.
@@ -328,6 +335,11 @@ pub struct MixArgs {
     /// Replace a mix already in --out.
     #[arg(long)]
     pub force: bool,
+
+    /// Leave out training frames that are the same images as held-out test frames (the same
+    /// file, a hard link or the same bytes) instead of refusing the mix.
+    #[arg(long)]
+    pub exclude_shared: bool,
 
     /// Seed of the draw; the same seed and inputs give byte-identical output.
     #[arg(long, default_value_t = 0)]
@@ -400,7 +412,7 @@ pub struct ConvertArgs {
 
     /// Depth PNG unit of the output in millimetres (default: 1.0 for Linemod, as DenseFusion
     /// assumes; the source's for BOP; 0.1 for YCB-Video, i.e. factor_depth 10000).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub depth_scale: Option<f64>,
     /// To YCB-Video: the classes.txt to write (line i names object id i). Default: the names a
     /// conversion from YCB-Video recorded in IN/synthgen.json, else obj_NNNNNN.
@@ -409,7 +421,7 @@ pub struct ConvertArgs {
 
     /// To Linemod: an object gets a folder entry (rgb, depth, mask) for a frame when its
     /// visib_fract is at least this.
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.1)]
     pub min_visib_fract: f64,
 
     /// Write into a non-empty OUT folder.
@@ -540,19 +552,25 @@ pub struct RenderArgs {
     pub camera: Option<String>,
 
     /// Explicit intrinsics "fx,fy,cx,cy" in pixels (overrides the preset's).
-    #[arg(long, value_name = "FX,FY,CX,CY", value_delimiter = ',')]
+    #[arg(
+        long,
+        allow_negative_numbers = true,
+        value_name = "FX,FY,CX,CY",
+        value_delimiter = ','
+    )]
     pub camera_k: Option<Vec<f64>>,
 
-    /// Image width and height in pixels (overrides the preset's).
+    /// Image width and height in pixels. Alone it scales the preset's intrinsics (the same
+    /// camera at another resolution); with --camera-k, K is used as given.
     #[arg(long, value_name = "W,H", value_delimiter = ',')]
     pub image_size: Option<Vec<u32>>,
 
     /// Camera distance from the look-at point, metres, as MIN..MAX.
-    #[arg(long, value_name = "MIN..MAX", value_parser = parse_range)]
+    #[arg(long, allow_hyphen_values = true, value_name = "MIN..MAX", value_parser = parse_range)]
     pub distance_m: Option<[f64; 2]>,
 
     /// Camera elevation above the ground plane, degrees, as MIN..MAX.
-    #[arg(long, value_name = "MIN..MAX", value_parser = parse_range)]
+    #[arg(long, allow_hyphen_values = true, value_name = "MIN..MAX", value_parser = parse_range)]
     pub elevation_deg: Option<[f64; 2]>,
 
     /// How objects rest on the ground plane.
@@ -590,7 +608,7 @@ pub struct RenderArgs {
     /// Depth PNG unit in millimetres: stored value = depth_mm / depth_scale. 0.1 (BlenderProc's
     /// PBR sets; the default for --format bop and ycbv, where it is factor_depth 10000)
     /// reaches 6.5 m; 1.0 (the default for --format linemod) reaches 65 m.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub depth_scale: Option<f64>,
 
     /// Dataset layout to write.
@@ -599,11 +617,11 @@ pub struct RenderArgs {
 
     /// --format linemod: an object gets a folder entry for a frame when its visib_fract is at
     /// least this.
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.1)]
     pub min_visib_fract: f64,
 
     /// Visibility tolerance in metres for mask_visib (bop_toolkit's delta).
-    #[arg(long, default_value_t = 0.015)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.015)]
     pub visib_delta_m: f64,
 
     /// Worker threads (default: all cores).

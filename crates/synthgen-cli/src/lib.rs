@@ -13,7 +13,9 @@ pub mod printer;
 
 pub use printer::Printer;
 
-/// How a command ended. Exit codes: 0 ok, 1 bad input or some items failed, 2 internal error.
+/// How a command ended. Exit codes: 0 ok; 1 bad input (a usage error, a broken or
+/// inconsistent file, a frame or row that failed, a diverged training); 2 internal error (a
+/// bug).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ExitStatus {
     Success,
@@ -32,7 +34,20 @@ impl From<ExitStatus> for ExitCode {
 }
 
 pub fn main() -> ExitCode {
-    let cli = cli::Cli::parse();
+    let cli = match cli::Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            // --help and --version print and succeed; a usage error is bad input (exit 1,
+            // not clap's 2, which here means an internal error).
+            let _ = e.print();
+            return match e.kind() {
+                clap::error::ErrorKind::DisplayHelp | clap::error::ErrorKind::DisplayVersion => {
+                    ExitStatus::Success.into()
+                }
+                _ => ExitStatus::Failure.into(),
+            };
+        }
+    };
     let printer = Printer::new(cli.quiet);
     if let Err(e) = synthgen_core::pose::set_rotation_tolerance(cli.rotation_tolerance) {
         eprintln!("error: --rotation-tolerance: {e}");

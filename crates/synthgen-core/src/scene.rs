@@ -37,11 +37,14 @@ pub struct SceneSpec {
     pub objects: Vec<ObjectSpec>,
 }
 
-/// Camera intrinsics: a preset name, optionally overridden field by field.
+/// Camera intrinsics: a preset name, optionally overridden field by field. A `width` and
+/// `height` without any of `fx`, `fy`, `cx`, `cy` resize the preset (its intrinsics scaled:
+/// the same camera at another resolution); with any of them given, the fields are used as
+/// they are. The principal point must lie inside the image.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct CameraSpec {
-    /// `linemod` (default), `d455`, `d455-720` or `ycbv`.
+    /// `linemod` (default), `d455`, `d455-720`, `ycbv` or `ycbv-cmu`.
     pub preset: String,
     pub width: Option<u32>,
     pub height: Option<u32>,
@@ -80,12 +83,25 @@ impl Default for CameraSpec {
 impl CameraSpec {
     pub fn intrinsics(&self) -> Result<Intrinsics, Error> {
         let mut k = Intrinsics::preset(&self.preset)?;
-        if let Some(v) = self.width {
-            k.width = v;
+        let explicit =
+            self.fx.is_some() || self.fy.is_some() || self.cx.is_some() || self.cy.is_some();
+        let (w, h) = (
+            self.width.unwrap_or(k.width),
+            self.height.unwrap_or(k.height),
+        );
+        if !explicit && (w, h) != (k.width, k.height) {
+            // The preset at another resolution (pixel centres at integers: c' = (c + ½) s − ½).
+            let (sx, sy) = (
+                f64::from(w) / f64::from(k.width),
+                f64::from(h) / f64::from(k.height),
+            );
+            k.fx *= sx;
+            k.fy *= sy;
+            k.cx = (k.cx + 0.5) * sx - 0.5;
+            k.cy = (k.cy + 0.5) * sy - 0.5;
         }
-        if let Some(v) = self.height {
-            k.height = v;
-        }
+        k.width = w;
+        k.height = h;
         if let Some(v) = self.fx {
             k.fx = v;
         }
@@ -99,6 +115,13 @@ impl CameraSpec {
             k.cy = v;
         }
         k.validate()?;
+        if !(0.0..f64::from(k.width)).contains(&k.cx) || !(0.0..f64::from(k.height)).contains(&k.cy)
+        {
+            return Err(Error::InvalidSpec(format!(
+                "the principal point ({}, {}) lies outside the {}x{} image: give cx and cy for this size (--camera-k), or only the size to scale the preset",
+                k.cx, k.cy, k.width, k.height
+            )));
+        }
         Ok(k)
     }
 }
@@ -374,6 +397,37 @@ fn one() -> u32 {
     1
 }
 
+/// An error naming the first array of `given` (the file as written) that the parsed spec
+/// holds fewer values of, e.g. `camera_pose.distance_m = [0.5, 0.8, 1.2]`.
+fn check_nothing_dropped(given: &toml::Value, kept: &toml::Value, path: &str) -> Result<(), Error> {
+    use toml::Value;
+    match (given, kept) {
+        (Value::Table(g), Value::Table(k)) => {
+            for (key, gv) in g {
+                if let Some(kv) = k.get(key) {
+                    let p = if path.is_empty() {
+                        key.clone()
+                    } else {
+                        format!("{path}.{key}")
+                    };
+                    check_nothing_dropped(gv, kv, &p)?;
+                }
+            }
+            Ok(())
+        }
+        (Value::Array(g), Value::Array(k)) if g.len() > k.len() => Err(Error::InvalidSpec(
+            format!("{path} has {} values but takes {}", g.len(), k.len()),
+        )),
+        (Value::Array(g), Value::Array(k)) => {
+            for (i, (gv, kv)) in g.iter().zip(k).enumerate() {
+                check_nothing_dropped(gv, kv, &format!("{path}[{i}]"))?;
+            }
+            Ok(())
+        }
+        _ => Ok(()),
+    }
+}
+
 impl SceneSpec {
     /// Reads a TOML spec. Object paths are resolved relative to the file's folder.
     pub fn from_toml_file(path: &Path) -> Result<SceneSpec, Error> {
@@ -415,10 +469,19 @@ impl SceneSpec {
     }
 
     pub fn from_toml_str(text: &str) -> Result<SceneSpec, Error> {
-        let spec: SceneSpec = toml::from_str(text).map_err(|e| Error::ParseSpec {
+        let parse_err = |e: toml::de::Error| Error::ParseSpec {
             message: e.to_string().trim().replace('\n', " "),
             path: PathBuf::from("<string>"),
+        };
+        let spec: SceneSpec = toml::from_str(text).map_err(parse_err)?;
+        // serde fills a fixed-size array from the first values of a longer one: a range
+        // written with 3 values would silently lose one.
+        let given: toml::Value = toml::from_str(text).map_err(parse_err)?;
+        let kept = toml::Value::try_from(&spec).map_err(|e| Error::ParseSpec {
+            message: e.to_string(),
+            path: PathBuf::from("<string>"),
         })?;
+        check_nothing_dropped(&given, &kept, "")?;
         spec.validate()?;
         Ok(spec)
     }
@@ -547,6 +610,62 @@ mod tests {
     fn inverted_range_is_an_error() {
         let e = SceneSpec::from_toml_str("[camera_pose]\ndistance_m = [2.0, 1.0]\n").unwrap_err();
         assert!(e.to_string().contains("camera_pose.distance_m"), "{e}");
+    }
+
+    /// `--image-size 320,240` alone used to keep the 640x480 preset's principal point, which
+    /// then lay at the image's right edge.
+    #[test]
+    fn a_size_alone_scales_the_preset_and_the_principal_point_stays_inside() {
+        let spec = |t: &str| SceneSpec::from_toml_str(t);
+        let k = spec("[camera]\nwidth = 320\nheight = 240\n")
+            .unwrap()
+            .camera
+            .intrinsics()
+            .unwrap();
+        let l = Intrinsics::LINEMOD;
+        assert!((k.fx - l.fx / 2.0).abs() < 1e-9 && (k.fy - l.fy / 2.0).abs() < 1e-9);
+        assert!((k.cx - ((l.cx + 0.5) / 2.0 - 0.5)).abs() < 1e-9);
+        let e = spec("[camera]\nwidth = 320\nheight = 240\nfx = 300.0\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("principal point (325.2611, 242.04899) lies outside the 320x240 image"),
+            "{e}"
+        );
+    }
+
+    /// Issue 13, item 14: serde took the first two values of a 3-value range and dropped the
+    /// third without a word.
+    #[test]
+    fn three_value_range_is_an_error_not_truncated() {
+        let e = SceneSpec::from_toml_str("[camera_pose]\ndistance_m = [0.5, 0.8, 1.2]\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("camera_pose.distance_m has 3 values but takes 2"),
+            "{e}"
+        );
+        let e = SceneSpec::from_toml_str("[ground]\ncolor_min = [0.1, 0.1, 0.1, 0.1]\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("ground.color_min has 4 values but takes 3"),
+            "{e}"
+        );
+    }
+
+    /// Issue 13, item 14: a colour range with min > max was accepted.
+    #[test]
+    fn inverted_colour_range_is_an_error() {
+        for section in ["ground", "background"] {
+            let text =
+                format!("[{section}]\ncolor_min = [0.9, 0.1, 0.1]\ncolor_max = [0.2, 0.5, 0.5]\n");
+            let e = SceneSpec::from_toml_str(&text).unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("{section}.color_min and color_max")),
+                "{e}"
+            );
+        }
     }
 
     #[test]

@@ -97,6 +97,9 @@ impl SceneSpec {
     /// Checks the ground texture and `[walls]` fields.
     pub(crate) fn validate_surfaces(&self) -> Result<(), Error> {
         check_scale("ground.texture_scale_m", self.ground.texture_scale_m)?;
+        check_colors("ground", self.ground.color_min, self.ground.color_max)?;
+        let bg = &self.background;
+        check_colors("background", bg.color_min, bg.color_max)?;
         let w = &self.walls;
         if w.count[0] > w.count[1] || w.count[1] > 4 {
             return Err(Error::InvalidSpec(format!(

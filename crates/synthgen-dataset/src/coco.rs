@@ -93,7 +93,7 @@ pub fn rle_to_string(counts: &[u32]) -> String {
 pub fn rle_decode(counts: &[u32], width: usize, height: usize) -> Vec<u8> {
     let mut col_major = Vec::with_capacity(width * height);
     for (i, &c) in counts.iter().enumerate() {
-        col_major.extend(std::iter::repeat((i % 2) as u8).take(c as usize));
+        col_major.extend(std::iter::repeat_n((i % 2) as u8, c as usize));
     }
     let mut out = vec![0u8; width * height];
     for (k, v) in col_major.into_iter().enumerate().take(width * height) {
@@ -161,12 +161,31 @@ pub fn export_coco(
         "contributor": "synthgen",
     });
     let mut summary = CocoSummary::default();
-    let scene_ids = ds.scene_ids(&opts.split)?;
-    progress.start("coco", scene_ids.len() as u64);
+    let scenes = ds
+        .scene_ids(&opts.split)?
+        .into_iter()
+        .map(|id| ds.read_scene(&opts.split, id))
+        .collect::<Result<Vec<_>>>()?;
+    // Every annotation's category must be listed, or pycocotools breaks later: checked
+    // before any file is written.
+    let known = |id: u32| ds.models_info.as_ref().is_some_and(|m| m.contains_key(&id));
+    for scene in &scenes {
+        for (im_id, gts) in &scene.gt {
+            if let Some((gt_id, gt)) = gts.iter().enumerate().find(|(_, g)| !known(g.obj_id)) {
+                return Err(Error::malformed(
+                    &scene.dir.join("scene_gt.json"),
+                    format!(
+                        "image {im_id}, gt {gt_id}: object {} is not in models/models_info.json, so COCO would have no category for it",
+                        gt.obj_id
+                    ),
+                ));
+            }
+        }
+    }
+    progress.start("coco", scenes.len() as u64);
     let (mut images, mut annotations) = (Vec::new(), Vec::new());
     let (mut image_id, mut ann_id) = (0u64, 1u64);
-    for scene_id in scene_ids {
-        let scene = ds.read_scene(&opts.split, scene_id)?;
+    for scene in scenes {
         let base = match merged_out {
             Some(out) => out.parent().map(Path::to_path_buf).unwrap_or_default(),
             None => scene.dir.clone(),

@@ -64,6 +64,9 @@ pub enum Error {
         source: synthgen_assets::Error,
         path: PathBuf,
     },
+    /// Another process holds the output folder's lock ([`crate::output::OutputLock`]).
+    #[error("another synthgen process is writing to this folder (it holds {}); wait for it to finish, or choose another output folder: {path}", .lock.display())]
+    Locked { lock: PathBuf, path: PathBuf },
     /// A value that JSON cannot hold (NaN, infinity) in data to be written.
     #[error("cannot write non-finite number in {what}: {path}")]
     NonFinite { what: String, path: PathBuf },
@@ -150,6 +153,7 @@ impl Error {
             | Error::Decode { path, .. }
             | Error::NonFinite { path, .. }
             | Error::Model { path, .. }
+            | Error::Locked { path, .. }
             | Error::NotEnoughFrames { path, .. } => Some(path),
             Error::InvalidFrame { .. } | Error::InvalidOptions(_) | Error::InvalidRequest(_) => {
                 None

@@ -39,6 +39,7 @@ pub mod io;
 pub mod linemod;
 pub mod manifest;
 pub mod mix;
+pub mod output;
 pub mod preview;
 pub mod source;
 pub mod stats;

@@ -103,7 +103,7 @@ fn pixel(name: &str, x: f32, y: f32) -> Option<[f32; 3]> {
         // Grey concrete: broad blotches, finer grain, a few dark pores.
         "concrete" => {
             let n = 0.6 * fbm(x, y, 4, 3, 51) + 0.4 * value_noise(x, y, 64, 53);
-            let pore = if hash32((x as u32) | ((y as u32) << 9) ^ 0xc0c0) % 97 == 0 {
+            let pore = if hash32((x as u32) | ((y as u32) << 9) ^ 0xc0c0).is_multiple_of(97) {
                 0.7
             } else {
                 1.0

@@ -38,6 +38,16 @@ pub enum Error {
     NoInstances { reason: String, path: PathBuf },
     #[error("invalid option: {0}")]
     InvalidOption(String),
+    /// The loss stopped being a finite number.
+    #[error("training diverged: the loss is {value} at epoch {epoch}, step {step}; {kept}; lower --lr: {path}")]
+    Diverged {
+        value: f64,
+        epoch: usize,
+        step: usize,
+        /// What is left on disk.
+        kept: String,
+        path: PathBuf,
+    },
     #[error("tensor error: {0}")]
     Candle(#[from] candle_core::Error),
 }

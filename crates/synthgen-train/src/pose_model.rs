@@ -151,7 +151,7 @@ impl PoseModel {
         seed: u64,
         device: &Device,
     ) -> Result<PoseModel> {
-        if kind.needs_rgb() && (crop_size < 2 || crop_size % 2 != 0) {
+        if kind.needs_rgb() && (crop_size < 2 || !crop_size.is_multiple_of(2)) {
             return Err(Error::InvalidOption(format!(
                 "the crop size must be even and at least 2 (got {crop_size})"
             )));

@@ -76,6 +76,42 @@ fn default_loss_points() -> usize {
 }
 
 impl TrainConfig {
+    /// Checks the hyper-parameters: what AdamW and the data pipeline can work with.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |m: String| Err(Error::InvalidOption(m));
+        if !(self.lr.is_finite() && self.lr > 0.0) {
+            return bad(format!("--lr must be a positive number, got {}", self.lr));
+        }
+        if !(self.weight_decay.is_finite() && self.weight_decay >= 0.0) {
+            return bad(format!(
+                "--weight-decay must be a number >= 0, got {}",
+                self.weight_decay
+            ));
+        }
+        if !(0.0..1.0).contains(&self.val_fraction) {
+            return bad(format!(
+                "--val-fraction must lie in 0..1, got {}",
+                self.val_fraction
+            ));
+        }
+        if !(0.0..=1.0).contains(&self.min_visib_fract) {
+            return bad(format!(
+                "--min-visib-fract must lie in 0..1, got {}",
+                self.min_visib_fract
+            ));
+        }
+        if self.batch == 0 || self.epochs == 0 || self.width == 0 || self.n_points == 0 {
+            return bad("--batch, --epochs, --width and --points must be positive".into());
+        }
+        if !(self.normalization_scale.is_finite() && self.normalization_scale > 0.0) {
+            return bad(format!(
+                "the normalization scale must be positive, got {}",
+                self.normalization_scale
+            ));
+        }
+        Ok(())
+    }
+
     pub fn lr_at(&self, step: usize, total_steps: usize, epoch: usize) -> f64 {
         match self.schedule {
             Schedule::Constant => self.lr,
@@ -260,11 +296,7 @@ pub fn train(
             cfg.model.name()
         )));
     }
-    if cfg.batch == 0 || cfg.epochs == 0 {
-        return Err(Error::InvalidOption(
-            "--batch and --epochs must be positive".into(),
-        ));
-    }
+    cfg.validate()?;
     let plain: Option<Objects>;
     let objects = if cfg.plain_add_loss {
         // Symmetry transforms start with the identity: keep only it.
@@ -347,13 +379,22 @@ pub fn train(
             lr = cfg.lr_at(step, total_steps, epoch);
             opt.set_learning_rate(lr);
             let (loss, _) = model.run(batch, objects, false)?;
+            // A non-finite loss would poison the weights: stop, keeping the last epoch's
+            // checkpoint (written only after a finite validation).
+            let value = f64::from(loss.to_scalar::<f32>()?);
+            if !value.is_finite() {
+                return Err(diverged(out, value, epoch + 1, step + 1, epoch));
+            }
             opt.backward_step(&loss)?;
-            sum += f64::from(loss.to_scalar::<f32>()?) * batch.len() as f64;
+            sum += value * batch.len() as f64;
             count += batch.len();
             step += 1;
             observer.step(sum / count as f64);
         }
         let v = validate(&model, &val_set, objects, cfg.batch)?;
+        if !v.loss.is_finite() {
+            return Err(diverged(out, v.loss, epoch + 1, step, epoch));
+        }
         let m = EpochMetrics {
             epoch: epoch + 1,
             train_loss: sum / count.max(1) as f64,
@@ -441,6 +482,23 @@ pub fn validate(
         add_s_acc,
         mean_re_deg,
     })
+}
+
+/// The error of a run whose loss stopped being a number at `epoch` (1-based), `step`;
+/// `kept` epochs are in the checkpoint on disk.
+fn diverged(out: &Path, value: f64, epoch: usize, step: usize, kept: usize) -> Error {
+    let kept = if kept == 0 {
+        "no checkpoint was written".to_string()
+    } else {
+        format!("the checkpoint after epoch {kept}, the last finite one, is kept")
+    };
+    Error::Diverged {
+        value,
+        epoch,
+        step,
+        kept,
+        path: out.to_path_buf(),
+    }
 }
 
 fn save_checkpoint(

@@ -215,7 +215,7 @@ fn gltf_missing_texture_file_warns_and_falls_back() {
 fn glb_with_bin_chunk_loads() {
     let json = document(None, None, [1.0; 3]);
     let mut json = json.into_bytes();
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
     let bin = buffer();
@@ -257,4 +257,29 @@ fn gltf_accessor_past_its_buffer_is_an_error_not_a_panic() {
         err.contains("cannot load gltf") && err.ends_with("bad.gltf"),
         "{err}"
     );
+}
+
+/// Issue 13, item 15: a .gltf whose external buffer file is gone said only "No such file or
+/// directory"; the error names the buffer and the file it looked for.
+#[test]
+fn gltf_missing_buffer_file_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = write(
+        dir.path(),
+        "tri.gltf",
+        &document(Some("my%20mesh.bin".into()), None, [1.0; 3]),
+    );
+    let e = load_model(&path, Units::M, &Warnings::default())
+        .unwrap_err()
+        .to_string();
+    let want = dir.path().canonicalize().unwrap().join("my mesh.bin");
+    assert!(
+        e.contains("buffer 0 (\"my%20mesh.bin\") is missing")
+            && e.contains(&want.display().to_string()),
+        "{e}"
+    );
+    assert!(e.ends_with(&path.display().to_string()), "{e}");
+    // With the file there, it loads.
+    std::fs::write(dir.path().join("my mesh.bin"), buffer()).unwrap();
+    load_model(&path, Units::M, &Warnings::default()).unwrap();
 }

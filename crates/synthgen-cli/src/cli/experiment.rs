@@ -96,7 +96,7 @@ pub struct ExperimentMixArgs {
     pub batch: Option<usize>,
 
     /// Peak learning rate (AdamW, cosine schedule).
-    #[arg(long, default_value_t = 1e-3)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1e-3)]
     pub lr: f64,
 
     /// Points sampled per object instance. [default: 500; 64 with --quick]

@@ -72,10 +72,10 @@ pub struct TrainArgs {
     pub batch: usize,
 
     /// Peak learning rate (AdamW).
-    #[arg(long, default_value_t = 1e-3)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1e-3)]
     pub lr: f64,
 
-    #[arg(long, default_value_t = 1e-4)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1e-4)]
     pub weight_decay: f64,
 
     #[arg(long, value_enum, default_value_t = ScheduleArg::Cosine)]
@@ -112,11 +112,11 @@ pub struct TrainArgs {
     pub init: Vec<PathBuf>,
 
     /// Fraction of frames held out for validation.
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.1)]
     pub val_fraction: f64,
 
     /// Leave out instances less visible than this.
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.1)]
     pub min_visib_fract: f64,
 
     /// The run folder.
@@ -186,7 +186,7 @@ pub struct EvalArgs {
     pub split: Option<String>,
 
     /// GT instances less visible than this are not scored (BOP uses 0.1).
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.1)]
     pub min_visib_fract: f64,
 
     /// Also write the scores as JSON.

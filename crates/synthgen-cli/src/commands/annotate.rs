@@ -14,6 +14,7 @@ use synthgen_dataset::annotate::{annotate_frame, mask_iou, mask_overlay, percent
 use synthgen_dataset::bop::image::{encode_gray8_png, read_rgb};
 use synthgen_dataset::bop::{write_map, PngCompression, SCENE_GT_INFO};
 use synthgen_dataset::io::{atomic_write, create_dir_all};
+use synthgen_dataset::output::OutputLock;
 use synthgen_dataset::source::{open_source, FrameSource, SourceFrame};
 use synthgen_dataset::validate::{detect_layout, Layout};
 use synthgen_render::ObjectRenderer;
@@ -88,6 +89,11 @@ pub fn run(args: AnnotateArgs, printer: &Printer) -> Result<ExitStatus> {
             "convert it with `synthgen convert --to bop DIR OUT` (which computes them), or pass --compare to compare computed visible masks with the dataset's own without writing",
         ));
     }
+    // Annotating writes into the dataset: one writer at a time.
+    let _lock = match args.compare {
+        false => Some(OutputLock::acquire(&args.dir)?),
+        true => None,
+    };
     let source = open_source(&args.dir)
         .with_context(|| format!("cannot open dataset {}", args.dir.display()))?;
     let splits: Vec<String> = match &args.split {
@@ -184,13 +190,19 @@ pub fn run(args: AnnotateArgs, printer: &Printer) -> Result<ExitStatus> {
     } else {
         "annotated"
     };
-    println!(
+    printer.info(format!(
         "{verb} {done} frames in {} scene folders ({real_depth} with real depth, {} with rendered depth)",
         scenes.len(),
         done - real_depth
-    );
+    ));
     let report = report(&args, agreements);
-    print_report(&report, source.as_ref());
+    // The comparison is what --compare asks for (stdout); otherwise a side note (stderr).
+    let table = format_report(&report, source.as_ref());
+    if args.compare {
+        print!("{table}");
+    } else if !table.is_empty() {
+        printer.info(table.trim_end());
+    }
     if let Some(path) = &args.report {
         let text = serde_json::to_string_pretty(&report).context("cannot write the report")?;
         atomic_write(path, text.as_bytes())?;
@@ -321,26 +333,30 @@ fn report(args: &AnnotateArgs, instances: Vec<Agreement>) -> Report {
     }
 }
 
-fn print_report(r: &Report, source: &dyn FrameSource) {
+fn format_report(r: &Report, source: &dyn FrameSource) -> String {
+    use std::fmt::Write as _;
+    let mut out = String::new();
     let Some(all) = &r.all else {
-        return;
+        return out;
     };
     let mask = if source.root().join("classes.txt").is_file() {
         "label.png"
     } else {
         "mask_visib"
     };
-    println!(
-        "\nIoU per instance with the dataset's own visible masks ({mask}): the computed mask_visib \
+    let _ = writeln!(
+        out,
+        "IoU per instance with the dataset's own visible masks ({mask}): the computed mask_visib \
          (bop19, real depth) and the render of the annotated objects alone (z-buffer)\n  \
          {:<18} {:>5} {:>8} {:>8} {:>8} {:>10} {:>10}",
         "", "n", "median", "p10", "mean", "rendered", "rend. p10"
     );
-    let line = |name: &str, s: &Summary| {
-        println!(
+    let mut line = |name: &str, s: &Summary| {
+        let _ = writeln!(
+            out,
             "  {name:<18} {:>5} {:>8.3} {:>8.3} {:>8.3} {:>10.3} {:>10.3}",
             s.n, s.median_iou, s.p10_iou, s.mean_iou, s.median_iou_rendered, s.p10_iou_rendered
-        )
+        );
     };
     for (k, s) in &r.scenes {
         line(&format!("scene {k}"), s);
@@ -349,6 +365,7 @@ fn print_report(r: &Report, source: &dyn FrameSource) {
         line(&format!("object {k}"), s);
     }
     line("all", all);
+    out
 }
 
 fn write_mask(path: &Path, mask: &[u8], w: u32, h: u32) -> Result<()> {

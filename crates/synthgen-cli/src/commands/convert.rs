@@ -8,6 +8,7 @@ use synthgen_core::Progress;
 use synthgen_dataset::convert::ycbv::{source_to_ycbv, ycbv_to_bop, YcbvConvertOptions};
 use synthgen_dataset::convert::{bop_to_linemod, linemod_to_bop, ConvertOptions, ConvertSummary};
 use synthgen_dataset::manifest::{write_manifest, Manifest};
+use synthgen_dataset::output::{check_apart, is_empty, OutputLock};
 use synthgen_dataset::source::{open_source, FrameSource};
 use synthgen_dataset::validate::{detect_layout, Layout};
 use synthgen_dataset::ycbv::{YcbvSource, YcbvWriterOptions};
@@ -76,28 +77,31 @@ pub fn run(args: ConvertArgs, printer: &Printer) -> Result<ExitStatus> {
             "0.1 (the default) keeps objects at least 10% visible",
         ));
     }
-    if let Ok(mut entries) = std::fs::read_dir(&args.output) {
-        if entries.next().is_some() && !args.force {
-            return Err(user_error(
-                format!("output folder is not empty: {}", args.output.display()),
-                "choose another OUT, or pass --force to write into it",
-            ));
-        }
+    check_apart(&args.output, &[("input", &args.input)])?;
+    // Empty or absent: a failed conversion then leaves nothing behind (with --force into a
+    // folder that had files, what it wrote stays, as documented).
+    let fresh = is_empty(&args.output);
+    if !fresh && !args.force {
+        return Err(user_error(
+            format!("output folder is not empty: {}", args.output.display()),
+            "choose another OUT, or pass --force to write into it",
+        ));
     }
+    let existed = args.output.exists();
+    let lock = OutputLock::acquire(&args.output)?;
     let opts = ConvertOptions {
         depth_scale: args.depth_scale,
         min_visib_fract: args.min_visib_fract,
     };
-    // A failed conversion leaves no half-written dataset behind in a folder it created.
-    let created = !args.output.exists();
     let result = convert(&args, from, to, &opts, printer);
     printer.finish();
     let (summary, classes) = match result {
         Ok(r) => r,
         Err(e) => {
-            if created && args.output.exists() {
-                let _ = std::fs::remove_dir_all(&args.output);
+            if fresh {
+                discard_output(&args.output, existed);
             }
+            drop(lock);
             return Err(e.context(format!("cannot convert {} to {to}", args.input.display())));
         }
     };
@@ -249,4 +253,13 @@ fn manifest_classes(src: &Path) -> Option<Vec<String>> {
     list.iter()
         .map(|v| v.as_str().map(str::to_string))
         .collect()
+}
+
+/// Removes what a failed conversion wrote into a folder that was empty or absent (leaving an
+/// empty folder where there was one).
+fn discard_output(out: &Path, existed: bool) {
+    let _ = std::fs::remove_dir_all(out);
+    if existed {
+        let _ = std::fs::create_dir_all(out);
+    }
 }

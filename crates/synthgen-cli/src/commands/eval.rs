@@ -44,7 +44,8 @@ fn run_results(args: &EvalArgs, csv: &Path, printer: &Printer) -> Result<ExitSta
     let ds = open_dataset(&args.data)?;
     let split = pick_split(ds.as_ref(), args.split.as_deref())?;
     let gts = read_gt(ds.as_ref(), &split, args.min_visib_fract)?;
-    let estimates = read_results_csv(csv)?;
+    let results = read_results_csv(csv)?;
+    let estimates = results.estimates;
     let objects = load_eval_objects(ds.as_ref(), gts.iter().map(|g| g.obj_id))?;
     let report = evaluate(&gts, &estimates, &objects)?;
     printer.info(format!(
@@ -66,7 +67,32 @@ fn run_results(args: &EvalArgs, csv: &Path, printer: &Printer) -> Result<ExitSta
         write_json(path, &report.to_json())?;
         printer.info(format!("wrote {}", path.display()));
     }
-    Ok(ExitStatus::Success)
+    // Bad rows were skipped, not fatal (ripgrep-style): the scores are of the good rows, and
+    // the exit code says some were left out.
+    if results.skipped.is_empty() {
+        return Ok(ExitStatus::Success);
+    }
+    for p in results.skipped.iter().take(10) {
+        printer.warning(format!(
+            "{}:{}: {} (row skipped)",
+            csv.display(),
+            p.line,
+            p.message
+        ));
+    }
+    if results.skipped.len() > 10 {
+        printer.warning(format!(
+            "... and {} more bad rows",
+            results.skipped.len() - 10
+        ));
+    }
+    eprintln!(
+        "error: {} of {} rows of {} could not be read and were skipped; the scores above are of the others",
+        results.skipped.len(),
+        results.skipped.len() + estimates.len(),
+        csv.display()
+    );
+    Ok(ExitStatus::Failure)
 }
 
 #[derive(Default)]

@@ -3,6 +3,7 @@
 use anyhow::{Context, Result};
 use synthgen_dataset::bop::BopDataset;
 use synthgen_dataset::coco::{export_coco, CocoOptions, RleFormat};
+use synthgen_dataset::output::OutputLock;
 
 use crate::cli::{CocoArgs, RleArg};
 use crate::{ExitStatus, Printer};
@@ -18,16 +19,21 @@ pub fn run_coco(args: CocoArgs, printer: &Printer) -> Result<ExitStatus> {
             RleArg::Compressed => RleFormat::Compressed,
         },
     };
+    // Without --out the files go into the dataset's scene folders.
+    let _lock = match args.out {
+        None => Some(OutputLock::acquire(&args.dir)?),
+        Some(_) => None,
+    };
     let s = export_coco(&ds, &opts, args.out.as_deref(), printer)?;
     for f in &s.files {
         printer.info(format!("wrote {}", f.display()));
     }
-    println!(
+    printer.info(format!(
         "{} images, {} annotations ({} marked ignore) in {} file(s)",
         s.images,
         s.annotations,
         s.ignored,
         s.files.len()
-    );
+    ));
     Ok(ExitStatus::Success)
 }

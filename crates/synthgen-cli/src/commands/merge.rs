@@ -9,6 +9,8 @@ use synthgen_dataset::manifest::{read_manifest, write_manifest, Manifest};
 
 use crate::cli::MergeArgs;
 use crate::commands::render_resume::RUN_PLAN;
+use synthgen_dataset::output::{check_apart, is_empty, OutputLock};
+
 use crate::commands::user_error;
 use crate::{ExitStatus, Printer};
 
@@ -32,7 +34,10 @@ pub fn run(args: MergeArgs, printer: &Printer) -> Result<ExitStatus> {
         manifests.push(m);
     }
     let merged = merged_manifest(&args.dirs, &manifests)?;
+    let shards: Vec<(&str, &Path)> = args.dirs.iter().map(|d| ("shard", d.as_path())).collect();
+    check_apart(&args.out, &shards)?;
     check_out(&args.out, args.force)?;
+    let _lock = OutputLock::acquire(&args.out)?;
     let summary = merge(&args.dirs, &args.out, &MergeOptions { copy: args.copy })?;
     write_manifest(&args.out, &merged)?;
     printer.info(format!(
@@ -52,13 +57,11 @@ pub fn run(args: MergeArgs, printer: &Printer) -> Result<ExitStatus> {
 }
 
 fn check_out(out: &Path, force: bool) -> Result<()> {
-    if let Ok(mut entries) = std::fs::read_dir(out) {
-        if entries.next().is_some() && !force {
-            return Err(user_error(
-                format!("output folder is not empty: {}", out.display()),
-                "choose another --out, or pass --force",
-            ));
-        }
+    if out.is_dir() && !is_empty(out) && !force {
+        return Err(user_error(
+            format!("output folder is not empty: {}", out.display()),
+            "choose another --out, or pass --force",
+        ));
     }
     Ok(())
 }

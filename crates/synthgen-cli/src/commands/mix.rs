@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use synthgen_core::PoseRenderer;
 use synthgen_dataset::mix::{write_mix, Completion, MixCounts, MixOptions, PROVENANCE_FILE};
+use synthgen_dataset::output::{check_apart, OutputLock};
 use synthgen_dataset::source::{open_source, FrameSource};
 use synthgen_render::ObjectRenderer;
 
@@ -39,6 +40,11 @@ pub fn run(args: MixArgs, printer: &Printer) -> Result<ExitStatus> {
         .or(config.mix.out.clone())
         .unwrap_or_else(|| PathBuf::from("data/mix"));
 
+    check_apart(
+        &out,
+        &[("real dataset", &real), ("synthetic dataset", &synth)],
+    )?;
+    let _lock = OutputLock::acquire(&out)?;
     let real_ds = open_source(&real).context("cannot open the real dataset")?;
     let synth_ds = open_source(&synth).context("cannot open the synthetic dataset")?;
     let opts = MixOptions {
@@ -46,6 +52,7 @@ pub fn run(args: MixArgs, printer: &Printer) -> Result<ExitStatus> {
         seed: args.seed,
         command_line: std::env::args().collect(),
         force: args.force,
+        exclude_shared: args.exclude_shared,
     };
     // Frames without mask/ and scene_gt_info (YCB-Video, Linemod) get them computed from
     // their poses and models, so the mix is a complete BOP dataset.
@@ -80,13 +87,13 @@ pub fn run(args: MixArgs, printer: &Printer) -> Result<ExitStatus> {
     for w in &report.warnings {
         printer.warning(w);
     }
-    println!(
+    printer.info(format!(
         "mixed {} real + {} synthetic training frames and {} real test frames into {}",
         report.train_real,
         report.train_synth,
         report.test,
         out.display()
-    );
+    ));
     printer.info(format!(
         "{} files hard-linked, {} copied; per-frame sources in {}",
         report.linked,

@@ -25,13 +25,13 @@ pub fn run(args: PreviewArgs, printer: &Printer) -> Result<ExitStatus> {
         synthgen_dataset::io::create_dir_all(parent)?;
     }
     sheet.write_png(&args.out)?;
-    println!(
+    printer.info(format!(
         "wrote {} ({} frames, {}x{})",
         args.out.display(),
         frames.len(),
         sheet.width,
         sheet.height
-    );
+    ));
     for f in &frames {
         printer.info(format!("  {}/{:06}/{:06}", f.split, f.scene_id, f.im_id));
     }

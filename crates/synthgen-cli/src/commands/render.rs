@@ -12,6 +12,7 @@ use synthgen_core::sample::SceneObject;
 use synthgen_core::scene::{BackgroundKind, Orientation, PlacementMode};
 use synthgen_core::{Model, Progress, SceneSampler, SceneSpec, Symmetries, Texture};
 use synthgen_dataset::manifest::{write_manifest, Manifest};
+use synthgen_dataset::output::OutputLock;
 use synthgen_render::{CpuRenderer, Renderer, SensorModel, ViewChecker};
 
 use crate::cli::{Backend, BackgroundArg, FormatArg, OrientationArg, RenderArgs, UnitsArg};
@@ -38,6 +39,8 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     if !args.resume {
         check_out_dir(&args.out, args.force)?;
     }
+    // One writer per output folder; a crashed run's lock goes with its process.
+    let _lock = OutputLock::acquire(&args.out)?;
 
     // Models, in the order given; ids from flags, the spec, file names, or 1, 2, ...
     let mut models = Vec::new();
@@ -146,6 +149,7 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     let mut todo = frame_range.clone().filter(|&i| !done.is_done(i));
     let mut failures: Vec<(u64, String)> = Vec::new();
     let mut rendered: u64 = 0;
+    let mut nothing_visible: Vec<u64> = Vec::new();
     // Batches bound memory (a frame's buffers are dropped once it is written) while giving
     // every thread several frames to work on.
     let batch = (pool.current_num_threads() * 8).max(8);
@@ -172,7 +176,10 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
                         }
                         let rec = writer.write_frame(i, &scene, &frame, &ann)?;
                         printer.advance(1);
-                        anyhow::Ok(rec)
+                        // What was written is checked: a frame in which no target is
+                        // visible is counted (wrong units or distances make all of them so).
+                        let visible = ann.iter().any(|a| a.info.px_count_visib > 0);
+                        anyhow::Ok((rec, visible))
                     })();
                     (i, r)
                 })
@@ -182,9 +189,12 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
             match r {
                 // Records arrive in frame order; a scene folder's JSON is written as soon as
                 // its last frame of this run is in.
-                Ok(rec) => {
+                Ok((rec, visible)) => {
                     writer.add_record(rec)?;
                     rendered += 1;
+                    if !visible {
+                        nothing_visible.push(i);
+                    }
                 }
                 Err(e) => {
                     printer.warning(format!("frame {i} failed: {e:#}"));
@@ -246,6 +256,23 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
         elapsed,
         &summary.description,
     );
+    if !nothing_visible.is_empty() {
+        let n = nothing_visible.len();
+        printer.warning(format!(
+            "{n} of the {rendered} frames rendered show no target at all (every visib_fract 0; first: frame {})",
+            nothing_visible[0]
+        ));
+        if 2 * n > rendered as usize {
+            return Err(user_error(
+                format!(
+                    "most frames show no object ({n} of {rendered}): the dataset in {} is not usable",
+                    args.out.display()
+                ),
+                "check the units (--units mm|m: a model 1000x too large or too small), the camera \
+                 distance (--distance-m) against the objects' size, and that the meshes have faces",
+            ));
+        }
+    }
     Ok(if failures.is_empty() {
         ExitStatus::Success
     } else {
@@ -616,11 +643,12 @@ fn scene_objects(models: &[Model], ids: &[u32], sources: &[ObjectSource]) -> Vec
 }
 
 fn check_out_dir(out: &Path, force: bool) -> Result<()> {
-    if let Ok(mut entries) = std::fs::read_dir(out) {
-        if entries.next().is_some() && !force {
+    if out.is_dir() {
+        if !synthgen_dataset::output::is_empty(out) && !force {
             return Err(user_error(
                 format!("output folder is not empty: {}", out.display()),
-                "choose another --out, or pass --force to write into it",
+                "if a render there was interrupted (Ctrl-C, a crash), continue it with the same \
+                 command and --resume; else choose another --out, or pass --force to write into it",
             ));
         }
     } else if out.exists() {
@@ -674,7 +702,7 @@ fn summarize(
          with the {} renderer, seed {}; wrote {wrote}.{}",
         names.len(),
         if names.len() == 1 { "" } else { "s" },
-        names.join(", "),
+        synthgen_core::sample::name_summary(names.iter().map(String::as_str)),
         match args.backend {
             Backend::Cpu => "embedded CPU",
             Backend::Blender => "Blender Cycles",

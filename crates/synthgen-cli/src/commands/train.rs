@@ -1,6 +1,7 @@
 //! `synthgen train`: load a dataset's instances (BOP or Linemod), train a pose model, write the run.
 
 use std::time::Instant;
+use synthgen_dataset::output::{check_apart, OutputLock};
 
 use anyhow::{Context, Result};
 use synthgen_core::Progress;
@@ -101,6 +102,8 @@ pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
             .num_threads(j)
             .build_global();
     }
+    check_apart(&args.out, &[("dataset", &args.data)])?;
+    let _lock = OutputLock::acquire(&args.out)?;
     let checkpoint = args.out.join(MODEL_FILE);
     let cfg = if args.resume {
         if !checkpoint.exists() {
@@ -147,6 +150,8 @@ pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
             plain_add_loss: args.no_symmetric_loss,
         }
     };
+    // Before any data is read: a bad --lr must not cost a dataset load.
+    cfg.validate()?;
     if cfg.model.needs_rgb() && (cfg.crop_size < 2 || cfg.crop_size % 2 != 0) {
         return Err(user_error(
             format!("--crop-size {} must be even and at least 2", cfg.crop_size),
@@ -236,7 +241,7 @@ pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
         ));
     }
     if let Some(last) = outcome.history.last() {
-        println!(
+        printer.info(format!(
             "{} after {} epochs over {} held-out instances ({} trained on): val loss {:.4}{}",
             cfg.model.name(),
             last.epoch,
@@ -244,7 +249,7 @@ pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
             outcome.n_train,
             last.val_loss,
             val_summary(last)
-        );
+        ));
     }
     printer.info(format!(
         "wrote {} ({}, {}, {}) in {:.1} s",

@@ -4,6 +4,7 @@
 mod annotate;
 #[cfg(feature = "blender")]
 mod blender;
+mod careless;
 mod coco;
 mod common;
 mod corpus;

@@ -229,7 +229,8 @@ fn mix_errors() {
     std::fs::write(d.join("busy/notes.txt"), "mine").unwrap();
     for (out, force, want) in [
         ("busy", false, "--force"),
-        ("real", true, "the output folder is one of the sources"),
+        ("real", true, "the output folder real is the real dataset"),
+        ("synth/sub", true, "lies inside the synthetic dataset"),
     ] {
         let mut cmd = synthgen();
         cmd.current_dir(d).args([

@@ -77,8 +77,12 @@ fn train_resume_and_eval_checkpoint() {
     let out = dir.path().join("run");
     let o = train(&data, &out, "2", &[]);
     assert!(o.status.success());
-    let stdout = String::from_utf8_lossy(&o.stdout);
-    assert!(stdout.contains("val centre error"), "{stdout}");
+    // Status lines go to stderr (and -q silences them): stdout is for data asked for.
+    assert!(
+        o.stdout.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
     for f in [
         "model.safetensors",
         "config.json",
@@ -227,10 +231,11 @@ fn eval_results_csv() {
         .arg("--data")
         .arg(&data));
     assert_eq!(o.status.code(), Some(1));
+    // The file's only row is bad: there is nothing to score.
+    let err = stderr(&o);
     assert!(
-        stderr(&o).contains("results.csv:2: R: expected 9 values"),
-        "{}",
-        stderr(&o)
+        err.contains("results.csv:2:") && err.contains("R: expected 9 values"),
+        "{err}"
     );
 }
 
@@ -282,12 +287,8 @@ fn full_model_trains_from_tnet_and_evaluates_with_stability() {
         .concat(),
     );
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(
-        stderr(&o).contains("initialized") || String::from_utf8_lossy(&o.stdout).contains("ADD"),
-        "{}",
-        stderr(&o)
-    );
     let lines = metrics_lines(&full);
+    assert!(lines[0]["val_add_s_acc"].is_number(), "{:?}", lines[0]);
     assert_eq!(lines.len(), 2);
     for key in ["val_add_s_acc", "val_mean_re_deg", "val_centre_error_m"] {
         assert!(lines[1][key].is_number(), "{key} in {}", lines[1]);

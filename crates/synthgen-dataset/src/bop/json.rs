@@ -49,11 +49,11 @@ fn write_py_float(out: &mut String, x: f64) -> bool {
         let _ = write!(out, "e{sign}{:02}", exp.unsigned_abs());
     } else if decpt <= 0 {
         out.push_str("0.");
-        out.extend(std::iter::repeat('0').take((-decpt) as usize));
+        out.extend(std::iter::repeat_n('0', (-decpt) as usize));
         out.push_str(&digits);
     } else if decpt >= n {
         out.push_str(&digits);
-        out.extend(std::iter::repeat('0').take((decpt - n) as usize));
+        out.extend(std::iter::repeat_n('0', (decpt - n) as usize));
         out.push_str(".0");
     } else {
         out.push_str(&digits[..decpt as usize]);

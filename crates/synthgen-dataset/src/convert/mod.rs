@@ -137,37 +137,41 @@ pub fn bop_to_linemod(
                 .unwrap_or_else(|| scene.dir.join("rgb").join(format!("{im:06}.png")));
             let rgb = read_rgb(&rgb_path)?;
             let (w, h) = (rgb.width, rgb.height);
+            // Linemod frames need depth (DenseFusion reads it): a missing image is an error,
+            // never a frame of zeros.
             let depth_path = scene.depth_path(im);
-            let depth = if depth_path.exists() {
-                let raw = read_depth_raw(&depth_path)?;
-                if (raw.width, raw.height) != (w, h) {
-                    return Err(Error::malformed(&depth_path, "depth and rgb sizes differ"));
-                }
-                let (v, overflow) = rescale_depth(&raw.data, cam.depth_scale, depth_scale);
-                summary.depth_out_of_range_px += overflow;
-                v
-            } else {
-                vec![0; w as usize * h as usize]
-            };
+            let raw = read_depth_raw(&depth_path)?;
+            if (raw.width, raw.height) != (w, h) {
+                return Err(Error::malformed(&depth_path, "depth and rgb sizes differ"));
+            }
+            let (depth, overflow) = rescale_depth(&raw.data, cam.depth_scale, depth_scale);
+            summary.depth_out_of_range_px += overflow;
             let gts = scene.gt.get(&im).map(Vec::as_slice).unwrap_or(&[]);
             let infos = scene.gt_info.as_ref().and_then(|i| i.get(&im));
             let mut objects = Vec::with_capacity(gts.len());
             for (gt_id, g) in gts.iter().enumerate() {
+                // Linemod's masks are BOP's visible masks: without them every object would
+                // look invisible and the frame would vanish.
                 let mpath = scene.mask_visib_path(im, gt_id);
-                let mask = if mpath.exists() {
-                    let m = read_mask(&mpath)?;
-                    if (m.width, m.height) != (w, h) {
-                        return Err(Error::malformed(&mpath, "mask and rgb sizes differ"));
-                    }
-                    Some(
-                        m.data
-                            .iter()
-                            .map(|&v| if v > 0 { 255 } else { 0 })
-                            .collect::<Vec<u8>>(),
-                    )
-                } else {
-                    None
-                };
+                if !mpath.is_file() {
+                    return Err(Error::malformed(
+                        &scene.dir.join("scene_gt.json"),
+                        format!(
+                            "image {im}, gt {gt_id} has no visible mask {}; `synthgen annotate` computes masks from the poses and models",
+                            mpath.display()
+                        ),
+                    ));
+                }
+                let m = read_mask(&mpath)?;
+                if (m.width, m.height) != (w, h) {
+                    return Err(Error::malformed(&mpath, "mask and rgb sizes differ"));
+                }
+                let mask = Some(
+                    m.data
+                        .iter()
+                        .map(|&v| if v > 0 { 255 } else { 0 })
+                        .collect::<Vec<u8>>(),
+                );
                 let info = infos.and_then(|i| i.get(gt_id));
                 let visib_fract = match (info, &mask) {
                     (Some(i), _) => i.visib_fract,

@@ -86,8 +86,14 @@ pub fn ycbv_to_bop(
             .flatten()
             .next()
             .map(|m| m.path().to_path_buf());
-        let mut files = vec![f.rgb.as_path()];
-        files.extend(f.depth.as_deref());
+        let Some(depth) = f.depth.as_deref() else {
+            return Err(Error::MissingFile {
+                path: f
+                    .rgb
+                    .with_file_name(format!("{:06}-depth.png", f.location.im_id)),
+            });
+        };
+        let mut files = vec![f.rgb.as_path(), depth];
         files.extend(label.as_deref());
         check_sizes(&files, size)?;
     }
@@ -131,12 +137,12 @@ pub fn ycbv_to_bop(
             &scene_dir.join("rgb").join(format!("{name}.{ext}")),
             &io::read(&f.rgb)?,
         )?;
-        if let Some(d) = &f.depth {
-            atomic_write(
-                &scene_dir.join("depth").join(format!("{name}.png")),
-                &io::read(d)?,
-            )?;
-        }
+        // Checked above: every frame has its depth image.
+        let Some(d) = &f.depth else { continue };
+        atomic_write(
+            &scene_dir.join("depth").join(format!("{name}.png")),
+            &io::read(d)?,
+        )?;
         // The label's instances as BOP masks.
         let label = match f.masks_visib.iter().flatten().next() {
             Some(m) => Some(read_label(m.path())?),
@@ -276,26 +282,27 @@ pub fn source_to_ycbv(
             h,
             synthgen_core::annotate::DEFAULT_VISIB_DELTA_M,
         )?;
-        let n = (w * h) as usize;
-        let depth = match &f.depth {
-            Some(p) => {
-                let raw = read_depth_raw(p)?;
-                if (raw.width, raw.height) != (w, h) {
-                    return Err(Error::malformed(
-                        p,
-                        format!(
-                            "depth image is {}x{} but the colour image is {w}x{h}",
-                            raw.width, raw.height
-                        ),
-                    ));
-                }
-                let to = 1000.0 / opts.writer.factor_depth;
-                let (v, overflow) = rescale_depth(&raw.data, f.camera.depth_scale, to);
-                summary.depth_out_of_range_px += overflow;
-                v
-            }
-            None => vec![0; n],
+        // YCB-Video frames need depth (PoseCNN and DenseFusion read it): none is an error,
+        // never a frame of zeros.
+        let Some(depth_path) = &f.depth else {
+            return Err(Error::malformed(
+                &f.rgb,
+                "this frame has no depth image, and YCB-Video frames need one",
+            ));
         };
+        let raw = read_depth_raw(depth_path)?;
+        if (raw.width, raw.height) != (w, h) {
+            return Err(Error::malformed(
+                depth_path,
+                format!(
+                    "depth image is {}x{} but the colour image is {w}x{h}",
+                    raw.width, raw.height
+                ),
+            ));
+        }
+        let to = 1000.0 / opts.writer.factor_depth;
+        let (depth, overflow) = rescale_depth(&raw.data, f.camera.depth_scale, to);
+        summary.depth_out_of_range_px += overflow;
         let label = label_of(f, &ann.rendered, w, h)?;
         summary.instances_without_mask +=
             f.gt.iter()

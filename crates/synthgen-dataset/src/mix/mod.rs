@@ -234,6 +234,9 @@ pub struct MixOptions {
     pub command_line: Vec<String>,
     /// Replace an existing mix in `out` (its train/, test/, models/ and JSON files).
     pub force: bool,
+    /// Leave out training frames that are the same image as a held-out test frame (same
+    /// file, hard link or bytes) instead of refusing the mix.
+    pub exclude_shared: bool,
 }
 
 /// Renderers that fill in what a source's frames lack, one per source: BOP's `mask/` and
@@ -259,6 +262,10 @@ pub struct MixReport {
     pub warnings: Vec<String>,
     /// Frames whose mask/ and scene_gt_info entries were computed (see [`Completion`]).
     pub completed: usize,
+    /// Training frames left out because they are test frames (`exclude_shared`).
+    pub excluded_shared: usize,
+    /// Training frames that are the same image as an earlier training frame.
+    pub duplicate_train: usize,
 }
 
 /// Draws the mix and writes it as a BOP dataset at `out`: `train/` and `test/` scene
@@ -277,7 +284,7 @@ pub fn write_mix(
     let synth_frames = synth.frames(&[])?;
     let real_keys: Vec<Vec<u32>> = real_frames.iter().map(SourceFrame::object_set).collect();
     let synth_keys: Vec<Vec<u32>> = synth_frames.iter().map(SourceFrame::object_set).collect();
-    let plan = plan_mix(
+    let mut plan = plan_mix(
         &real_keys,
         &synth_keys,
         opts.counts,
@@ -285,22 +292,68 @@ pub fn write_mix(
         real.root(),
         synth.root(),
     )?;
-    let same = |a: &Path| match (a.canonicalize(), out.canonicalize()) {
-        (Ok(a), Ok(b)) => a == b,
-        _ => false,
+    let frame_of = |&(origin, i): &(Origin, usize)| match origin {
+        Origin::Real => &real_frames[i],
+        Origin::Synth => &synth_frames[i],
     };
-    if same(real.root()) || same(synth.root()) {
-        return Err(Error::InvalidRequest(format!(
-            "the output folder is one of the sources: {}",
-            out.display()
-        )));
+    // The test split must be frames the model never saw: the two sources may be one folder,
+    // or share frames by hard link or copy.
+    let test_frames: Vec<&SourceFrame> = plan.test.iter().map(|&i| &real_frames[i]).collect();
+    let train_frames: Vec<&SourceFrame> = plan.train.iter().map(frame_of).collect();
+    let leaks = shared::same_images(&test_frames, &train_frames)?;
+    let mut excluded_shared = 0;
+    if let Some(&(j, i)) = leaks.first() {
+        if !opts.exclude_shared {
+            return Err(Error::InvalidRequest(format!(
+                "{} of the {} training frames are the same images as held-out test frames (the same file, a hard link or the same bytes), e.g. {} is the test frame {}: the test error would measure memorized frames. Mix datasets that share no frames, or pass --exclude-shared to leave those frames out of training",
+                leaks.len(),
+                train_frames.len(),
+                train_frames[j].rgb.display(),
+                test_frames[i].rgb.display()
+            )));
+        }
+        let drop: std::collections::BTreeSet<usize> = leaks.iter().map(|&(j, _)| j).collect();
+        plan.train = plan
+            .train
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| !drop.contains(k))
+            .map(|(_, t)| *t)
+            .collect();
+        excluded_shared = drop.len();
     }
+    let train_frames: Vec<&SourceFrame> = plan.train.iter().map(frame_of).collect();
+    let duplicate_train = shared::same_images(&train_frames, &train_frames)?
+        .iter()
+        .filter(|(j, i)| i != j)
+        .count();
+    crate::output::check_apart(
+        out,
+        &[
+            ("real dataset", real.root()),
+            ("synthetic dataset", synth.root()),
+        ],
+    )?;
     prepare_out(out, opts.force)?;
 
     let mut report = MixReport {
         test: plan.test.len(),
+        excluded_shared,
+        duplicate_train,
         ..MixReport::default()
     };
+    if excluded_shared > 0 {
+        report.warnings.push(format!(
+            "left {excluded_shared} training frames out: they are the same images as held-out test frames (--exclude-shared); the mix has {} training frames, not {}",
+            plan.train.len(),
+            plan.train.len() + excluded_shared
+        ));
+    }
+    if duplicate_train > 0 {
+        report.warnings.push(format!(
+            "{duplicate_train} training frames are the same image as another training frame (the two datasets share frames)"
+        ));
+    }
     let (rc, sc) = (real.camera(), synth.camera());
     if (rc.width, rc.height) != (sc.width, sc.height) {
         report.warnings.push(format!(
@@ -388,6 +441,7 @@ pub fn write_mix(
             "train_real": report.train_real,
             "train_synth": report.train_synth,
             "test": report.test,
+            "excluded_shared": report.excluded_shared,
             "train_split": TRAIN_SPLIT,
             "test_split": TEST_SPLIT,
             "stratified_by": "object set",
@@ -419,11 +473,7 @@ impl SceneJson {
 /// Creates `out`; refuses a non-empty folder unless `force`, which removes what a mix writes.
 fn prepare_out(out: &Path, force: bool) -> Result<()> {
     if out.exists() {
-        let non_empty = std::fs::read_dir(out)
-            .map_err(|e| Error::io("read", out, e))?
-            .next()
-            .is_some();
-        if non_empty && !force {
+        if !crate::output::is_empty(out) && !force {
             return Err(Error::InvalidRequest(format!(
                 "output folder is not empty (use --force to replace a mix there): {}",
                 out.display()
@@ -576,6 +626,8 @@ fn write_models(
     }
     write_map(&models.join("models_info.json"), &info, false)
 }
+
+mod shared;
 
 #[cfg(test)]
 #[allow(clippy::unwrap_used, clippy::expect_used)]

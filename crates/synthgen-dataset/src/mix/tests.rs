@@ -83,12 +83,16 @@ struct FakeSource {
 impl FakeSource {
     fn new(root: &Path, objects: &[u32]) -> FakeSource {
         std::fs::create_dir_all(root).unwrap();
-        let rgb = root.join("000000.png");
-        std::fs::write(&rgb, b"png").unwrap();
         let frames = objects
             .iter()
             .enumerate()
-            .map(|(i, &obj_id)| SourceFrame {
+            .map(|(i, &obj_id)| (i, obj_id, root.join(format!("{i:06}.png"))))
+            .inspect(|(i, _, rgb)| {
+                // A distinct image per frame and dataset: mix refuses frames shared with the
+                // test split.
+                std::fs::write(rgb, format!("{} {i}", root.display())).unwrap()
+            })
+            .map(|(i, obj_id, rgb)| SourceFrame {
                 location: crate::source::FrameLocation {
                     split: "train_pbr".into(),
                     scene_id: 0,
@@ -102,7 +106,7 @@ impl FakeSource {
                 },
                 gt: vec![GtEntry::new(obj_id, &synthgen_core::Pose::IDENTITY)],
                 gt_info: None,
-                rgb: rgb.clone(),
+                rgb,
                 depth: None,
                 masks: vec![None],
                 masks_visib: vec![None],
@@ -157,6 +161,7 @@ proptest! {
             seed,
             command_line: vec!["synthgen".into(), "mix".into()],
             force: false,
+            exclude_shared: false,
         };
         let mut texts = Vec::new();
         for out in ["a", "b"] {

@@ -155,6 +155,17 @@ fn check_scene(
         ctx.problem(&gt_path, format!("image {im} is not in scene_camera.json"));
     }
     let has_depth = dir.join("depth").is_dir();
+    if !has_depth && !cams.is_empty() {
+        // Every image's depth_scale promises a depth image (bop_toolkit reads depth/ for
+        // visibility and VSD); a dataset that lost its depth/ is not one that has none.
+        ctx.problem(
+            &dir.join("depth"),
+            format!(
+                "missing folder: scene_camera.json gives a depth_scale for {} images but there is no depth/",
+                cams.len()
+            ),
+        );
+    }
     for (&im, cam) in &cams {
         ctx.report.frames += 1;
         let rgb = ["png", "jpg", "jpeg"]

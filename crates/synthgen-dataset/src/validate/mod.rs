@@ -193,7 +193,7 @@ impl Ctx {
         if err > synthgen_core::pose::EXACT_ROTATION_TOLERANCE {
             let a = &mut self.approximate;
             a.count += 1;
-            if a.worst.as_ref().map_or(true, |(w, _, _)| err > *w) {
+            if a.worst.as_ref().is_none_or(|(w, _, _)| err > *w) {
                 a.worst = Some((err, path.to_path_buf(), what.to_string()));
             }
         }

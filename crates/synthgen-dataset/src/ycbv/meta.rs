@@ -185,7 +185,7 @@ pub(crate) fn read_meta_with(
     }
     let mut cls_indexes = Vec::with_capacity(n);
     for (i, &c) in cls.iter().enumerate() {
-        let known = n_classes.map_or(true, |k| c <= k as f64);
+        let known = n_classes.is_none_or(|k| c <= k as f64);
         if !(c.fract() == 0.0 && c >= 1.0 && c <= f64::from(u32::MAX) && known) {
             let range = n_classes.map_or(String::new(), |k| {
                 format!(" is outside classes.txt ({k} classes)")

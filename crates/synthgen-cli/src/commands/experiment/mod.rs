@@ -11,6 +11,7 @@ mod table;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+use synthgen_dataset::output::{check_apart, OutputLock};
 
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
@@ -127,8 +128,15 @@ pub fn run_mix(args: ExperimentMixArgs, printer: &Printer) -> Result<ExitStatus>
             .num_threads(j)
             .build_global();
     }
-    std::fs::create_dir_all(&out)
-        .with_context(|| format!("cannot create the output folder {}", out.display()))?;
+    let inputs: Vec<(&str, &Path)> = [
+        ("real dataset", &args.real),
+        ("synthetic dataset", &args.synth),
+    ]
+    .into_iter()
+    .filter_map(|(role, p)| Some((role, p.as_deref()?)))
+    .collect();
+    check_apart(&out, &inputs)?;
+    let _lock = OutputLock::acquire(&out)?;
     let max_real = rows.iter().map(|r| r.0).max().unwrap_or(0);
     let max_synth = rows.iter().map(|r| r.1).max().unwrap_or(0);
     let plan = sources::plan(&args, &out, max_real + test_count, max_synth.max(1))?;

@@ -178,6 +178,7 @@ pub fn run(ctx: &RowContext, spec: &RowSpec) -> Result<RowRecord> {
         seed: s.seed,
         command_line: std::env::args().collect(),
         force: false,
+        exclude_shared: false,
     };
     // The sources are BOP datasets with scene_gt_info (sources.rs converts other layouts).
     let report = write_mix(

@@ -37,7 +37,7 @@ fn elem(buf: &[u8], pos: usize, be: bool, base: u64) -> Result<Elem, MatError> {
             ))
         }
     };
-    if start.checked_add(len).map_or(true, |end| end > buf.len()) {
+    if start.checked_add(len).is_none_or(|end| end > buf.len()) {
         return Err(MatError::truncated(at, 8 + len as u64, left as u64));
     }
     let next = if start == pos + 4 {
@@ -190,7 +190,7 @@ fn read_matrix(
     let re = elem(&buf, header.rest, be, ctx.base).map_err(|e| ctx.wrap(e))?;
     let bytes = elem_bytes(&buf, &re);
     let data = match mi_size(re.ty) {
-        Some(s) if bytes.len() % s == 0 => decode(re.ty, bytes, be),
+        Some(s) if bytes.len().is_multiple_of(s) => decode(re.ty, bytes, be),
         _ => None,
     };
     let Some(data) = data else {

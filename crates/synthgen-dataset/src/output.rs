@@ -1,0 +1,158 @@
+//! Guards for commands that write a dataset: one writer per output folder at a time
+//! ([`OutputLock`]), and never an output that is, contains or lies inside one of the inputs
+//! ([`check_apart`]).
+
+use std::fs::{File, OpenOptions, TryLockError};
+use std::path::{Component, Path, PathBuf};
+
+use crate::error::{Error, Result};
+use crate::io::create_dir_all;
+
+/// The lock file in an output folder (hidden: dataset readers skip dot files).
+pub const LOCK_FILE: &str = ".synthgen.lock";
+
+/// An exclusive advisory lock (`flock`) on `DIR/.synthgen.lock`, held while a command writes
+/// into DIR and released when it is dropped or the process ends in any way (even `kill -9`),
+/// so a crashed run never leaves it stuck and `--resume` can take it again.
+#[derive(Debug)]
+pub struct OutputLock {
+    _file: File,
+    path: PathBuf,
+}
+
+impl OutputLock {
+    /// Creates `dir` if needed and takes its lock; a second writer gets
+    /// [`Error::Locked`] naming the folder and what holds it.
+    pub fn acquire(dir: &Path) -> Result<OutputLock> {
+        create_dir_all(dir)?;
+        let path = dir.join(LOCK_FILE);
+        // The file stays empty (two runs of one command give byte-identical folders) and is
+        // never deleted (deleting a lock file races with a process opening it).
+        let file = OpenOptions::new()
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(&path)
+            .map_err(|e| Error::io("open", &path, e))?;
+        match file.try_lock() {
+            Ok(()) => Ok(OutputLock { _file: file, path }),
+            Err(TryLockError::WouldBlock) => Err(Error::Locked {
+                lock: path,
+                path: dir.to_path_buf(),
+            }),
+            Err(TryLockError::Error(e)) => Err(Error::io("lock", &path, e)),
+        }
+    }
+
+    /// The lock file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+}
+
+/// `path` made absolute without needing it to exist: the deepest existing ancestor is
+/// canonicalized (resolving links), the rest appended with `.`/`..` folded.
+pub fn resolve(path: &Path) -> PathBuf {
+    let abs = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    let mut existing = abs.as_path();
+    let mut rest: Vec<Component> = Vec::new();
+    loop {
+        if let Ok(c) = existing.canonicalize() {
+            let mut out = c;
+            for comp in rest.iter().rev() {
+                match comp {
+                    Component::ParentDir => {
+                        out.pop();
+                    }
+                    Component::CurDir => {}
+                    c => out.push(c.as_os_str()),
+                }
+            }
+            return out;
+        }
+        match (existing.parent(), existing.components().next_back()) {
+            (Some(parent), Some(last)) => {
+                rest.push(last);
+                existing = parent;
+            }
+            _ => return abs,
+        }
+    }
+}
+
+/// Whether `dir` holds nothing but its lock file (or does not exist).
+pub fn is_empty(dir: &Path) -> bool {
+    match std::fs::read_dir(dir) {
+        Ok(entries) => entries
+            .flatten()
+            .all(|e| e.file_name() == std::ffi::OsStr::new(LOCK_FILE)),
+        Err(_) => !dir.exists(),
+    }
+}
+
+/// Refuses an output folder that is one of the inputs, lies inside one, or contains one
+/// (which `--force` could wipe). `inputs` are (role, path), e.g. ("input", IN).
+pub fn check_apart(output: &Path, inputs: &[(&str, &Path)]) -> Result<()> {
+    let out = resolve(output);
+    for (role, input) in inputs {
+        let inp = resolve(input);
+        let relation = if out == inp {
+            "is"
+        } else if out.starts_with(&inp) {
+            "lies inside"
+        } else if inp.starts_with(&out) {
+            "contains"
+        } else {
+            continue;
+        };
+        return Err(Error::InvalidRequest(format!(
+            "the output folder {} {relation} the {role} {}: a command never writes into its inputs; choose another output folder",
+            output.display(),
+            input.display()
+        )));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_second_lock_on_one_folder_is_refused_until_the_first_is_dropped() {
+        let d = tempfile::tempdir().unwrap();
+        let out = d.path().join("out");
+        let first = OutputLock::acquire(&out).unwrap();
+        let e = OutputLock::acquire(&out).unwrap_err().to_string();
+        assert!(
+            e.contains("another synthgen process") && e.contains(LOCK_FILE),
+            "{e}"
+        );
+        drop(first);
+        OutputLock::acquire(&out).unwrap();
+    }
+
+    #[test]
+    fn outputs_apart_from_inputs() {
+        let d = tempfile::tempdir().unwrap();
+        let inp = d.path().join("in");
+        std::fs::create_dir_all(inp.join("sub")).unwrap();
+        let check = |out: &Path| check_apart(out, &[("input", &inp)]);
+        assert!(check(&inp)
+            .unwrap_err()
+            .to_string()
+            .contains(" is the input "));
+        assert!(check(&inp.join("sub/new"))
+            .unwrap_err()
+            .to_string()
+            .contains("lies inside"));
+        assert!(check(d.path())
+            .unwrap_err()
+            .to_string()
+            .contains("contains"));
+        assert!(check(&d.path().join("in/../in")).is_err());
+        check(&d.path().join("other")).unwrap();
+        check(&d.path().join("in2")).unwrap();
+    }
+}
