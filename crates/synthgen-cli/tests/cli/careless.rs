@@ -371,20 +371,16 @@ fn results_csv_by_name_empty_refused_bad_rows_skipped_and_counted() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     render_tiny(d, "ds", 3, 8);
-    let gt: serde_json::Value = serde_json::from_slice(
-        &std::fs::read(d.join("ds/train_pbr/000000/scene_gt.json")).unwrap(),
-    )
-    .unwrap();
-    let g = &gt["0"][0];
-    let join = |k: &str| {
-        g[k].as_array()
-            .unwrap()
-            .iter()
-            .map(|v| v.to_string())
-            .collect::<Vec<_>>()
-            .join(" ")
-    };
-    let (r, t) = (join("cam_R_m2c"), join("cam_t_m2c"));
+    // R and t of the first GT instance, from the GT written as a results CSV.
+    let row = crate::train::gt_as_results(&d.join("ds"), 0.0);
+    let fields: Vec<String> = row
+        .lines()
+        .nth(1)
+        .unwrap()
+        .split(',')
+        .map(String::from)
+        .collect();
+    let (r, t) = (&fields[4], &fields[5]);
     let eval = |text: &str| {
         std::fs::write(d.join("r.csv"), text).unwrap();
         run(synthgen()

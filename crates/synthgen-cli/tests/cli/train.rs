@@ -144,7 +144,8 @@ fn train_resume_and_eval_checkpoint() {
 }
 
 /// Writes the dataset's GT as a results CSV, optionally moving every estimate along x.
-fn gt_as_results(data: &Path, dx_mm: f64) -> String {
+/// The GT of `data`'s train_pbr split as a results CSV, shifted `dx_mm` along x.
+pub(crate) fn gt_as_results(data: &Path, dx_mm: f64) -> String {
     let ds = BopDataset::open(data).unwrap();
     let mut csv = String::from("scene_id,im_id,obj_id,score,R,t,time\n");
     for scene_id in ds.scene_ids("train_pbr").unwrap() {
