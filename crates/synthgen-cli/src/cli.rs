@@ -6,9 +6,11 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 
 mod experiment;
 mod scale;
+mod sensor;
 mod train;
 pub use experiment::{ExperimentCommand, ExperimentMixArgs};
 pub use scale::{MergeArgs, Shard, MERGE_EXAMPLES};
+pub use sensor::{SensorCommand, SensorCompareArgs, SensorFitArgs};
 pub use train::{DeviceArg, EvalArgs, ModelArg, ScheduleArg, TrainArgs};
 
 #[derive(Debug, Parser)]
@@ -84,6 +86,9 @@ pub enum Command {
     /// Run an experiment end to end: the real/synthetic mixing table (mix, train, evaluate).
     #[command(subcommand)]
     Experiment(ExperimentCommand),
+    /// Fit a depth-sensor model to real frames, or compare two datasets' depth readings.
+    #[command(subcommand)]
+    Sensor(SensorCommand),
 }
 
 const ANNOTATE_EXAMPLES: &str = "Examples:
@@ -462,12 +467,24 @@ const RENDER_EXAMPLES: &str = "Examples:
   # DenseFusion's Linemod layout instead of BOP:
   synthgen render --objects obj_000008.ply --format linemod --out out/lm_linemod
 
+  # A depth sensor model: a built-in one, or a sensor file (replaces the scene's [sensor]):
+  synthgen render --objects drill.obj --sensor d455
+  synthgen render --scene scenes/tabletop.toml --objects drill.obj --sensor my_xtion.toml
+
+  # The synthetic twin of real frames: each frame re-rendered at its GT poses, camera and ids
+  # (only the annotated objects, black background, clean depth unless --sensor):
+  synthgen render --replay ../shared/data/ycbv_real --format ycbv --out out/ycbv_twin
+  synthgen render --replay data/lmo --scenes 2 --sensor structured_light --seed 1 --out out/lmo_twin
+
 Output (BOP layout, loadable by bop_toolkit):
   OUT/camera.json, OUT/models/obj_XXXXXX.ply (mm), OUT/models/models_info.json,
   OUT/train_pbr/SCENE/{rgb,depth,mask,mask_visib}/, scene_camera.json, scene_gt.json,
   scene_gt_info.json, and OUT/synthgen.json (how to make the dataset again).
 With --format linemod: OUT/data/NN/{rgb,depth,mask}/IIII.png, gt.yml, info.yml, train.txt,
-  test.txt per object id NN, OUT/models/obj_NN.ply and models_info.yml (docs/formats.md).";
+  test.txt per object id NN, OUT/models/obj_NN.ply and models_info.yml (docs/formats.md).
+With --replay: the source's scene and image ids (BOP, YCB-Video; Linemod numbers frames per
+  object), the source frame's split unless --split, the dataset's own models; frames without
+  GT poses are skipped (docs/rendering.md, \"Replaying real frames\").";
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum Backend {
@@ -546,6 +563,38 @@ pub struct RenderArgs {
     #[arg(long, value_name = "FILE")]
     pub scene: Option<PathBuf>,
 
+    /// Depth sensor model: none, d455, tof, structured_light, or a sensor file (TOML with the
+    /// keys of a scene's [sensor] section, e.g. `depth = "structured_light"`). Replaces the
+    /// scene spec's [sensor] section, except that the scene's [sensor.rgb] stays unless the
+    /// file sets [rgb]. With --replay the default is none (the clean rendered depth).
+    #[arg(long, value_name = "NAME|FILE")]
+    pub sensor: Option<String>,
+
+    /// Re-render every annotated frame of this real dataset (BOP, Linemod or YCB-Video) at its
+    /// GT poses with its own camera, models and ids: only the annotated objects, on black.
+    /// Takes no --objects, --frames, --scene or camera, pose and background flags.
+    #[arg(
+        long,
+        value_name = "REAL_DIR",
+        conflicts_with_all = [
+            "objects", "obj_ids", "units", "frames", "first_frame", "shard", "resume",
+            "camera", "camera_k", "image_size", "distance_m", "elevation_deg", "orientation",
+            "background", "background_dir", "chunk_size", "samples", "denoise",
+            "blender_threads", "blender_venv",
+        ]
+    )]
+    pub replay: Option<PathBuf>,
+
+    /// With --replay: only the frames of these scene ids (e.g. --scenes 0,2 to leave scene 1
+    /// out).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "ID,...",
+        requires = "replay"
+    )]
+    pub scenes: Vec<u32>,
+
     /// Camera preset: linemod, d455, d455-720, ycbv (YCB-Video's UW rig, scenes 0-59),
     /// ycbv-cmu (its CMU rig, scenes 60-91).
     #[arg(long)]
@@ -589,9 +638,10 @@ pub struct RenderArgs {
     #[arg(long, value_enum, default_value_t = Backend::Cpu)]
     pub backend: Backend,
 
-    /// BOP split folder name.
-    #[arg(long, default_value = "train_pbr")]
-    pub split: String,
+    /// BOP split folder name (default: train_pbr; with --replay each source frame's split,
+    /// e.g. test).
+    #[arg(long)]
+    pub split: Option<String>,
 
     /// Frames per scene folder (BOP PBR sets use 1000).
     #[arg(long, default_value_t = 1000)]
@@ -658,6 +708,13 @@ pub struct RenderArgs {
     /// rendered. Pass the same options as the interrupted run. BOP only.
     #[arg(long)]
     pub resume: bool,
+}
+
+impl RenderArgs {
+    /// The split folder of a sampled render: `--split`, else train_pbr.
+    pub fn split_name(&self) -> &str {
+        self.split.as_deref().unwrap_or("train_pbr")
+    }
 }
 
 /// Parses `MIN..MAX` (or a single value) into a closed range.

@@ -70,6 +70,12 @@ pub fn main() -> ExitCode {
         cli::Command::Experiment(cli::ExperimentCommand::Mix(args)) => {
             commands::experiment::run_mix(args, &printer)
         }
+        cli::Command::Sensor(cli::SensorCommand::Fit(args)) => {
+            commands::sensor::run_fit(args, &printer)
+        }
+        cli::Command::Sensor(cli::SensorCommand::Compare(args)) => {
+            commands::sensor::run_compare(args, &printer)
+        }
     };
     match result {
         Ok(status) => status.into(),

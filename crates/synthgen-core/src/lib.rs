@@ -15,6 +15,7 @@ pub mod atomic;
 pub mod bin_spec;
 pub mod camera;
 pub mod color;
+pub mod depth_features;
 pub mod distractor;
 mod distractor_spec;
 mod error;

@@ -8,7 +8,9 @@ use serde::{Deserialize, Serialize};
 pub use crate::bin_spec::BinSpec;
 use crate::camera::Intrinsics;
 pub use crate::distractor_spec::{DistractorShape, DistractorSpec};
-pub use crate::sensor_spec::{D455Spec, DepthModel, RgbNoiseSpec, SensorSpec, TofSpec};
+pub use crate::sensor_spec::{
+    D455Spec, DepthModel, RgbNoiseSpec, SensorSpec, StructuredLightSpec, TofSpec,
+};
 pub use crate::walls_spec::WallSpec;
 use crate::Error;
 
@@ -399,7 +401,11 @@ fn one() -> u32 {
 
 /// An error naming the first array of `given` (the file as written) that the parsed spec
 /// holds fewer values of, e.g. `camera_pose.distance_m = [0.5, 0.8, 1.2]`.
-fn check_nothing_dropped(given: &toml::Value, kept: &toml::Value, path: &str) -> Result<(), Error> {
+pub(crate) fn check_nothing_dropped(
+    given: &toml::Value,
+    kept: &toml::Value,
+    path: &str,
+) -> Result<(), Error> {
     use toml::Value;
     match (given, kept) {
         (Value::Table(g), Value::Table(k)) => {
@@ -435,14 +441,14 @@ impl SceneSpec {
             source,
             path: path.to_path_buf(),
         })?;
-        let mut spec = Self::from_toml_str(&text).map_err(|e| match e {
+        let base = path.parent().unwrap_or(Path::new("."));
+        let mut spec = Self::parse(&text, base).map_err(|e| match e {
             Error::ParseSpec { message, .. } => Error::ParseSpec {
                 message,
                 path: path.to_path_buf(),
             },
             other => other,
         })?;
-        let base = path.parent().unwrap_or(Path::new("."));
         for o in &mut spec.objects {
             if o.path.is_relative() {
                 o.path = base.join(&o.path);
@@ -468,12 +474,18 @@ impl SceneSpec {
         Ok(spec)
     }
 
+    /// Parses a TOML spec; a `[sensor] file` is read relative to the current folder.
     pub fn from_toml_str(text: &str) -> Result<SceneSpec, Error> {
+        Self::parse(text, Path::new("."))
+    }
+
+    /// Parses a spec whose relative `[sensor] file` lies under `base`.
+    fn parse(text: &str, base: &Path) -> Result<SceneSpec, Error> {
         let parse_err = |e: toml::de::Error| Error::ParseSpec {
             message: e.to_string().trim().replace('\n', " "),
             path: PathBuf::from("<string>"),
         };
-        let spec: SceneSpec = toml::from_str(text).map_err(parse_err)?;
+        let mut spec: SceneSpec = toml::from_str(text).map_err(parse_err)?;
         // serde fills a fixed-size array from the first values of a longer one: a range
         // written with 3 values would silently lose one.
         let given: toml::Value = toml::from_str(text).map_err(parse_err)?;
@@ -482,6 +494,7 @@ impl SceneSpec {
             path: PathBuf::from("<string>"),
         })?;
         check_nothing_dropped(&given, &kept, "")?;
+        spec.sensor.resolve_file(base)?;
         spec.validate()?;
         Ok(spec)
     }

@@ -34,6 +34,26 @@ pub fn frame_intrinsics(frame: &SourceFrame, width: u32, height: u32) -> Intrins
     frame.camera.intrinsics(width, height)
 }
 
+/// A frame's annotated objects rendered at their GT poses (instance `i + 1` = gt `i`), with
+/// the camera `k`; an object without a model is an error naming the frame.
+pub fn render_gt(
+    renderer: &dyn PoseRenderer,
+    frame: &SourceFrame,
+    k: &Intrinsics,
+) -> Result<RenderedFrame> {
+    let objects: Vec<_> = frame
+        .gt
+        .iter()
+        .map(|g| (g.obj_id, g.cam_from_obj()))
+        .collect();
+    renderer.render_poses(k, &objects).map_err(|m| {
+        Error::InvalidRequest(format!(
+            "cannot render {}/{:06} image {}: {m}",
+            frame.location.split, frame.location.scene_id, frame.location.im_id
+        ))
+    })
+}
+
 /// Renders a frame's objects at their GT poses and annotates them (see the module doc).
 /// `width` x `height` is the image size; a depth image of another size is an error naming it.
 pub fn annotate_frame(
@@ -44,17 +64,7 @@ pub fn annotate_frame(
     delta_m: f32,
 ) -> Result<FrameAnnotations> {
     let k = frame_intrinsics(frame, width, height);
-    let objects: Vec<_> = frame
-        .gt
-        .iter()
-        .map(|g| (g.obj_id, g.cam_from_obj()))
-        .collect();
-    let rendered = renderer.render_poses(&k, &objects).map_err(|m| {
-        Error::InvalidRequest(format!(
-            "cannot render {}/{:06} image {}: {m}",
-            frame.location.split, frame.location.scene_id, frame.location.im_id
-        ))
-    })?;
+    let rendered = render_gt(renderer, frame, &k)?;
     let depth = match &frame.depth {
         Some(p) => {
             let d = read_depth_m(p, frame.camera.depth_scale)?;

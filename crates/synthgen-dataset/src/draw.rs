@@ -17,9 +17,48 @@ pub struct Canvas {
     pub rgb: Vec<u8>,
 }
 
-/// 3x5 glyphs, one row per u8 (bit 2 = left column).
+/// 3x5 glyphs, one row per u8 (bit 2 = left column). Letters are upper case (lower case
+/// is drawn the same).
 fn glyph(c: char) -> Option<[u8; 5]> {
-    Some(match c {
+    Some(match c.to_ascii_uppercase() {
+        'A' => [2, 5, 7, 5, 5],
+        'B' => [6, 5, 6, 5, 6],
+        'C' => [3, 4, 4, 4, 3],
+        'D' => [6, 5, 5, 5, 6],
+        'E' => [7, 4, 6, 4, 7],
+        'F' => [7, 4, 6, 4, 4],
+        'G' => [3, 4, 5, 5, 3],
+        'H' => [5, 5, 7, 5, 5],
+        'I' => [7, 2, 2, 2, 7],
+        'J' => [1, 1, 1, 5, 2],
+        'K' => [5, 5, 6, 5, 5],
+        'L' => [4, 4, 4, 4, 7],
+        'M' => [5, 7, 7, 5, 5],
+        'N' => [6, 5, 5, 5, 5],
+        'O' => [2, 5, 5, 5, 2],
+        'P' => [6, 5, 6, 4, 4],
+        'Q' => [2, 5, 5, 6, 3],
+        'R' => [6, 5, 6, 5, 5],
+        'S' => [3, 4, 2, 1, 6],
+        'T' => [7, 2, 2, 2, 2],
+        'U' => [5, 5, 5, 5, 7],
+        'V' => [5, 5, 5, 5, 2],
+        'W' => [5, 5, 7, 7, 5],
+        'X' => [5, 5, 2, 5, 5],
+        'Y' => [5, 5, 2, 2, 2],
+        'Z' => [7, 1, 2, 4, 7],
+        ':' => [0, 2, 0, 2, 0],
+        '%' => [5, 1, 2, 4, 5],
+        '/' => [1, 1, 2, 4, 4],
+        '(' => [1, 2, 2, 2, 1],
+        ')' => [4, 2, 2, 2, 4],
+        '=' => [0, 7, 0, 7, 0],
+        '+' => [0, 2, 7, 2, 0],
+        ',' => [0, 0, 0, 2, 4],
+        '<' => [1, 2, 4, 2, 1],
+        '>' => [4, 2, 1, 2, 4],
+        '_' => [0, 0, 0, 0, 7],
+        '°' => [2, 5, 2, 0, 0],
         '0' => [7, 5, 5, 5, 7],
         '1' => [2, 6, 2, 2, 7],
         '2' => [7, 1, 7, 4, 7],
@@ -89,7 +128,7 @@ impl Canvas {
         }
     }
 
-    /// Digits, '.', '-' and spaces at `scale` pixels per font pixel, on a dark box.
+    /// Text (digits, letters, common signs) at `scale` pixels per font pixel, on a dark box.
     pub fn text(&mut self, x: i64, y: i64, s: &str, scale: i64, c: Rgb) {
         let n = s.chars().count() as i64;
         self.fill_rect(
@@ -99,6 +138,11 @@ impl Canvas {
             7 * scale,
             [0, 0, 0],
         );
+        self.label(x, y, s, scale, c);
+    }
+
+    /// Text like [`text`](Self::text) but without the box behind it.
+    pub fn label(&mut self, x: i64, y: i64, s: &str, scale: i64, c: Rgb) {
         for (k, ch) in s.chars().enumerate() {
             let Some(g) = glyph(ch) else { continue };
             for (row, bits) in g.iter().enumerate() {

@@ -1,6 +1,7 @@
 //! `raster_rgbd_640x480`: five Linemod models (LMO objects 1, 5, 6, 8, 9) in scenes sampled
 //! with the default scene spec, rendered single-threaded and as a parallel batch, with and
-//! without `synthgen_core::annotate`. Throughput is in frames.
+//! without `synthgen_core::annotate`; and the structured-light sensor model alone on those
+//! frames (its cost against the render's). Throughput is in frames.
 //!
 //! Models come from `$SYNTHGEN_LMO_DIR/models` (default `../shared/data/lmo/models` next to
 //! the workspace). `parallel_batch` uses rayon's global pool (all cores; set
@@ -13,9 +14,11 @@ use std::path::PathBuf;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use synthgen_assets::Units;
+use synthgen_core::scene::SensorSpec;
 use synthgen_core::{
     annotate, FrameScene, NoProgress, RenderedFrame, SceneObject, SceneSampler, SceneSpec,
 };
+use synthgen_render::sensor::apply_structured_light;
 use synthgen_render::{render_frames, CpuRenderer, Renderer};
 
 const IDS: [u32; 5] = [1, 5, 6, 8, 9];
@@ -74,6 +77,25 @@ fn bench(c: &mut Criterion) {
             i = (i + 1) % scenes.len();
             let f = r.render(&scenes[i]).unwrap();
             annotate_frame(&scenes[i], &f)
+        })
+    });
+    // The structured-light model alone on rendered frames (ground plane and objects: every
+    // pixel has depth), with the shipped fit to the YCB-Video Xtion (sensors/asus_xtion.toml:
+    // both shadows, the shift, hole blobs); the frame's depth is restored each time.
+    let rendered: Vec<RenderedFrame> = scenes.iter().map(|s| r.render(s).unwrap()).collect();
+    let sl = SensorSpec::from_toml_file(
+        &PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../sensors/asus_xtion.toml"),
+    )
+    .unwrap()
+    .structured_light;
+    g.bench_function("single_thread/structured_light", |b| {
+        let mut depth = Vec::new();
+        b.iter(|| {
+            i = (i + 1) % scenes.len();
+            let f = &rendered[i];
+            depth.clone_from(&f.depth_m);
+            apply_structured_light(&sl, &scenes[i].intrinsics, &f.rgb, &mut depth, i as u64);
+            depth[0]
         })
     });
     g.throughput(Throughput::Elements(SCENES));

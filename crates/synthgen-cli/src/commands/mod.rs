@@ -13,6 +13,8 @@ pub mod render;
 mod render_extras;
 mod render_resume;
 mod render_sink;
+mod replay;
+pub mod sensor;
 pub mod stats;
 pub mod train;
 pub mod validate;

@@ -1,7 +1,8 @@
 //! The object models of a dataset loaded into an [`ObjectRenderer`], for the commands that
-//! render real frames at their GT poses (annotate, convert).
+//! render real frames at their GT poses (annotate, convert, render --replay).
 
 use anyhow::{Context, Result};
+use synthgen_core::Model;
 use synthgen_dataset::source::FrameSource;
 use synthgen_render::ObjectRenderer;
 
@@ -14,6 +15,15 @@ pub fn object_renderer(
     obj_ids: &[u32],
     printer: &Printer,
 ) -> Result<ObjectRenderer> {
+    Ok(ObjectRenderer::new(load_models(source, obj_ids, printer)?)?)
+}
+
+/// The models of `obj_ids` (metres), in that order, as [`object_renderer`] loads them.
+pub fn load_models(
+    source: &dyn FrameSource,
+    obj_ids: &[u32],
+    printer: &Printer,
+) -> Result<Vec<(u32, Model)>> {
     let mut models = Vec::with_capacity(obj_ids.len());
     for &id in obj_ids {
         let model = source
@@ -21,7 +31,7 @@ pub fn object_renderer(
             .with_context(|| format!("cannot load the model of object {id}"))?;
         models.push((id, model));
     }
-    Ok(ObjectRenderer::new(models)?)
+    Ok(models)
 }
 
 /// The distinct object ids of the frames, sorted.

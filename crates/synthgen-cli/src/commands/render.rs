@@ -18,7 +18,7 @@ use synthgen_render::{CpuRenderer, Renderer, SensorModel, ViewChecker};
 use crate::cli::{Backend, BackgroundArg, FormatArg, OrientationArg, RenderArgs, UnitsArg};
 use crate::commands::render_sink::{self, Sink};
 use crate::commands::user_error;
-use crate::commands::{render_extras, render_resume};
+use crate::commands::{render_extras, render_resume, replay};
 use crate::{ExitStatus, Printer};
 
 /// One mesh to load, with where it came from.
@@ -30,6 +30,16 @@ struct ObjectSource {
 }
 
 pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
+    if args.replay.is_some() {
+        return replay::run(args, printer);
+    }
+    if !args.scenes.is_empty() {
+        // clap's `requires` lets it through beside a flag that conflicts with --replay.
+        return Err(user_error(
+            "--scenes applies only to --replay (the scene ids of the real frames to re-render)",
+            "add --replay REAL_DIR, or drop --scenes",
+        ));
+    }
     let started = Instant::now();
     check_backend(&args)?;
     render_resume::check_supported(&args)?;
@@ -164,16 +174,8 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
                 .map(|&i| {
                     let r = (|| {
                         let scene = sampler.sample(i)?;
-                        let mut frame = renderer.render(&scene)?;
-                        let ann = synthgen_core::annotate(
-                            &scene.intrinsics,
-                            &frame.depth_m,
-                            &frame.alone,
-                            delta_m,
-                        );
-                        if !sensor.is_identity() {
-                            sensor.apply(&scene, &mut frame);
-                        }
+                        let (frame, ann) =
+                            render_annotated(renderer.as_ref(), &scene, &sensor, delta_m)?;
                         let rec = writer.write_frame(i, &scene, &frame, &ann)?;
                         printer.advance(1);
                         // What was written is checked: a frame in which no target is
@@ -278,6 +280,26 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     } else {
         ExitStatus::Failure
     })
+}
+
+/// Renders `scene`, annotates the clean render, then applies the sensor model to the frame's
+/// RGB and depth (masks and GT stay those of the clean render): the step every rendered
+/// frame goes through, sampled or replayed.
+pub(crate) fn render_annotated(
+    renderer: &(dyn Renderer + Sync),
+    scene: &synthgen_core::FrameScene,
+    sensor: &SensorModel,
+    delta_m: f32,
+) -> Result<(
+    synthgen_core::RenderedFrame,
+    Vec<synthgen_core::ObjectAnnotation>,
+)> {
+    let mut frame = renderer.render(scene)?;
+    let ann = synthgen_core::annotate(&scene.intrinsics, &frame.depth_m, &frame.alone, delta_m);
+    if !sensor.is_identity() {
+        sensor.apply(scene, &mut frame);
+    }
+    Ok((frame, ann))
 }
 
 /// The manifest of this run before any frame is rendered (frames 0, no failures).
@@ -475,6 +497,9 @@ fn build_spec(args: &RenderArgs) -> Result<SceneSpec> {
             spec.background.kind = BackgroundKind::Images;
         }
     }
+    if let Some(arg) = &args.sensor {
+        spec.sensor = render_extras::sensor_flag(arg, &spec.sensor)?;
+    }
     spec.validate()?;
     Ok(spec)
 }
@@ -549,7 +574,7 @@ fn id_from_name(path: &Path) -> Option<u32> {
 }
 
 /// The YCB-Video class index of a model whose folder is named after the class.
-fn ycbv_class_index(path: &Path) -> Option<u32> {
+pub(crate) fn ycbv_class_index(path: &Path) -> Option<u32> {
     let folder = path.parent()?.file_name()?.to_str()?;
     let i = synthgen_dataset::ycbv::YCBV_CLASSES
         .iter()
@@ -726,7 +751,7 @@ fn summarize(
         printer.hint(format!(
             "look at {}",
             args.out
-                .join(&args.split)
+                .join(args.split_name())
                 .join(format!(
                     "{:06}",
                     args.first_frame / u64::from(args.chunk_size.max(1))

@@ -1,5 +1,6 @@
 //! Scene extras for `synthgen render`: the distractor models (primitive bank and other
-//! meshes) appended after the targets' models, and the ground and wall texture images.
+//! meshes) appended after the targets' models, the ground and wall texture images, and the
+//! `--sensor` flag's sensor.
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -8,6 +9,7 @@ use anyhow::{Context, Result};
 use synthgen_assets::Units;
 use synthgen_core::distractor::{primitive_models, DistractorPool};
 use synthgen_core::sample::SceneObject;
+use synthgen_core::scene::{RgbNoiseSpec, SensorSpec};
 use synthgen_core::{Model, SceneSpec, Texture};
 
 use crate::commands::user_error;
@@ -97,4 +99,16 @@ pub fn surface_textures(spec: &SceneSpec, printer: &Printer) -> Result<(Images, 
         load("ground", &spec.ground.texture_dir)?,
         load("walls", &spec.walls.texture_dir)?,
     ))
+}
+
+/// The sensor of `--sensor NAME|FILE`, which replaces the scene's `sensor` section; the
+/// scene's RGB noise stays when the flag's sensor leaves `rgb` at its defaults (a built-in
+/// name, or a file without `[rgb]`).
+pub fn sensor_flag(arg: &str, scene: &SensorSpec) -> Result<SensorSpec> {
+    let mut sensor =
+        SensorSpec::from_name_or_file(arg).with_context(|| format!("invalid --sensor {arg}"))?;
+    if sensor.rgb == RgbNoiseSpec::default() {
+        sensor.rgb = scene.rgb.clone();
+    }
+    Ok(sensor)
 }

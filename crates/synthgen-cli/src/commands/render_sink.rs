@@ -60,13 +60,24 @@ pub fn dataset_options(args: &RenderArgs) -> serde_json::Value {
             FormatArg::Linemod => "linemod",
             FormatArg::Ycbv => "ycbv",
         },
-        "split": args.split,
+        "split": args.split_name(),
         "chunk_size": args.chunk_size,
         "rgb_format": match args.rgb_format { RgbArg::Png => "png", RgbArg::Jpg => "jpg" },
         "jpg_quality": args.jpg_quality,
         "depth_scale": depth_scale(args),
         "min_visib_fract": args.min_visib_fract,
     })
+}
+
+/// Where a sink puts frames: frame `i` goes to scene `i / chunk_size`, image
+/// `i % chunk_size` of `split`.
+pub struct Layout {
+    pub split: String,
+    pub chunk_size: u32,
+    /// The frames this run writes, when known (a BOP scene folder's JSON is then written as
+    /// soon as its last one is in); `None`: at finish. A known range also keeps journals, so
+    /// the run can be resumed.
+    pub frames: Option<Range<u64>>,
 }
 
 impl Sink {
@@ -77,13 +88,29 @@ impl Sink {
         frames: Range<u64>,
         classes: &[String],
     ) -> Result<Sink> {
+        let layout = Layout {
+            split: args.split_name().to_string(),
+            chunk_size: args.chunk_size,
+            frames: Some(frames),
+        };
+        Sink::create_with(args, intrinsics, layout, classes)
+    }
+
+    /// [`create`](Self::create) with the split and numbering given.
+    pub fn create_with(
+        args: &RenderArgs,
+        intrinsics: Intrinsics,
+        layout: Layout,
+        classes: &[String],
+    ) -> Result<Sink> {
         Ok(match args.format {
             FormatArg::Bop => {
+                let journal = layout.frames.is_some();
                 let w = BopWriter::create(
                     &args.out,
                     BopWriterOptions {
-                        split: args.split.clone(),
-                        chunk_size: args.chunk_size,
+                        split: layout.split,
+                        chunk_size: layout.chunk_size,
                         rgb_format: match args.rgb_format {
                             RgbArg::Png => RgbFormat::Png,
                             RgbArg::Jpg => RgbFormat::Jpg {
@@ -91,10 +118,11 @@ impl Sink {
                             },
                         },
                         depth_scale: depth_scale(args),
-                        frame_range: Some(frames),
+                        frame_range: layout.frames,
                         merge_existing: args.resume,
-                        // Every run keeps journals, so any run can be resumed after a crash.
-                        journal: true,
+                        // Every run over a known range keeps journals, so it can be resumed
+                        // after a crash.
+                        journal,
                         ..BopWriterOptions::new(intrinsics)
                     },
                 )?;
@@ -110,7 +138,7 @@ impl Sink {
                 },
             )?),
             FormatArg::Ycbv => {
-                if args.chunk_size == 0 {
+                if layout.chunk_size == 0 {
                     anyhow::bail!("--chunk-size must be at least 1");
                 }
                 Sink::Ycbv(YcbvSink {
@@ -122,8 +150,8 @@ impl Sink {
                             ..YcbvWriterOptions::default()
                         },
                     )?,
-                    split: args.split.clone(),
-                    chunk_size: args.chunk_size,
+                    split: layout.split,
+                    chunk_size: layout.chunk_size,
                 })
             }
         })
@@ -181,15 +209,37 @@ impl Sink {
         frame: &RenderedFrame,
         ann: &[ObjectAnnotation],
     ) -> Result<Record> {
+        self.write_frame_in(None, i, scene, frame, ann)
+    }
+
+    /// [`write_frame`](Self::write_frame) into `split` instead of the layout's: YCB-Video
+    /// lists it in `image_sets/<split>.txt`; a BOP writer has one split (asking for another
+    /// is a bug) and Linemod none.
+    pub fn write_frame_in(
+        &self,
+        split: Option<&str>,
+        i: u64,
+        scene: &FrameScene,
+        frame: &RenderedFrame,
+        ann: &[ObjectAnnotation],
+    ) -> Result<Record> {
         Ok(match self {
-            Sink::Bop(w) => Record::Bop(w.write_frame(i, scene, frame, ann)?),
+            Sink::Bop(w) => {
+                if split.is_some_and(|s| s != w.options().split) {
+                    anyhow::bail!("internal error: a frame for another split's BOP writer");
+                }
+                Record::Bop(w.write_frame(i, scene, frame, ann)?)
+            }
             Sink::Linemod(w) => {
                 let f = w.frame_from_render(scene, frame, ann)?;
                 Record::Linemod(w.write_frame(&f, ListFile::Train)?)
             }
             Sink::Ycbv(y) => {
-                y.writer
-                    .write_frame(&y.frame_from_render(i, scene, frame)?)?;
+                let mut f = y.frame_from_render(i, scene, frame)?;
+                if let Some(s) = split {
+                    f.split = s.to_string();
+                }
+                y.writer.write_frame(&f)?;
                 Record::Ycbv
             }
         })

@@ -4,7 +4,9 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use synthgen_core::scene::D455Spec;
 
-use super::{discontinuities, quantize, Normal};
+use synthgen_core::depth_features::{discontinuities, viewpoint_shadow};
+
+use super::{quantize, Normal};
 
 /// Applies the D455 model to `depth` (metres, row-major `w` x `h`, 0 = no hit) in place.
 ///
@@ -24,7 +26,7 @@ pub fn apply_d455(
 ) {
     let fb = fx * spec.baseline_m;
     let shadow = if spec.stereo_shadow {
-        stereo_shadow(depth, w, h, fb)
+        viewpoint_shadow(depth, w, h, fb, true)
     } else {
         vec![false; w * h]
     };
@@ -53,26 +55,4 @@ pub fn apply_d455(
         let zn = quantize(z + z * z * k * n, spec.depth_unit_m);
         *d = if zn >= lo && zn <= hi { zn as f32 } else { 0.0 };
     }
-}
-
-/// Pixels of the reference (left) image that the second imager, at +`baseline` along x,
-/// does not see. A point at column u with disparity d = f b / z lands at u − d in the second
-/// image; it is hidden when a point further right in the same row lands at or left of it
-/// (a closer surface in between), or when u − d < 0 (outside the second image).
-pub(crate) fn stereo_shadow(depth: &[f32], w: usize, h: usize, fb: f64) -> Vec<bool> {
-    let mut out = vec![false; w * h];
-    for y in 0..h {
-        let row = &depth[y * w..(y + 1) * w];
-        let mut min_r = f64::INFINITY;
-        for x in (0..w).rev() {
-            let z = f64::from(row[x]);
-            if z <= 0.0 {
-                continue;
-            }
-            let ur = x as f64 - fb / z;
-            out[y * w + x] = ur < -0.5 || ur >= min_r;
-            min_r = min_r.min(ur);
-        }
-    }
-    out
 }

@@ -1,16 +1,18 @@
 //! Sensor models applied to a rendered frame after its annotations were computed: a
-//! RealSense D455-style stereo depth model, a Kinect/ToF-style depth model and RGB sensor
-//! effects. They change only `RenderedFrame::rgb` and `RenderedFrame::depth_m`; instance ids
+//! RealSense D455-style stereo depth model, a Kinect/ToF-style depth model, a structured-light
+//! (Kinect v1 / PrimeSense / Asus Xtion) model and RGB sensor effects. They change only `RenderedFrame::rgb` and `RenderedFrame::depth_m`; instance ids
 //! and alone depths (hence masks and GT) stay those of the clean render. Every draw comes
 //! from the frame's `Stream::Sensor` RNG, so a frame's noise depends on (seed, frame index)
 //! alone. Formulas and sources: docs/sensors.md.
 
 mod d455;
 mod rgb;
+mod structured_light;
 mod tof;
 
 pub use d455::apply_d455;
 pub(crate) use rgb::apply_rgb;
+pub use structured_light::apply_structured_light;
 pub use tof::{apply_tof, tof_sigma_m};
 
 use rand::{Rng, RngCore};
@@ -67,6 +69,13 @@ impl SensorModel {
                     apply_d455(&self.spec.d455, k.fx, w, h, &mut frame.depth_m, &mut rng)
                 }
                 DepthModel::Tof => apply_tof(&self.spec.tof, k, &mut frame.depth_m, &mut rng),
+                DepthModel::StructuredLight => apply_structured_light(
+                    &self.spec.structured_light,
+                    k,
+                    &frame.rgb,
+                    &mut frame.depth_m,
+                    rng.gen(),
+                ),
             }
         }
         if self.spec.rgb.enabled && frame.rgb.len() == w * h * 3 {
@@ -104,31 +113,6 @@ impl Normal {
         self.spare = Some(r * s);
         r * c
     }
-}
-
-/// Marks pixels on a depth discontinuity: a 4-neighbour is empty (0) or differs by more than
-/// `rel` times the pixel's depth. Empty pixels and the image border are never marked.
-pub(crate) fn discontinuities(depth: &[f32], w: usize, h: usize, rel: f32) -> Vec<bool> {
-    let mut out = vec![false; w * h];
-    for y in 0..h {
-        for x in 0..w {
-            let i = y * w + x;
-            let z = depth[i];
-            if z <= 0.0 {
-                continue;
-            }
-            let lim = rel * z;
-            let jump = |j: usize| {
-                let n = depth[j];
-                n <= 0.0 || (n - z).abs() > lim
-            };
-            out[i] = (x > 0 && jump(i - 1))
-                || (x + 1 < w && jump(i + 1))
-                || (y > 0 && jump(i - w))
-                || (y + 1 < h && jump(i + w));
-        }
-    }
-    out
 }
 
 /// Rounds to a multiple of `unit` (no rounding when `unit` is 0).

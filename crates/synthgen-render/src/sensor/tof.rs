@@ -7,7 +7,9 @@ use rand_chacha::ChaCha8Rng;
 use synthgen_core::scene::TofSpec;
 use synthgen_core::Intrinsics;
 
-use super::{discontinuities, quantize, Normal};
+use synthgen_core::depth_features::{discontinuities, incidence};
+
+use super::{quantize, Normal};
 
 /// Axial σ in metres at depth `z_m` and incidence angle `theta_rad`.
 pub fn tof_sigma_m(spec: &TofSpec, z_m: f64, theta_rad: f64) -> f64 {
@@ -96,64 +98,4 @@ fn neighbour_extent(d: &[f32], w: usize, h: usize, x: usize, y: usize) -> (f64, 
         }
     }
     (lo, hi)
-}
-
-/// Angle between the surface normal and the viewing ray at pixel (x, y), radians.
-fn incidence(d: &[f32], rel: f64, k: &Intrinsics, x: usize, y: usize) -> f64 {
-    let (w, h) = (k.width as usize, k.height as usize);
-    let point = |x: usize, y: usize| -> Option<[f64; 3]> {
-        let z = f64::from(d[y * w + x]);
-        (z > 0.0).then(|| {
-            [
-                (x as f64 - k.cx) / k.fx * z,
-                (y as f64 - k.cy) / k.fy * z,
-                z,
-            ]
-        })
-    };
-    let Some(p) = point(x, y) else {
-        return 0.0;
-    };
-    // A neighbour across a discontinuity is another surface: leave it out.
-    let usable = |nx: usize, ny: usize| {
-        let zn = f64::from(d[ny * w + nx]);
-        zn > 0.0 && (zn - p[2]).abs() <= rel * p[2]
-    };
-    let diff = |a: Option<[f64; 3]>, b: Option<[f64; 3]>| match (a, b) {
-        (Some(a), Some(b)) => Some([b[0] - a[0], b[1] - a[1], b[2] - a[2]]),
-        _ => None,
-    };
-    let left = (x > 0 && usable(x - 1, y))
-        .then(|| point(x - 1, y))
-        .flatten();
-    let right = (x + 1 < w && usable(x + 1, y))
-        .then(|| point(x + 1, y))
-        .flatten();
-    let up = (y > 0 && usable(x, y - 1))
-        .then(|| point(x, y - 1))
-        .flatten();
-    let down = (y + 1 < h && usable(x, y + 1))
-        .then(|| point(x, y + 1))
-        .flatten();
-    let du = diff(left, right)
-        .or_else(|| diff(Some(p), right))
-        .or_else(|| diff(left, Some(p)));
-    let dv = diff(up, down)
-        .or_else(|| diff(Some(p), down))
-        .or_else(|| diff(up, Some(p)));
-    let (Some(a), Some(b)) = (du, dv) else {
-        return 0.0;
-    };
-    let n = [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ];
-    let nn = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-    let pn = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
-    if nn <= 0.0 || pn <= 0.0 {
-        return 0.0;
-    }
-    let c = ((n[0] * p[0] + n[1] * p[1] + n[2] * p[2]) / (nn * pn)).abs();
-    c.min(1.0).acos()
 }

@@ -1,0 +1,500 @@
+//! `synthgen render --replay REAL_DIR`: the synthetic twin of an annotated dataset. Every
+//! frame with GT poses is rendered with its own intrinsics and camera pose, only its annotated
+//! objects (the dataset's own models, their own colours) on black, then annotated, passed
+//! through the sensor model and written like any render, under the source's scene and image
+//! ids.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use rayon::prelude::*;
+use synthgen_core::sample::ObjectInstance;
+use synthgen_core::scene::{DepthModel, SensorSpec};
+use synthgen_core::{FrameScene, Progress, Symmetries};
+use synthgen_dataset::manifest::{write_manifest, Manifest};
+use synthgen_dataset::output::{check_apart, is_empty, OutputLock};
+use synthgen_dataset::source::{open_source, FrameSource, SourceFrame};
+use synthgen_dataset::validate::{detect_layout, Layout as SourceLayout};
+use synthgen_render::{CpuRenderer, SensorModel};
+
+use crate::cli::{Backend, FormatArg, RenderArgs};
+use crate::commands::object_models::{frame_obj_ids, load_models};
+use crate::commands::render_sink::{self, Layout, Sink};
+use crate::commands::{render, render_extras, user_error};
+use crate::{ExitStatus, Printer};
+
+/// Images per scene folder in the output: frame index = scene_id × this + im_id, so the BOP
+/// and YCB-Video writers put every frame back under its own scene and image id (BOP image
+/// ids have at most 6 digits).
+pub const CHUNK: u64 = 1_000_000;
+
+/// One source frame to render and where it goes.
+struct Job {
+    frame: SourceFrame,
+    /// scene_id × CHUNK + im_id.
+    index: u64,
+    /// Output split, and the index of its sink.
+    split: String,
+    sink: usize,
+}
+
+pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
+    let started = Instant::now();
+    let Some(real) = args.replay.clone() else {
+        anyhow::bail!("internal error: replay without --replay");
+    };
+    check_args(&args)?;
+    let sensor_spec = match &args.sensor {
+        Some(arg) => render_extras::sensor_flag(arg, &SensorSpec::default())?,
+        None => SensorSpec::default(),
+    };
+    // Before anything is created: an output inside the real dataset would be written there.
+    check_apart(&args.out, &[("real dataset", &real)])?;
+
+    let source = open_real(&real)?;
+    let cam = source.camera();
+    let (frames, skipped) = select_frames(source.as_ref(), &real, &args.scenes)?;
+    if let Some(first) = skipped.first() {
+        printer.warning(format!(
+            "{} frame{} of {} without GT poses {} skipped (first: {first})",
+            skipped.len(),
+            if skipped.len() == 1 { "" } else { "s" },
+            real.display(),
+            if skipped.len() == 1 { "is" } else { "are" },
+        ));
+    }
+    let obj_ids = frame_obj_ids(&frames);
+    let loaded = load_models(source.as_ref(), &obj_ids, printer)?;
+    let index: BTreeMap<u32, usize> = obj_ids.iter().enumerate().map(|(i, &id)| (id, i)).collect();
+    let models: Vec<_> = loaded.into_iter().map(|(_, m)| m).collect();
+    let symmetries: Vec<Option<Symmetries>> = obj_ids
+        .iter()
+        .map(|id| {
+            source
+                .models_info()
+                .and_then(|m| m.get(id))
+                .map(|i| i.symmetries.clone())
+        })
+        .collect();
+
+    if !is_empty(&args.out) && !args.force {
+        return Err(user_error(
+            format!("output folder is not empty: {}", args.out.display()),
+            "choose another --out, or pass --force to write into it",
+        ));
+    }
+    if args.out.exists() && !args.out.is_dir() {
+        return Err(user_error(
+            format!(
+                "output path exists and is not a folder: {}",
+                args.out.display()
+            ),
+            "choose another --out",
+        ));
+    }
+    let _lock = OutputLock::acquire(&args.out)?;
+
+    let (jobs, mut sinks) = plan(
+        &args,
+        frames,
+        cam.intrinsics(),
+        &ycbv_classes(source.as_ref(), &obj_ids),
+    )?;
+    // One models/ folder, whatever the number of splits.
+    if let Some(first) = sinks.first() {
+        first.write_models(&models, &obj_ids, &symmetries)?;
+    }
+    let renderer = CpuRenderer::new(models, Vec::new())?;
+    let sensor =
+        SensorModel::new(sensor_spec.clone(), args.seed).context("invalid sensor model")?;
+    printer.info(sensor_line(args.sensor.as_deref(), &sensor_spec, args.seed));
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(args.jobs.unwrap_or(0))
+        .build()
+        .context("cannot start worker threads")?;
+    let delta_m = args.visib_delta_m as f32;
+
+    printer.start("replaying", jobs.len() as u64);
+    let mut failures: Vec<(String, String)> = Vec::new();
+    let mut nothing_visible: Vec<String> = Vec::new();
+    let mut rendered: u64 = 0;
+    let batch = (pool.current_num_threads() * 8).max(8);
+    'outer: for chunk in jobs.chunks(batch) {
+        let results: Vec<Result<_>> = pool.install(|| {
+            chunk
+                .par_iter()
+                .map(|job| {
+                    let scene = frame_scene(job, &index, cam.width, cam.height);
+                    let (frame, ann) =
+                        render::render_annotated(&renderer, &scene, &sensor, delta_m)?;
+                    let rec = sinks[job.sink].write_frame_in(
+                        Some(&job.split),
+                        job.index,
+                        &scene,
+                        &frame,
+                        &ann,
+                    )?;
+                    printer.advance(1);
+                    let visible = ann.iter().any(|a| a.info.px_count_visib > 0);
+                    anyhow::Ok((rec, visible))
+                })
+                .collect()
+        });
+        for (job, r) in chunk.iter().zip(results) {
+            match r {
+                Ok((rec, visible)) => {
+                    sinks[job.sink].add_record(rec)?;
+                    rendered += 1;
+                    if !visible {
+                        nothing_visible.push(location(&job.frame));
+                    }
+                }
+                Err(e) => {
+                    let at = location(&job.frame);
+                    printer.warning(format!("frame {at} failed: {e:#}"));
+                    failures.push((at, format!("{e:#}")));
+                    if args.fail_fast {
+                        break 'outer;
+                    }
+                }
+            }
+        }
+    }
+    let mut written = 0;
+    let mut overflow = 0;
+    let mut wrote = Vec::new();
+    for sink in sinks.drain(..) {
+        let s = sink.finish(&args.out)?;
+        written += s.frames;
+        overflow += s.depth_out_of_range_px;
+        wrote.push(s.description);
+    }
+    printer.finish();
+    if overflow > 0 {
+        printer.warning(format!(
+            "{overflow} depth pixels were beyond what a 16-bit PNG holds at depth_scale {} and were written as 0 (invalid)",
+            render_sink::depth_scale(&args)
+        ));
+    }
+    if let Some(first) = nothing_visible.first() {
+        printer.warning(format!(
+            "{} of the {rendered} frames show no object at all (every visib_fract 0; first: {first})",
+            nothing_visible.len()
+        ));
+    }
+
+    let mut manifest = Manifest::new(std::env::args().collect(), args.seed);
+    manifest.backend = "cpu".into();
+    manifest.scene_spec = serde_json::json!({
+        "sensor": serde_json::to_value(&sensor_spec).context("cannot serialize the sensor")?,
+    });
+    manifest.frames = written;
+    let mut dataset = render_sink::dataset_options(&args);
+    if let Some(o) = dataset.as_object_mut() {
+        let splits: BTreeSet<&str> = jobs.iter().map(|j| j.split.as_str()).collect();
+        o.insert(
+            "split".into(),
+            splits.into_iter().collect::<Vec<_>>().into(),
+        );
+        o.insert("chunk_size".into(), CHUNK.into());
+    }
+    manifest.extra = serde_json::json!({
+        "replay": {
+            "source": real,
+            "frames": rendered,
+            "scenes": args.scenes,
+            "skipped_without_gt": skipped.len(),
+        },
+        "objects": obj_ids,
+        "visib_delta_m": args.visib_delta_m,
+        "dataset": dataset,
+        "failed_frames": failures.iter().map(|f| f.0.clone()).collect::<Vec<_>>(),
+    });
+    write_manifest(&args.out, &manifest)?;
+
+    let elapsed = started.elapsed().as_secs_f64();
+    printer.info(format!(
+        "Replayed {rendered} frames of {} ({} object{}: {}) in {elapsed:.1} s with the embedded CPU renderer; wrote {}.{}{}",
+        real.display(),
+        obj_ids.len(),
+        if obj_ids.len() == 1 { "" } else { "s" },
+        obj_ids.iter().map(u32::to_string).collect::<Vec<_>>().join(", "),
+        wrote.join(" and "),
+        if skipped.is_empty() {
+            String::new()
+        } else {
+            format!(
+                " {} frame{} without GT poses skipped.",
+                skipped.len(),
+                if skipped.len() == 1 { "" } else { "s" }
+            )
+        },
+        match failures.first() {
+            None => String::new(),
+            Some((at, why)) => format!(
+                " {} frame{} failed (first: {at}: {why}).",
+                failures.len(),
+                if failures.len() == 1 { "" } else { "s" }
+            ),
+        },
+    ));
+    if rendered > 0 {
+        printer.hint(format!(
+            "check it with `synthgen validate {}`",
+            args.out.display()
+        ));
+    }
+    Ok(if failures.is_empty() {
+        ExitStatus::Success
+    } else {
+        ExitStatus::Failure
+    })
+}
+
+/// What `--replay` refuses beyond clap's conflicts (flags whose message needs a hint).
+fn check_args(args: &RenderArgs) -> Result<()> {
+    if args.scene.is_some() {
+        return Err(user_error(
+            "--scene does not apply to --replay: the real frames give the camera, the poses and the objects",
+            "choose the depth sensor with --sensor none|d455|tof|structured_light|FILE (a sensor file holds the keys of a scene's [sensor] section)",
+        ));
+    }
+    if args.backend == Backend::Blender {
+        return Err(user_error(
+            "--replay renders with the embedded CPU renderer; --backend blender does not apply",
+            "drop --backend blender",
+        ));
+    }
+    Ok(())
+}
+
+fn open_real(real: &Path) -> Result<Box<dyn FrameSource>> {
+    if !real.is_dir() {
+        return Err(user_error(
+            format!("no such dataset folder: {}", real.display()),
+            "--replay takes a BOP, Linemod or YCB-Video dataset with GT poses and models",
+        ));
+    }
+    if detect_layout(real).is_none() {
+        return Err(user_error(
+            format!(
+                "not a dataset synthgen reads: {} has no camera.json (BOP), no classes.txt beside data/ (YCB-Video) and no data/NN/gt.yml (Linemod)",
+                real.display()
+            ),
+            "--replay takes a BOP, Linemod or YCB-Video dataset with GT poses and models",
+        ));
+    }
+    open_source(real).with_context(|| format!("cannot read the dataset {}", real.display()))
+}
+
+/// The frames to replay (of `--scenes`, when given) and the locations of those skipped for
+/// having no GT pose.
+fn select_frames(
+    source: &dyn FrameSource,
+    real: &Path,
+    scenes: &[u32],
+) -> Result<(Vec<SourceFrame>, Vec<String>)> {
+    let mut frames = source
+        .frames(&[])
+        .with_context(|| format!("cannot read the frames of {}", real.display()))?;
+    if frames.is_empty() {
+        return Err(user_error(
+            format!("no frames in {}", real.display()),
+            "--replay takes a dataset with annotated frames (images and GT poses)",
+        ));
+    }
+    if !scenes.is_empty() {
+        let available: BTreeSet<u32> = frames.iter().map(|f| f.location.scene_id).collect();
+        let unknown: Vec<String> = scenes
+            .iter()
+            .filter(|s| !available.contains(s))
+            .map(u32::to_string)
+            .collect();
+        if !unknown.is_empty() {
+            return Err(user_error(
+                format!(
+                    "--scenes: no scene {} in {}",
+                    unknown.join(", "),
+                    real.display()
+                ),
+                format!(
+                    "its scenes are {}",
+                    available
+                        .iter()
+                        .map(u32::to_string)
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            ));
+        }
+        frames.retain(|f| scenes.contains(&f.location.scene_id));
+    }
+    let (frames, empty): (Vec<_>, Vec<_>) = frames.into_iter().partition(|f| !f.gt.is_empty());
+    if frames.is_empty() {
+        return Err(user_error(
+            format!(
+                "no frame of {} has annotated objects (GT poses)",
+                real.display()
+            ),
+            "--replay renders the annotated objects of each frame; this dataset has none",
+        ));
+    }
+    if let Some(f) = frames.iter().find(|f| u64::from(f.location.im_id) >= CHUNK) {
+        return Err(user_error(
+            format!(
+                "image id {} of {} is over 999999, more than --replay's numbering keeps",
+                f.location.im_id,
+                location(f)
+            ),
+            "BOP image ids have at most 6 digits; renumber the dataset's images",
+        ));
+    }
+    Ok((frames, empty.iter().map(location).collect()))
+}
+
+/// The jobs and their sinks: one BOP writer per output split (one data/ folder for
+/// YCB-Video, one Linemod writer), refusing two frames that would land on one file.
+fn plan(
+    args: &RenderArgs,
+    frames: Vec<SourceFrame>,
+    intrinsics: synthgen_core::Intrinsics,
+    classes: &[String],
+) -> Result<(Vec<Job>, Vec<Sink>)> {
+    let mut sinks: Vec<Sink> = Vec::new();
+    let mut sink_of: BTreeMap<String, usize> = BTreeMap::new();
+    let mut taken: BTreeMap<(String, u32, u32), String> = BTreeMap::new();
+    let mut jobs = Vec::with_capacity(frames.len());
+    for frame in frames {
+        let split = args
+            .split
+            .clone()
+            .unwrap_or_else(|| frame.location.split.clone());
+        let sink = match (sink_of.get(&split), args.format) {
+            (Some(&s), _) => s,
+            (None, FormatArg::Linemod | FormatArg::Ycbv) if !sinks.is_empty() => {
+                sink_of.insert(split.clone(), 0);
+                0
+            }
+            (None, _) => {
+                let layout = Layout {
+                    split: split.clone(),
+                    chunk_size: CHUNK as u32,
+                    frames: None,
+                };
+                sinks.push(Sink::create_with(args, intrinsics, layout, classes)?);
+                sink_of.insert(split.clone(), sinks.len() - 1);
+                sinks.len() - 1
+            }
+        };
+        let (scene_id, im_id) = (frame.location.scene_id, frame.location.im_id);
+        // YCB-Video has one data/ folder for all splits; Linemod numbers frames anew.
+        let key_split = match args.format {
+            FormatArg::Bop => Some(split.clone()),
+            FormatArg::Ycbv => Some(String::new()),
+            FormatArg::Linemod => None,
+        };
+        let clash = key_split.and_then(|k| taken.insert((k, scene_id, im_id), location(&frame)));
+        if let Some(other) = clash {
+            return Err(user_error(
+                format!(
+                    "{} and {} would both be written as scene {scene_id} image {im_id}{}",
+                    other,
+                    location(&frame),
+                    match args.format {
+                        FormatArg::Bop => format!(" of split {split}"),
+                        _ => String::new(),
+                    }
+                ),
+                "replay into BOP without --split, which keeps each source split apart",
+            ));
+        }
+        jobs.push(Job {
+            index: u64::from(scene_id) * CHUNK + u64::from(im_id),
+            frame,
+            split,
+            sink,
+        });
+    }
+    Ok((jobs, sinks))
+}
+
+/// The frame's objects at their GT poses (nearest proper rotations), seen with its camera,
+/// lit flat so the models keep their own colours.
+fn frame_scene(job: &Job, index: &BTreeMap<u32, usize>, width: u32, height: u32) -> FrameScene {
+    let f = &job.frame;
+    let objects =
+        f.gt.iter()
+            .map(|g| ObjectInstance {
+                // Every id of the frames has a model: they were all loaded up front.
+                model_index: index.get(&g.obj_id).copied().unwrap_or(0),
+                obj_id: g.obj_id,
+                cam_from_obj: g.cam_from_obj(),
+                brightness: 1.0,
+                specular: 0.0,
+                shininess: 1.0,
+                tint: [1.0; 3],
+                hue_deg: 0.0,
+            })
+            .collect();
+    let mut scene = FrameScene::bare(job.index, f.camera.intrinsics(width, height), objects);
+    if let Some(cam_from_world) = f.camera.cam_from_world() {
+        scene.world_from_cam = cam_from_world.inverse();
+    }
+    scene
+}
+
+/// `split/scene/image` of a source frame, for messages.
+fn location(f: &SourceFrame) -> String {
+    format!(
+        "{}/{:06}/{:06}",
+        f.location.split, f.location.scene_id, f.location.im_id
+    )
+}
+
+/// `classes.txt` of a YCB-Video output, up to the largest id: a YCB-Video source's own class
+/// names (its model folders); else YCB-Video's name for a model kept in that class's folder
+/// under that class's index, `obj_NNNNNN` for the others.
+fn ycbv_classes(source: &dyn FrameSource, obj_ids: &[u32]) -> Vec<String> {
+    let mut names = synthgen_dataset::ycbv::class_list(obj_ids, false);
+    let from_ycbv = detect_layout(source.root()) == Some(SourceLayout::Ycbv);
+    for (i, name) in names.iter_mut().enumerate() {
+        let id = i as u32 + 1;
+        let model = source.model_file(id);
+        if from_ycbv {
+            // models/<class>/textured_simple.obj
+            if let Some(class) = model.parent().and_then(|p| p.file_name()) {
+                *name = class.to_string_lossy().into_owned();
+            }
+        } else if render::ycbv_class_index(&model) == Some(id) {
+            *name = synthgen_dataset::ycbv::YCBV_CLASSES[i].into();
+        }
+    }
+    names
+}
+
+/// The info line saying which sensor model the replay applies.
+fn sensor_line(arg: Option<&str>, spec: &SensorSpec, seed: u64) -> String {
+    let depth = match spec.depth {
+        DepthModel::None => "none (the clean rendered depth)",
+        DepthModel::D455 => "d455 (active stereo)",
+        DepthModel::Tof => "tof (time of flight)",
+        DepthModel::StructuredLight => "structured_light",
+    };
+    let from = match arg {
+        Some(a) if SensorSpec::builtin(a).is_none() => format!(" from {a}"),
+        _ => String::new(),
+    };
+    let rgb = if spec.rgb.enabled {
+        ", RGB noise on"
+    } else {
+        ""
+    };
+    let noise = if spec.is_identity() {
+        String::new()
+    } else {
+        format!(", noise seed {seed}")
+    };
+    format!("sensor: depth {depth}{from}{rgb}{noise}")
+}

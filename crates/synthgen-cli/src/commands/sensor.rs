@@ -1,0 +1,348 @@
+//! `synthgen sensor fit` and `synthgen sensor compare`: thin skins over
+//! `synthgen_dataset::sensor` (measure, fit, compare, plot) with each dataset's own models
+//! in an `ObjectRenderer`.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use synthgen_core::scene::{DepthModel, SensorSpec, StructuredLightSpec};
+use synthgen_core::Progress;
+use synthgen_dataset::sensor::{
+    self, compare, fit, measure::DepthStats, plot, Comparison, FitOptions, FitReport,
+    MeasureOptions,
+};
+use synthgen_dataset::source::{open_source, FrameSource};
+
+use crate::cli::{SensorCompareArgs, SensorFitArgs};
+use crate::commands::object_models::{frame_obj_ids, object_renderer};
+use crate::commands::user_error;
+use crate::{ExitStatus, Printer};
+
+/// Opens a dataset and measures its frames (see `synthgen_dataset::sensor::measure`).
+fn measure(
+    dir: &Path,
+    scenes: &[u32],
+    max_frame_residual_m: f64,
+    printer: &Printer,
+) -> Result<(Box<dyn FrameSource>, DepthStats)> {
+    let source =
+        open_source(dir).with_context(|| format!("cannot open dataset {}", dir.display()))?;
+    let frames = sensor::select_frames(source.as_ref(), scenes)?;
+    let renderer = object_renderer(source.as_ref(), &frame_obj_ids(&frames), printer)?;
+    printer.start("measuring", frames.len() as u64);
+    let stats = sensor::measure_frames(
+        source.as_ref(),
+        &frames,
+        &renderer,
+        &MeasureOptions {
+            scenes: scenes.to_vec(),
+            max_frame_residual_m,
+        },
+        printer,
+    )?;
+    printer.finish();
+    Ok((source, stats))
+}
+
+fn thread_pool(jobs: Option<usize>) -> Result<rayon::ThreadPool> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(jobs.unwrap_or(0))
+        .build()
+        .context("cannot start worker threads")
+}
+
+pub fn run_fit(args: SensorFitArgs, printer: &Printer) -> Result<ExitStatus> {
+    if !(args.max_frame_residual_mm.is_finite() && args.max_frame_residual_mm > 0.0) {
+        return Err(user_error(
+            format!(
+                "--max-frame-residual-mm must be a positive number of millimetres, got {}",
+                args.max_frame_residual_mm
+            ),
+            "the default, 20, leaves out frames whose GT is obviously off",
+        ));
+    }
+    if args.out.exists() && !args.force {
+        return Err(user_error(
+            format!("{} exists", args.out.display()),
+            "pass --force to overwrite it, or choose another --out",
+        ));
+    }
+    let base = match &args.base {
+        Some(p) => {
+            let s = SensorSpec::from_toml_file(p)
+                .with_context(|| format!("cannot read the base sensor file {}", p.display()))?;
+            s.structured_light
+        }
+        None => StructuredLightSpec::default(),
+    };
+    let pool = thread_pool(args.jobs)?;
+    let (_, stats) = pool.install(|| {
+        measure(
+            &args.data,
+            &args.scenes,
+            args.max_frame_residual_mm / 1000.0,
+            printer,
+        )
+    })?;
+    let report = fit(&stats, &FitOptions { base })?;
+    for f in &report.frames_excluded {
+        printer.warning(format!(
+            "left out {}/{:06} image {}: median |depth - GT render| {:.1} mm > {} mm (GT obviously off)",
+            f.location.split,
+            f.location.scene_id,
+            f.location.im_id,
+            f.median_abs_m * 1000.0,
+            args.max_frame_residual_mm
+        ));
+    }
+    let text = sensor_file_text(&report, &args.data, &args.scenes)?;
+    if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    synthgen_dataset::io::atomic_write(&args.out, text.as_bytes())?;
+    if let Some(p) = &args.plot {
+        plot::write_fit_figure(&report, p)?;
+        printer.info(format!("wrote {}", p.display()));
+    }
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print!("{}", format_fit(&report, &args.data));
+    }
+    printer.info(format!("wrote {}", args.out.display()));
+    printer.hint(format!(
+        "check it on real frames: synthgen render --replay {} --sensor {} --out out/replay, then synthgen sensor compare --real {} --synth out/replay",
+        args.data.display(),
+        args.out.display(),
+        args.data.display()
+    ));
+    Ok(ExitStatus::Success)
+}
+
+/// The sensor file: provenance comments, `depth = "structured_light"` and the fitted
+/// `[structured_light]` table.
+fn sensor_file_text(report: &FitReport, data: &Path, scenes: &[u32]) -> Result<String> {
+    let spec = SensorSpec {
+        depth: DepthModel::StructuredLight,
+        structured_light: report.spec.clone(),
+        ..SensorSpec::default()
+    };
+    spec.validate()
+        .context("the fit produced an invalid sensor (please report this)")?;
+    let mut table = toml::Table::new();
+    table.insert(
+        "depth".into(),
+        toml::Value::String("structured_light".into()),
+    );
+    table.insert(
+        "structured_light".into(),
+        toml::Value::try_from(&report.spec).context("cannot serialize the fitted sensor")?,
+    );
+    let mut text = String::new();
+    let _ = writeln!(
+        text,
+        "# Structured-light depth sensor fitted by `synthgen sensor fit` (synthgen {}) to",
+        synthgen_core::VERSION
+    );
+    let _ = writeln!(
+        text,
+        "# {} ({} frames{}, {} instances, {} object pixels; {} frames left out).",
+        data.display(),
+        report.frames_used,
+        if scenes.is_empty() {
+            String::new()
+        } else {
+            format!(
+                ", scenes {}",
+                scenes
+                    .iter()
+                    .map(u32::to_string)
+                    .collect::<Vec<_>>()
+                    .join(",")
+            )
+        },
+        report.instances,
+        report.pixels,
+        report.frames_excluded.len()
+    );
+    let _ = writeln!(
+        text,
+        "# Use it with `synthgen render --sensor FILE` or `[sensor] file = \"FILE\"` in a scene.\n# Parameters: docs/sensors.md.\n"
+    );
+    text.push_str(&toml::to_string_pretty(&table).context("cannot write the sensor file")?);
+    // The file must read back as what was fitted.
+    let back = SensorSpec::from_toml_str(&text)
+        .context("the written sensor file does not read back (please report this)")?;
+    if back.structured_light != report.spec {
+        anyhow::bail!("the written sensor file does not read back as fitted (please report this)");
+    }
+    Ok(text)
+}
+
+fn pct(v: f64) -> String {
+    format!("{:.1} %", v * 100.0)
+}
+
+fn format_fit(r: &FitReport, data: &Path) -> String {
+    let s = &r.spec;
+    let mut o = String::new();
+    let _ = writeln!(
+        o,
+        "Fitted a structured-light model to {} frames of {} ({} instances, {} object pixels); {} frame{} left out.",
+        r.frames_used,
+        data.display(),
+        r.instances,
+        r.pixels,
+        r.frames_excluded.len(),
+        if r.frames_excluded.len() == 1 { "" } else { "s" }
+    );
+    let [l, rr] = &r.shadow;
+    let _ = writeln!(
+        o,
+        "  shadow      on the {} of objects: baseline_m {:+.4} (hole-run slope left {:.4} m, right {:.4} m); second_view_m {:+.4}",
+        r.shadow_side, s.baseline_m, l.slope_m, rr.slope_m, s.second_view_m
+    );
+    let _ = writeln!(
+        o,
+        "  noise       disparity_sigma_px {:.4}, lateral_sigma_px {:.3}; robust sigma real/fitted by depth: {}",
+        s.disparity_sigma_px,
+        s.lateral_sigma_px,
+        r.noise_by_depth
+            .iter()
+            .map(|p| format!("{:.2} m {:.2}/{:.2} mm", p.x, p.real * 1000.0, p.fit * 1000.0))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    let _ = writeln!(
+        o,
+        "  bias        {:+.2} mm (median instance offset)",
+        s.bias_m * 1000.0
+    );
+    let _ = writeln!(
+        o,
+        "  hole blobs  {:.1} px (mean hole run real {:.2} px, fitted field {:.2} px)\n  holes       real {}, fitted {}; at an edge {:.2} (decay {:.2} px), grazing 50 % at {:.1}° (width {:.1}°), dark {:.2} below {:.2}, bright {:.2} above {:.2}, anywhere {:.3}",
+        s.hole_size_px,
+        r.hole_run_real,
+        r.hole_run_fit,
+        pct(r.hole_rate_real),
+        pct(r.hole_rate_fit),
+        s.edge_dropout,
+        s.edge_width_px,
+        s.grazing_deg,
+        s.grazing_width_deg,
+        s.dark_dropout,
+        s.dark_luminance,
+        s.bright_dropout,
+        s.bright_luminance,
+        s.dropout
+    );
+    let _ = writeln!(
+        o,
+        "  edges       reads the surface behind {:.3} at the edge, fattening {:.2} px, depth shifted {:+.2} px against the colour image",
+        s.edge_mix, s.fattening_px, s.shift_px
+    );
+    for n in &r.notes {
+        let _ = writeln!(o, "  note: {n}");
+    }
+    o
+}
+
+pub fn run_compare(args: SensorCompareArgs, printer: &Printer) -> Result<ExitStatus> {
+    let pool = thread_pool(args.jobs)?;
+    let (cmp, frames) = pool.install(|| -> Result<(Comparison, [usize; 2])> {
+        let (_, a) = measure(&args.real, &args.scenes, f64::INFINITY, printer)?;
+        let (_, b) = measure(&args.synth, &args.scenes, f64::INFINITY, printer)?;
+        let frames = [a.frames, b.frames];
+        Ok((compare(&a, &b), frames))
+    })?;
+    if frames[0] != frames[1] {
+        printer.warning(format!(
+            "the datasets have {} and {} frames with GT: a replay has as many as its source",
+            frames[0], frames[1]
+        ));
+    }
+    if let Some(p) = &args.plot {
+        plot::write_compare_figure(&cmp, p)?;
+        printer.info(format!("wrote {}", p.display()));
+    }
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&cmp)?);
+    } else {
+        print!("{}", format_compare(&cmp, &args.real, &args.synth));
+    }
+    Ok(ExitStatus::Success)
+}
+
+fn format_compare(c: &Comparison, a: &Path, b: &Path) -> String {
+    let mut o = String::new();
+    let _ = writeln!(
+        o,
+        "first:  {} ({} frames, {} object pixels)",
+        a.display(),
+        c.frames[0],
+        c.pixels[0]
+    );
+    let _ = writeln!(
+        o,
+        "second: {} ({} frames, {} object pixels)",
+        b.display(),
+        c.frames[1],
+        c.pixels[1]
+    );
+    let _ = writeln!(
+        o,
+        "{:<20} {:>10} {:>10} {:>12} {:>7}",
+        "aspect", "first", "second", "difference", "scaled"
+    );
+    for asp in &c.aspects {
+        let (fa, fb, diff) = if asp.unit.is_empty() {
+            (
+                pct(asp.first),
+                pct(asp.second),
+                format!("{:.1} pts", asp.value * 100.0),
+            )
+        } else {
+            (
+                format!("{:.2} {}", asp.first, asp.unit),
+                format!("{:.2} {}", asp.second, asp.unit),
+                format!("{:.3} {}", asp.value, asp.unit),
+            )
+        };
+        let scaled = if asp.scored {
+            format!("{:.2}", asp.value / asp.scale)
+        } else {
+            "-".into()
+        };
+        let _ = writeln!(
+            o,
+            "{:<20} {fa:>10} {fb:>10} {diff:>12} {scaled:>7}",
+            asp.name
+        );
+    }
+    let _ = writeln!(
+        o,
+        "score {:.3}  (mean of the scaled aspects; 0 = the same, lower = closer)",
+        c.score
+    );
+    for (title, groups) in [("scene", &c.scenes), ("object", &c.objects)] {
+        let _ = writeln!(
+            o,
+            "{:<8} {:>9} {:>9} {:>8} {:>8} {:>9}",
+            title, "px first", "px second", "holes 1", "holes 2", "W1 mm"
+        );
+        for g in groups.iter() {
+            let _ = writeln!(
+                o,
+                "{:<8} {:>9} {:>9} {:>8} {:>8} {:>9.3}",
+                g.id,
+                g.pixels_first,
+                g.pixels_second,
+                pct(g.holes_first),
+                pct(g.holes_second),
+                g.residual_w1_mm
+            );
+        }
+    }
+    o
+}
