@@ -3,14 +3,19 @@
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
+use synthgen_dataset::mix::SceneRef;
 
 mod experiment;
 mod scale;
+mod scene;
 mod sensor;
+mod sim2real;
 mod train;
 pub use experiment::{ExperimentCommand, ExperimentMixArgs};
 pub use scale::{MergeArgs, Shard, MERGE_EXAMPLES};
+pub use scene::{SceneCommand, SceneFitArgs};
 pub use sensor::{SensorCommand, SensorCompareArgs, SensorFitArgs};
+pub use sim2real::ExperimentSim2realArgs;
 pub use train::{DeviceArg, EvalArgs, ModelArg, ScheduleArg, TrainArgs};
 
 #[derive(Debug, Parser)]
@@ -89,6 +94,9 @@ pub enum Command {
     /// Fit a depth-sensor model to real frames, or compare two datasets' depth readings.
     #[command(subcommand)]
     Sensor(SensorCommand),
+    /// Derive a scene spec from real frames with GT poses and depth.
+    #[command(subcommand)]
+    Scene(SceneCommand),
 }
 
 const ANNOTATE_EXAMPLES: &str = "Examples:
@@ -269,6 +277,9 @@ const MIX_EXAMPLES: &str = "Examples:
   # 30% synthetic out of 1500 training frames:
   synthgen mix --real data/real --synth data/synth --ratio 0.3 --total 1500
 
+  # Video captures: test on whole scenes (every frame of YCB-Video scene 2), train on the others:
+  synthgen mix --real data/ycbv --synth data/synth --real-count 40 --synth-count 160 --test-scenes 2
+
 Project config (synthgen.toml, looked up in the current folder and its parents; paths
 relative to the file):
   [mix]
@@ -278,8 +289,8 @@ relative to the file):
 
 Output (BOP layout): OUT/train/SCENE/ (real and synthetic, new image ids), OUT/test/SCENE/
 (held-out real frames, the same for every count and ratio with the same seed and
---test-count), OUT/camera.json, OUT/models/, OUT/provenance.json (source of every frame)
-and OUT/synthgen.json.";
+--test-count or --test-scenes), OUT/camera.json, OUT/models/, OUT/provenance.json (source
+of every frame) and OUT/synthgen.json (with --test-scenes, its list).";
 
 /// A dataset folder, or a frame count whose folder comes from the project config.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -332,6 +343,17 @@ pub struct MixArgs {
     /// from the seed alone, so it is the same for every count and ratio.
     #[arg(long)]
     pub test_count: Option<usize>,
+
+    /// Hold out every real frame of these scenes as the test split (ID, or SPLIT/ID for one
+    /// split) and draw the real training frames from the other scenes only. For video
+    /// captures, whose consecutive frames are near-duplicates. Instead of --test-count.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "ID,...",
+        conflicts_with = "test_count"
+    )]
+    pub test_scenes: Vec<SceneRef>,
 
     /// Output dataset folder (default: `out` from synthgen.toml, else data/mix).
     #[arg(long)]

@@ -70,11 +70,17 @@ pub fn main() -> ExitCode {
         cli::Command::Experiment(cli::ExperimentCommand::Mix(args)) => {
             commands::experiment::run_mix(args, &printer)
         }
+        cli::Command::Experiment(cli::ExperimentCommand::Sim2real(args)) => {
+            commands::experiment::sim2real::run(args, &printer)
+        }
         cli::Command::Sensor(cli::SensorCommand::Fit(args)) => {
             commands::sensor::run_fit(args, &printer)
         }
         cli::Command::Sensor(cli::SensorCommand::Compare(args)) => {
             commands::sensor::run_compare(args, &printer)
+        }
+        cli::Command::Scene(cli::SceneCommand::Fit(args)) => {
+            commands::scene::run_fit(args, &printer)
         }
     };
     match result {

@@ -23,6 +23,7 @@ pub mod mesh;
 pub mod pose;
 pub mod pose_render;
 pub mod progress;
+pub mod rest;
 pub mod rng;
 pub mod sample;
 pub mod scene;

@@ -24,6 +24,8 @@ pub enum Stream {
     Walls = 10,
     /// The bin's colour (`[bin]`).
     Bin = 11,
+    /// Which targets a frame places (`placement.objects_per_frame`).
+    Objects = 12,
 }
 
 /// SplitMix64 finalizer: a bijective 64-bit mix.

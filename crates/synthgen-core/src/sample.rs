@@ -13,6 +13,7 @@ use crate::camera::Intrinsics;
 use crate::color::kelvin_to_rgb;
 use crate::distractor::{Chosen, DistractorPool};
 use crate::pose::Pose;
+use crate::rest::{upright_rotation, UpAxis};
 use crate::rng::{derive_seed, frame_rng, Stream};
 use crate::scene::{BackgroundKind, Orientation, PlacementMode, Range, SceneSpec};
 use crate::view::{targets_inside_image, ViewCheck};
@@ -29,6 +30,10 @@ pub struct SceneObject {
     pub name: String,
     /// Extreme points of the model (see `Model::support_points`), object frame, metres.
     pub support_points_m: Vec<Vec3>,
+    /// With `upright` placement: the model axis that points up (`[[objects]] up`).
+    pub up: UpAxis,
+    /// With `upright` placement: the largest tilt from that rest pose, degrees.
+    pub tilt_deg: f64,
 }
 
 impl SceneObject {
@@ -42,7 +47,16 @@ impl SceneObject {
             obj_id,
             name: model.name.clone(),
             support_points_m: model.support_points(Self::SUPPORT_POINTS),
+            up: UpAxis::PlusZ,
+            tilt_deg: 0.0,
         }
+    }
+
+    /// This instance standing on `up` (upright placement), tilted by up to `tilt_deg`.
+    pub fn with_rest(mut self, up: UpAxis, tilt_deg: f64) -> SceneObject {
+        self.up = up;
+        self.tilt_deg = tilt_deg;
+        self
     }
 
     /// One instance per model, with ids 1, 2, ... in order (examples, tests, benches).
@@ -385,12 +399,13 @@ impl SceneSampler {
         } else {
             Vec::new()
         };
-        let (targets, mut footprints) = self.place_objects(frame_index)?;
+        let objects = self.frame_objects(frame_index);
+        let (targets, mut footprints) = self.place_objects(frame_index, &objects)?;
         let placed = self.place_distractors(chosen, &mut drng, &mut footprints);
         let (chosen, distractor_poses): (Vec<Chosen>, Vec<Pose>) = placed.into_iter().unzip();
-        let all: Vec<&SceneObject> = self
-            .objects
+        let all: Vec<&SceneObject> = objects
             .iter()
+            .copied()
             .chain(chosen.iter().map(|c| c.object))
             .collect();
         let mut world_from_all = targets;
@@ -398,7 +413,7 @@ impl SceneSampler {
         if spec.placement.mode == PlacementMode::Physics {
             world_from_all = self.settle_objects(frame_index, &all, world_from_all)?;
         }
-        let (world_from_objs, world_from_distractors) = world_from_all.split_at(self.objects.len());
+        let (world_from_objs, world_from_distractors) = world_from_all.split_at(objects.len());
 
         let mut mat_rng = frame_rng(self.seed, frame_index, Stream::Materials);
         let material = |rng: &mut ChaCha8Rng| {
@@ -414,8 +429,7 @@ impl SceneSampler {
             (brightness, specular, shininess, hue_deg)
         };
         // World-frame instances: cam_from_obj holds world_from_obj until the camera is known.
-        let world_objects: Vec<ObjectInstance> = self
-            .objects
+        let world_objects: Vec<ObjectInstance> = objects
             .iter()
             .zip(world_from_objs)
             .map(|(o, w)| {
@@ -544,14 +558,14 @@ impl SceneSampler {
                     .collect(),
                 background: background.clone(),
             };
-            if !c.allow_truncation && !targets_inside_image(&scene, &self.objects) {
+            if !c.allow_truncation && !targets_inside_image(&scene, &objects) {
                 continue;
             }
             let Some(hook) = hook else {
                 return Ok(scene);
             };
             let vis = hook.visibility(&scene).map_err(Error::ViewCheck)?;
-            let ok = vis.iter().take(self.objects.len()).all(|v| {
+            let ok = vis.iter().take(objects.len()).all(|v| {
                 v.visib_fract() >= c.min_visib_fract
                     && (c.allow_truncation || v.px_in_image == v.px_all)
             });
@@ -598,14 +612,9 @@ impl SceneSampler {
                 p
             })
             .collect();
-        let owned: Vec<SceneObject>;
-        let objects: &[SceneObject] = if objects.len() == self.objects.len() {
-            &self.objects
-        } else {
-            owned = objects.iter().map(|o| (*o).clone()).collect();
-            &owned
-        };
-        match settle.settle(objects, &lifted) {
+        // The frame's targets and distractors (not necessarily `self.objects`).
+        let objects: Vec<SceneObject> = objects.iter().map(|o| (*o).clone()).collect();
+        match settle.settle(&objects, &lifted) {
             Ok(poses) if poses.len() == placed.len() => Ok(poses),
             Ok(poses) => Err(Error::InvalidSpec(format!(
                 "physics returned {} poses for {} objects",
@@ -622,16 +631,38 @@ impl SceneSampler {
         }
     }
 
+    /// The targets frame `frame_index` places, in their order in `objects`: all of them, or
+    /// with `placement.objects_per_frame` a random subset of a random size (its own stream,
+    /// so that the placement draws of specs without it stay as they were).
+    pub fn frame_objects(&self, frame_index: u64) -> Vec<&SceneObject> {
+        let n = self.objects.len();
+        let Some([lo, hi]) = self.spec.placement.objects_per_frame else {
+            return self.objects.iter().collect();
+        };
+        let (lo, hi) = ((lo as usize).min(n), (hi as usize).min(n));
+        if lo >= n {
+            return self.objects.iter().collect();
+        }
+        let mut rng = frame_rng(self.seed, frame_index, Stream::Objects);
+        let k = rng.gen_range(lo..=hi);
+        let mut chosen = rand::seq::index::sample(&mut rng, n, k).into_vec();
+        chosen.sort_unstable();
+        chosen.into_iter().map(|i| &self.objects[i]).collect()
+    }
+
     /// Places the targets: each round that cannot fit every one widens the area by 25%; the
     /// result stays a pure function of (seed, frame). Returns the poses and footprints.
-    fn place_objects(&self, frame_index: u64) -> Result<(Vec<Pose>, Vec<Footprint>), Error> {
+    fn place_objects(
+        &self,
+        frame_index: u64,
+        objects: &[&SceneObject],
+    ) -> Result<(Vec<Pose>, Vec<Footprint>), Error> {
         let p = &self.spec.placement;
         let mut rng = frame_rng(self.seed, frame_index, Stream::Placement);
         let mut area = p.area_m;
         for round in 0..PLACE_ROUNDS {
-            let mut placed = Vec::with_capacity(self.objects.len());
-            let poses: Option<Vec<Pose>> = self
-                .objects
+            let mut placed = Vec::with_capacity(objects.len());
+            let poses: Option<Vec<Pose>> = objects
                 .iter()
                 .map(|o| self.place_one(o, &mut rng, area, &mut placed))
                 .collect();
@@ -642,7 +673,7 @@ impl SceneSampler {
             }
         }
         Err(Error::Placement {
-            name: name_summary(self.objects.iter().map(|o| o.name.as_str())),
+            name: name_summary(objects.iter().map(|o| o.name.as_str())),
             tries: p.max_tries,
             area_m: area,
         })
@@ -685,7 +716,8 @@ impl SceneSampler {
         for _ in 0..p.max_tries {
             let rotation = match p.orientation {
                 Orientation::Upright => {
-                    DMat3::from_rotation_z(rng.gen_range(0.0..std::f64::consts::TAU))
+                    let yaw = rng.gen_range(0.0..std::f64::consts::TAU);
+                    upright_rotation(yaw, o.up, o.tilt_deg, rng)
                 }
                 Orientation::Random => random_rotation(rng),
             };
@@ -826,8 +858,91 @@ mod tests {
                 obj_id: i as u32 + 1,
                 name: format!("box{i}"),
                 support_points_m: m.support_points(64),
+                up: UpAxis::PlusZ,
+                tilt_deg: 0.0,
             })
             .collect()
+    }
+
+    fn world_from_objs(fr: &FrameScene) -> Vec<Pose> {
+        fr.objects
+            .iter()
+            .map(|i| fr.world_from_cam.compose(&i.cam_from_obj))
+            .collect()
+    }
+
+    #[test]
+    fn subsets_have_sizes_in_range_and_are_deterministic() {
+        let mut spec = SceneSpec::default();
+        spec.placement.objects_per_frame = Some([2, 4]);
+        let s = SceneSampler::new(spec.clone(), objs(6), 9).unwrap();
+        let mut sizes = [0usize; 7];
+        for f in 0..60 {
+            let fr = s.sample(f).unwrap();
+            let n = fr.objects.len();
+            assert!((2..=4).contains(&n), "frame {f}: {n} objects");
+            sizes[n] += 1;
+            let ids: Vec<u32> = fr.objects.iter().map(|o| o.obj_id).collect();
+            assert!(
+                ids.windows(2).all(|w| w[0] < w[1]),
+                "distinct, in order: {ids:?}"
+            );
+            assert_eq!(fr, s.sample(f).unwrap());
+        }
+        assert!(sizes[2] > 0 && sizes[3] > 0 && sizes[4] > 0, "{sizes:?}");
+        // Clamped to the objects there are; [n, n] places all of them as without the field.
+        spec.placement.objects_per_frame = Some([5, 9]);
+        let s = SceneSampler::new(spec.clone(), objs(3), 9).unwrap();
+        assert!((0..10).all(|f| s.sample(f).unwrap().objects.len() == 3));
+        let plain = SceneSampler::new(SceneSpec::default(), objs(3), 9).unwrap();
+        assert_eq!(s.sample(4).unwrap(), plain.sample(4).unwrap());
+    }
+
+    #[test]
+    fn up_axis_points_up_within_the_tilt_and_objects_rest_on_the_plane() {
+        let mut spec = SceneSpec::default();
+        spec.placement.area_m = [0.3, 0.3];
+        let o: Vec<SceneObject> = objs(4)
+            .into_iter()
+            .map(|o| o.with_rest(UpAxis::MinusX, 10.0))
+            .collect();
+        let s = SceneSampler::new(spec, o.clone(), 5).unwrap();
+        let mut largest_tilt: f64 = 0.0;
+        for f in 0..40 {
+            let fr = s.sample(f).unwrap();
+            let mut discs = Vec::new();
+            for w in world_from_objs(&fr) {
+                let up = w.rotation * DVec3::NEG_X;
+                let tilt = up.z.clamp(-1.0, 1.0).acos().to_degrees();
+                assert!(tilt <= 10.0 + 1e-9, "frame {f}: -x is {tilt}° from up");
+                largest_tilt = largest_tilt.max(tilt);
+                let pts: Vec<DVec3> = o[0]
+                    .support_points_m
+                    .iter()
+                    .map(|p| w.transform_point(p.as_dvec3()))
+                    .collect();
+                let zmin = pts.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
+                assert!(zmin.abs() < 1e-9, "lowest point at z={zmin}");
+                let (lo, hi) = pts.iter().fold(
+                    (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+                    |(lo, hi), v| (lo.min(*v), hi.max(*v)),
+                );
+                let c = (lo + hi) * 0.5;
+                let r = pts
+                    .iter()
+                    .map(|p| (p.x - c.x).hypot(p.y - c.y))
+                    .fold(0.0, f64::max);
+                discs.push((c, r));
+            }
+            for i in 0..discs.len() {
+                for j in i + 1..discs.len() {
+                    let ((a, ra), (b, rb)) = (discs[i], discs[j]);
+                    let d = (a.x - b.x).hypot(a.y - b.y);
+                    assert!(d >= ra + rb, "frame {f}: footprints {i} and {j} overlap");
+                }
+            }
+        }
+        assert!(largest_tilt > 7.0, "tilts are drawn: {largest_tilt}");
     }
 
     #[test]

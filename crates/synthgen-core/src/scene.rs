@@ -8,6 +8,7 @@ use serde::{Deserialize, Serialize};
 pub use crate::bin_spec::BinSpec;
 use crate::camera::Intrinsics;
 pub use crate::distractor_spec::{DistractorShape, DistractorSpec};
+pub use crate::rest::UpAxis;
 pub use crate::sensor_spec::{
     D455Spec, DepthModel, RgbNoiseSpec, SensorSpec, StructuredLightSpec, TofSpec,
 };
@@ -160,7 +161,8 @@ impl Default for CameraPoseSpec {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Orientation {
-    /// Model +z up, random rotation about z (objects stand as scanned).
+    /// Each object's `up` axis (default model +z) up, tilted by up to its `tilt_deg`, random
+    /// rotation about the vertical (objects stand as scanned, or as `up` says).
     Upright,
     /// Uniformly random rotation, lowest point resting on the plane.
     Random,
@@ -228,6 +230,10 @@ pub struct PlacementSpec {
     pub min_gap_m: f64,
     /// Attempts per object before the frame's placement fails. Default 200.
     pub max_tries: u32,
+    /// `[min, max]`: each frame places a random subset of the targets (the objects expanded
+    /// by `count`) of a size drawn uniformly in min..=max (clamped to how many there are).
+    /// Default: unset, every target in every frame.
+    pub objects_per_frame: Option<[u32; 2]>,
 }
 
 impl Default for PlacementSpec {
@@ -239,6 +245,7 @@ impl Default for PlacementSpec {
             area_m: [0.5, 0.5],
             min_gap_m: 0.005,
             max_tries: 200,
+            objects_per_frame: None,
         }
     }
 }
@@ -393,6 +400,29 @@ pub struct ObjectSpec {
     /// How many instances per frame. Default 1.
     #[serde(default = "one")]
     pub count: u32,
+    /// With `placement.orientation = "upright"`: the model axis that points up when the
+    /// object stands (`+x`, `-x`, `+y`, `-y`, `+z`, `-z`), or `any` (one of the six drawn
+    /// per instance: for objects whose rest pose is unknown). Default `+z`.
+    #[serde(default)]
+    pub up: UpAxis,
+    /// With `upright`: the largest tilt away from that rest pose, degrees 0..90, drawn
+    /// uniformly per frame about a random horizontal axis. Default 0.
+    #[serde(default)]
+    pub tilt_deg: f64,
+}
+
+impl ObjectSpec {
+    /// An object at `path` with every other field at its default.
+    pub fn new(path: impl Into<PathBuf>) -> ObjectSpec {
+        ObjectSpec {
+            path: path.into(),
+            obj_id: None,
+            units: None,
+            count: 1,
+            up: UpAxis::PlusZ,
+            tilt_deg: 0.0,
+        }
+    }
 }
 
 fn one() -> u32 {
@@ -585,6 +615,22 @@ impl SceneSpec {
                 "placement.max_tries must be >= 1".into(),
             ));
         }
+        if let Some([lo, hi]) = self.placement.objects_per_frame {
+            if lo == 0 || lo > hi {
+                return Err(Error::InvalidSpec(format!(
+                    "placement.objects_per_frame must be [min, max] with 1 <= min <= max, got [{lo}, {hi}]"
+                )));
+            }
+        }
+        for o in &self.objects {
+            if !(o.tilt_deg.is_finite() && (0.0..=90.0).contains(&o.tilt_deg)) {
+                return Err(Error::InvalidSpec(format!(
+                    "objects.tilt_deg must lie within 0..90, got {} for {}",
+                    o.tilt_deg,
+                    o.path.display()
+                )));
+            }
+        }
         self.validate_scene_extras()?;
         self.validate_surfaces()?;
         self.bin.validate()?;
@@ -701,6 +747,37 @@ mod tests {
         assert!(e.to_string().contains("sensor.d455.edge_dropout"), "{e}");
         let e = SceneSpec::from_toml_str("[sensor]\ndepth = \"kinect2\"\n").unwrap_err();
         assert!(e.to_string().contains("kinect2"), "{e}");
+    }
+
+    #[test]
+    fn objects_per_frame_up_and_tilt_parse_and_are_checked() {
+        let s = SceneSpec::from_toml_str(
+            "[placement]\nobjects_per_frame = [2, 4]\n[[objects]]\npath = \"a.obj\"\nup = \"-x\"\ntilt_deg = 10.0\n[[objects]]\npath = \"b.obj\"\n",
+        )
+        .unwrap();
+        assert_eq!(s.placement.objects_per_frame, Some([2, 4]));
+        assert_eq!(s.objects[0].up, UpAxis::MinusX);
+        assert_eq!(s.objects[0].tilt_deg, 10.0);
+        assert_eq!(s.objects[1], ObjectSpec::new("b.obj"));
+        assert_eq!(SceneSpec::from_toml_str(&s.to_toml()).unwrap(), s);
+        for (text, word) in [
+            (
+                "[placement]\nobjects_per_frame = [3, 2]\n",
+                "objects_per_frame",
+            ),
+            (
+                "[placement]\nobjects_per_frame = [0, 2]\n",
+                "objects_per_frame",
+            ),
+            (
+                "[[objects]]\npath = \"a.obj\"\ntilt_deg = 95.0\n",
+                "tilt_deg",
+            ),
+            ("[[objects]]\npath = \"a.obj\"\nup = \"up\"\n", "up"),
+        ] {
+            let e = SceneSpec::from_toml_str(text).unwrap_err().to_string();
+            assert!(e.contains(word), "{text}: {e}");
+        }
     }
 
     #[test]

@@ -38,7 +38,7 @@ pub trait ViewCheck: Send + Sync {
 /// True when every extreme point of every target projects into the image with a pixel to
 /// spare (pixel centres run 0..w-1; a silhouette pixel outside the image needs geometry
 /// beyond -1 or w), and lies in front of the camera.
-pub(crate) fn targets_inside_image(scene: &FrameScene, objects: &[SceneObject]) -> bool {
+pub(crate) fn targets_inside_image(scene: &FrameScene, objects: &[&SceneObject]) -> bool {
     let k = &scene.intrinsics;
     let (w, h) = (f64::from(k.width) - 1.0, f64::from(k.height) - 1.0);
     scene.objects.iter().zip(objects).all(|(inst, o)| {

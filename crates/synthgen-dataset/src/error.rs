@@ -55,6 +55,13 @@ pub enum Error {
         note: String,
         path: PathBuf,
     },
+    /// Test scenes (`--test-scenes`) that no frame of the dataset belongs to.
+    #[error("no scene {asked} in the dataset; its scenes are {available}: {path}")]
+    UnknownScenes {
+        asked: String,
+        available: String,
+        path: PathBuf,
+    },
     /// Options of a command that do not fit together (counts, ratios).
     #[error("{0}")]
     InvalidRequest(String),
@@ -154,7 +161,8 @@ impl Error {
             | Error::NonFinite { path, .. }
             | Error::Model { path, .. }
             | Error::Locked { path, .. }
-            | Error::NotEnoughFrames { path, .. } => Some(path),
+            | Error::NotEnoughFrames { path, .. }
+            | Error::UnknownScenes { path, .. } => Some(path),
             Error::InvalidFrame { .. } | Error::InvalidOptions(_) | Error::InvalidRequest(_) => {
                 None
             }

@@ -41,6 +41,7 @@ pub mod manifest;
 pub mod mix;
 pub mod output;
 pub mod preview;
+pub mod scene_fit;
 pub mod sensor;
 pub mod source;
 pub mod stats;

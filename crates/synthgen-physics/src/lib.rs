@@ -12,9 +12,7 @@
 //! use synthgen_physics::PhysicsSettler;
 //!
 //! let m = Model::cuboid("box", Vec3::new(0.1, 0.06, 0.04));
-//! let objects = vec![SceneObject {
-//!     model_index: 0, obj_id: 1, name: "box".into(), support_points_m: m.support_points(64),
-//! }];
+//! let objects = vec![SceneObject::new(0, 1, &m)];
 //! let mut spec = SceneSpec::default();
 //! spec.placement.mode = PlacementMode::Physics;
 //! let settler = PhysicsSettler::new(&objects, spec.placement.physics.clone())?;

@@ -22,6 +22,8 @@ fn objects() -> Vec<SceneObject> {
                 obj_id: i as u32 + 1,
                 name: m.name.clone(),
                 support_points_m: m.support_points(64),
+                up: Default::default(),
+                tilt_deg: 0.0,
             }
         })
         .collect()

@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
+use synthgen_dataset::mix::SceneRef;
 
 use super::ModelArg;
 
@@ -12,6 +13,10 @@ pub enum ExperimentCommand {
     /// mix, train the same model with the same budget, and test on the same held-out real frames.
     #[command(after_long_help = EXPERIMENT_MIX_EXAMPLES)]
     Mix(ExperimentMixArgs),
+    /// Synthetic to real, measured on real frames: fit the scene and the sensor to real frames,
+    /// render, train on synthetic only, and test on real frames, against baselines.
+    #[command(after_long_help = super::sim2real::SIM2REAL_EXAMPLES)]
+    Sim2real(super::sim2real::ExperimentSim2realArgs),
 }
 
 pub const EXPERIMENT_MIX_EXAMPLES: &str = "Examples:
@@ -27,17 +32,31 @@ pub const EXPERIMENT_MIX_EXAMPLES: &str = "Examples:
   # The whole pipeline in about a minute (small total, few epochs, tiny images):
   synthgen experiment mix --real-proxy --objects driller.ply --quick --out /tmp/mix
 
+  # Real video (YCB-Video): test on a whole held-out scene, render the synthetic side from
+  # the dataset's own annotated models, and add rows \"all 40 real + K× synthetic\":
+  synthgen experiment mix --real ../shared/data/ycbv_real --scene scenes/ycbv_like.toml \
+    --test-scenes 0 --total 40 --plus-synth 1,4,16 --out runs/mix_real
+
 Rows (default: the study's 7 compositions of --total, real/synthetic):
   1500/0, 1250/250, 1000/500, 750/750, 500/1000, 250/1250, 0/1500 (for --total 1500).
+--plus-synth K,... adds rows \"all the real training frames + K× as many synthetic\"
+(named `real 40 + 4× synth 160`) after them; to run only those and the all-real
+baseline, give --ratios R/0 with R the real training frames.
 Every row is tested on the same real frames (`synthgen mix`'s test split depends on
---seed only; its hash is recorded per row and checked). Run it again with the same
-options to resume: finished rows are kept, an unfinished row is redone.
+--seed only, or is every frame of --test-scenes; its hash is recorded per row and
+checked). Run it again with the same options to resume: finished rows are kept, an
+unfinished row is redone.
 
 Output (in --out):
   table.md, table.csv   real, synth, train error, test error (± std over --repeats),
-                        ADD(-S) and 5cm5° accuracy for --model full
+                        ADD(-S) and 5cm5° accuracy for --model full; table.md also
+                        the test error per object
+  table_objects.csv     per row and test object: n, test error, training instances
+                        (real, synthetic)
   plot.png              test error (y) against the synthetic fraction (x, 0..1),
-                        error bars ±1 std; train error in grey
+                        error bars ±1 std; train error in grey; the --plus-synth rows
+                        in green (joined to the all-real row when it has as many real
+                        frames)
   rows/NAME/            mix/ (the mixed dataset), train/ (the run), row.json (config,
                         metrics, test-split hash, wall times; written last)
   sources/              rendered sets (--real-proxy, or --synth absent), reused on resume
@@ -63,7 +82,10 @@ pub struct ExperimentMixArgs {
     #[arg(long, value_name = "FILE")]
     pub scene: Option<PathBuf>,
 
-    /// Object meshes for the sets rendered here (--real-proxy, or --synth absent).
+    /// Object meshes for the sets rendered here (--real-proxy, or --synth absent). Default
+    /// with --real: the real dataset's annotated objects that have a model file, with their
+    /// ids and units (an object without one is an error if it can be in the test split,
+    /// else it is left out with a warning).
     #[arg(long, num_args = 1.., value_name = "MESH")]
     pub objects: Vec<PathBuf>,
 
@@ -75,7 +97,7 @@ pub struct ExperimentMixArgs {
     pub model: ModelArg,
 
     /// Training frames per row (real + synthetic); the default rows divide it in sixths.
-    /// [default: 1500; 42 with --quick]
+    /// [default: 1500; 42 with --quick; at most the real frames outside --test-scenes]
     #[arg(long)]
     pub total: Option<usize>,
 
@@ -86,6 +108,22 @@ pub struct ExperimentMixArgs {
     /// Real frames held out for testing, the same for every row (default: --total / 5).
     #[arg(long)]
     pub test_count: Option<usize>,
+
+    /// Test on every real frame of these scenes (ID, or SPLIT/ID for one split) and train on
+    /// real frames of the other scenes only: for video captures, whose consecutive frames are
+    /// near-duplicates. Instead of --test-count.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "ID,...",
+        conflicts_with_all = ["test_count", "real_proxy"]
+    )]
+    pub test_scenes: Vec<SceneRef>,
+
+    /// Also rows "all the real training frames + K× as many synthetic", one per K (e.g.
+    /// 1,4,16), after the fixed-total rows.
+    #[arg(long, value_delimiter = ',', value_name = "K,...")]
+    pub plus_synth: Vec<usize>,
 
     /// Training epochs per row (the same budget for every row). [default: 8; 2 with --quick]
     #[arg(long)]

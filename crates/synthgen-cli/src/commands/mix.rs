@@ -53,6 +53,7 @@ pub fn run(args: MixArgs, printer: &Printer) -> Result<ExitStatus> {
         command_line: std::env::args().collect(),
         force: args.force,
         exclude_shared: args.exclude_shared,
+        test_scenes: args.test_scenes.clone(),
     };
     // Frames without mask/ and scene_gt_info (YCB-Video, Linemod) get them computed from
     // their poses and models, so the mix is a complete BOP dataset.
@@ -79,16 +80,28 @@ pub fn run(args: MixArgs, printer: &Printer) -> Result<ExitStatus> {
             let msg = e.to_string();
             user_error(
                 msg,
-                "lower the counts (or --test-count), or render more frames",
+                "lower the counts (or --test-count, or hold out fewer --test-scenes), or render more frames",
             )
+        }
+        synthgen_dataset::Error::UnknownScenes { .. } => {
+            let msg = e.to_string();
+            user_error(msg, "pass --test-scenes with ids from that list")
         }
         e => anyhow::Error::new(e),
     })?;
     for w in &report.warnings {
         printer.warning(w);
     }
+    let held_out = if args.test_scenes.is_empty() {
+        String::new()
+    } else {
+        format!(
+            " (every frame of scene(s) {})",
+            synthgen_dataset::mix::scene_list(&args.test_scenes)
+        )
+    };
     printer.info(format!(
-        "mixed {} real + {} synthetic training frames and {} real test frames into {}",
+        "mixed {} real + {} synthetic training frames and {} real test frames{held_out} into {}",
         report.train_real,
         report.train_synth,
         report.test,

@@ -14,6 +14,7 @@ mod render_extras;
 mod render_resume;
 mod render_sink;
 mod replay;
+pub mod scene;
 pub mod sensor;
 pub mod stats;
 pub mod train;

@@ -9,7 +9,7 @@ use anyhow::{Context, Result};
 use rayon::prelude::*;
 use synthgen_assets::Units;
 use synthgen_core::sample::SceneObject;
-use synthgen_core::scene::{BackgroundKind, Orientation, PlacementMode};
+use synthgen_core::scene::{BackgroundKind, Orientation, PlacementMode, UpAxis};
 use synthgen_core::{Model, Progress, SceneSampler, SceneSpec, Symmetries, Texture};
 use synthgen_dataset::manifest::{write_manifest, Manifest};
 use synthgen_dataset::output::OutputLock;
@@ -27,6 +27,9 @@ struct ObjectSource {
     units: Units,
     obj_id: Option<u32>,
     count: u32,
+    /// Rest pose for upright placement (`--objects` keep +z).
+    up: UpAxis,
+    tilt_deg: f64,
 }
 
 pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
@@ -62,6 +65,7 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
         }
         models.push(loaded.model);
     }
+    name_by_folder_where_stems_repeat(&mut models, &sources);
     let ids = assign_obj_ids(&sources, &args.obj_ids)?;
     let scene_objects = scene_objects(&models, &ids, &sources);
     let n_targets = models.len();
@@ -249,10 +253,15 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     write_manifest(&args.out, &manifest)?;
     render_resume::end(&args.out)?;
 
+    let per_frame = spec.placement.objects_per_frame.map(|[lo, hi]| {
+        let n = sampler.objects.len();
+        [(lo as usize).min(n), (hi as usize).min(n)]
+    });
     summarize(
         printer,
         &args,
         &names,
+        per_frame,
         written,
         &failures,
         elapsed,
@@ -521,6 +530,8 @@ fn collect_sources(args: &RenderArgs, spec: &SceneSpec) -> Result<Vec<ObjectSour
             units: units_of(args.units),
             obj_id: None,
             count: 1,
+            up: UpAxis::PlusZ,
+            tilt_deg: 0.0,
         })
         .collect();
     for o in &spec.objects {
@@ -541,6 +552,8 @@ fn collect_sources(args: &RenderArgs, spec: &SceneSpec) -> Result<Vec<ObjectSour
             units,
             obj_id: o.obj_id,
             count: o.count,
+            up: o.up,
+            tilt_deg: o.tilt_deg,
         });
     }
     if sources.is_empty() {
@@ -560,6 +573,25 @@ fn collect_sources(args: &RenderArgs, spec: &SceneSpec) -> Result<Vec<ObjectSour
         ));
     }
     Ok(sources)
+}
+
+/// Models of different files with the same stem (YCB-Video's `*/textured_simple.obj`) are
+/// named after their folder in messages (`025_mug`), so that a summary tells them apart.
+fn name_by_folder_where_stems_repeat(models: &mut [Model], sources: &[ObjectSource]) {
+    let stem = |p: &Path| p.file_stem().map(|s| s.to_string_lossy().into_owned());
+    for i in 0..models.len() {
+        let shared = sources
+            .iter()
+            .any(|o| o.path != sources[i].path && stem(&o.path) == stem(&sources[i].path));
+        let folder = sources[i]
+            .path
+            .parent()
+            .and_then(Path::file_name)
+            .map(|f| f.to_string_lossy().into_owned());
+        if let (true, Some(folder)) = (shared, folder) {
+            models[i].name = folder;
+        }
+    }
 }
 
 /// The number in BOP-style names such as `obj_000008.ply` or `obj_08.ply`.
@@ -661,6 +693,8 @@ fn scene_objects(models: &[Model], ids: &[u32], sources: &[ObjectSource]) -> Vec
                 obj_id: id,
                 name: m.name.clone(),
                 support_points_m: support.clone(),
+                up: s.up,
+                tilt_deg: s.tilt_deg,
             });
         }
     }
@@ -708,10 +742,12 @@ fn load_backgrounds(spec: &SceneSpec, printer: &Printer) -> Result<Vec<Arc<Textu
     Ok(images)
 }
 
+#[allow(clippy::too_many_arguments)]
 fn summarize(
     printer: &Printer,
     args: &RenderArgs,
     names: &[String],
+    per_frame: Option<[usize; 2]>,
     written: u64,
     failures: &[(u64, String)],
     elapsed_s: f64,
@@ -723,11 +759,16 @@ fn summarize(
         0.0
     };
     printer.info(format!(
-        "Rendered {written} frames of {} object{} ({}) in {elapsed_s:.1} s ({fps:.1} frames/s) \
+        "Rendered {written} frames of {} object{} ({}){} in {elapsed_s:.1} s ({fps:.1} frames/s) \
          with the {} renderer, seed {}; wrote {wrote}.{}",
         names.len(),
         if names.len() == 1 { "" } else { "s" },
         synthgen_core::sample::name_summary(names.iter().map(String::as_str)),
+        match per_frame {
+            Some([lo, hi]) if lo == hi => format!(", {lo} per frame"),
+            Some([lo, hi]) => format!(", {lo}–{hi} per frame"),
+            None => String::new(),
+        },
         match args.backend {
             Backend::Cpu => "embedded CPU",
             Backend::Blender => "Blender Cycles",
@@ -772,6 +813,8 @@ mod tests {
             units: Units::Auto,
             obj_id: None,
             count: 1,
+            up: UpAxis::PlusZ,
+            tilt_deg: 0.0,
         }
     }
 

@@ -77,30 +77,16 @@ pub fn run_fit(args: SensorFitArgs, printer: &Printer) -> Result<ExitStatus> {
         None => StructuredLightSpec::default(),
     };
     let pool = thread_pool(args.jobs)?;
-    let (_, stats) = pool.install(|| {
-        measure(
+    let report = pool.install(|| {
+        fit_to_file(
             &args.data,
             &args.scenes,
             args.max_frame_residual_mm / 1000.0,
+            base,
+            &args.out,
             printer,
         )
     })?;
-    let report = fit(&stats, &FitOptions { base })?;
-    for f in &report.frames_excluded {
-        printer.warning(format!(
-            "left out {}/{:06} image {}: median |depth - GT render| {:.1} mm > {} mm (GT obviously off)",
-            f.location.split,
-            f.location.scene_id,
-            f.location.im_id,
-            f.median_abs_m * 1000.0,
-            args.max_frame_residual_mm
-        ));
-    }
-    let text = sensor_file_text(&report, &args.data, &args.scenes)?;
-    if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    }
-    synthgen_dataset::io::atomic_write(&args.out, text.as_bytes())?;
     if let Some(p) = &args.plot {
         plot::write_fit_figure(&report, p)?;
         printer.info(format!("wrote {}", p.display()));
@@ -118,6 +104,37 @@ pub fn run_fit(args: SensorFitArgs, printer: &Printer) -> Result<ExitStatus> {
         args.data.display()
     ));
     Ok(ExitStatus::Success)
+}
+
+/// Measures `data` (the chosen scenes), fits the structured-light model and writes the sensor
+/// file `out`; frames left out are warned about. What `sensor fit` and `experiment sim2real`
+/// run.
+pub(crate) fn fit_to_file(
+    data: &Path,
+    scenes: &[u32],
+    max_frame_residual_m: f64,
+    base: StructuredLightSpec,
+    out: &Path,
+    printer: &Printer,
+) -> Result<FitReport> {
+    let (_, stats) = measure(data, scenes, max_frame_residual_m, printer)?;
+    let report = fit(&stats, &FitOptions { base })?;
+    for f in &report.frames_excluded {
+        printer.warning(format!(
+            "left out {}/{:06} image {}: median |depth - GT render| {:.1} mm > {:.0} mm (GT obviously off)",
+            f.location.split,
+            f.location.scene_id,
+            f.location.im_id,
+            f.median_abs_m * 1000.0,
+            max_frame_residual_m * 1000.0
+        ));
+    }
+    let text = sensor_file_text(&report, data, scenes)?;
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    synthgen_dataset::io::atomic_write(out, text.as_bytes())?;
+    Ok(report)
 }
 
 /// The sensor file: provenance comments, `depth = "structured_light"` and the fitted

@@ -87,3 +87,16 @@ fn eval_help() {
 fn experiment_mix_help() {
     check_snapshot("experiment_mix_help.txt", &["experiment", "mix", "--help"]);
 }
+
+#[test]
+fn scene_fit_help() {
+    check_snapshot("scene_fit_help.txt", &["scene", "fit", "--help"]);
+}
+
+#[test]
+fn experiment_sim2real_help() {
+    check_snapshot(
+        "experiment_sim2real_help.txt",
+        &["experiment", "sim2real", "--help"],
+    );
+}

@@ -297,3 +297,86 @@ fn mix_errors() {
         stderr(&o)
     );
 }
+
+#[test]
+fn mix_test_scenes_holds_out_whole_scenes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    render_tiny(d, "synth", 5, 2);
+    // 30 real frames in three scene folders of 10.
+    let o = run(synthgen()
+        .current_dir(d)
+        .args(["render", "-q", "--objects", "box.ply", "--units", "m"])
+        .args(["--image-size", "80,60", "--camera-k", "80,80,40,30"])
+        .args(["--frames", "30", "--seed", "1", "--chunk-size", "10"])
+        .args(["--out", "real"]));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mix = |out: &str, extra: &[&str]| {
+        run(synthgen()
+            .current_dir(d)
+            .args([
+                "mix",
+                "--real",
+                "real",
+                "--synth",
+                "synth",
+                "--synth-count",
+                "3",
+            ])
+            .args(["--seed", "4", "--out", out])
+            .args(extra))
+    };
+    let o = mix("mix_a", &["--real-count", "12", "--test-scenes", "1"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("10 real test frames (every frame of scene(s) 1)"),
+        "{}",
+        stderr(&o)
+    );
+    let out = d.join("mix_a");
+    let test = provenance(&out, "test");
+    assert_eq!(test.len(), 10);
+    assert!(test.iter().all(|t| t.1 == 1), "{test:?}");
+    let train = provenance(&out, "train");
+    assert_eq!(train.iter().filter(|t| t.0 == "real").count(), 12);
+    assert!(
+        train.iter().all(|t| t.0 == "synth" || t.1 != 1),
+        "{train:?}"
+    );
+    let manifest = read_json(&out.join("synthgen.json"));
+    assert_eq!(
+        manifest["extra"]["mix"]["test_scenes"],
+        serde_json::json!(["1"])
+    );
+
+    // Errors: an unknown scene (the message lists the scenes), more real frames than the
+    // other scenes hold, and a test count as well.
+    let o = mix("mix_b", &["--real-count", "12", "--test-scenes", "5"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("no scene 5 in the dataset; its scenes are 0, 1, 2"),
+        "{}",
+        stderr(&o)
+    );
+    let o = mix("mix_b", &["--real-count", "21", "--test-scenes", "0"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o)
+            .contains("only 20 are available (30 real frames, 10 of them in the test scenes 0)"),
+        "{}",
+        stderr(&o)
+    );
+    let o = mix(
+        "mix_b",
+        &[
+            "--real-count",
+            "2",
+            "--test-scenes",
+            "0",
+            "--test-count",
+            "3",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("--test-count"), "{}", stderr(&o));
+}

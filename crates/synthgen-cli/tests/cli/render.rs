@@ -246,6 +246,8 @@ fn written_poses_match_the_sampler_and_rest_on_the_plane() {
             obj_id: 1,
             name: "box".into(),
             support_points_m: m.support_points(256),
+            up: Default::default(),
+            tilt_deg: 0.0,
         })
         .collect();
     let sampler = SceneSampler::new(spec, objects, seed).unwrap();

@@ -4,6 +4,8 @@
 //! The draw is three independent seeded draws, each stratified by a frame's object set:
 //! 1. the test split, from all real frames, with an RNG that depends only on the seed (never
 //!    on the counts or ratio), so every row of a mixing table is tested on the same frames;
+//!    or, with [`MixOptions::test_scenes`], every frame of those scenes (no draw; see
+//!    [`scenes`]);
 //! 2. the real training frames, from the real frames not in the test split;
 //! 3. the synthetic training frames.
 //!
@@ -28,7 +30,8 @@ use crate::bop::{GtEntry, ModelInfo, PngCompression, SceneCamera};
 use crate::error::{Error, Result};
 use crate::io::{atomic_write, create_dir_all};
 use crate::manifest::{write_manifest, Manifest};
-use crate::source::{write_bop_model, FrameSource, MaskRef, SourceFrame};
+use crate::source::{write_bop_model, FrameLocation, FrameSource, MaskRef, SourceFrame};
+pub use scenes::{available_scenes, scene_list, scene_test_frames, SceneRef};
 
 /// Output split of the training frames.
 pub const TRAIN_SPLIT: &str = "train";
@@ -168,8 +171,31 @@ pub fn plan_mix<K: Ord>(
         test_count,
         &mut rng(seed, STREAM_TEST),
     );
-    let pool: Vec<usize> = all_real
-        .into_iter()
+    let note = format!(
+        " ({} real frames, {} held out for the test split)",
+        real_keys.len(),
+        test.len()
+    );
+    plan_mix_with_test(
+        real_keys, synth_keys, counts, test, &note, seed, real_path, synth_path,
+    )
+}
+
+/// As [`plan_mix`] with the test split given (sorted indices into the real frames, e.g.
+/// whole scenes); `counts.test` is ignored. The training draws are those of `plan_mix`, from
+/// the real frames outside `test`. `held_out` ends the "not enough real frames" message.
+#[allow(clippy::too_many_arguments)]
+pub fn plan_mix_with_test<K: Ord>(
+    real_keys: &[K],
+    synth_keys: &[K],
+    counts: MixCounts,
+    test: Vec<usize>,
+    held_out: &str,
+    seed: u64,
+    real_path: &Path,
+    synth_path: &Path,
+) -> Result<MixPlan> {
+    let pool: Vec<usize> = (0..real_keys.len())
         .filter(|i| test.binary_search(i).is_err())
         .collect();
     if counts.real > pool.len() {
@@ -177,11 +203,7 @@ pub fn plan_mix<K: Ord>(
             what: "real training".into(),
             asked: counts.real,
             available: pool.len(),
-            note: format!(
-                " ({} real frames, {} held out for the test split)",
-                real_keys.len(),
-                test.len()
-            ),
+            note: held_out.to_string(),
             path: real_path.to_path_buf(),
         });
     }
@@ -237,6 +259,10 @@ pub struct MixOptions {
     /// Leave out training frames that are the same image as a held-out test frame (same
     /// file, hard link or bytes) instead of refusing the mix.
     pub exclude_shared: bool,
+    /// Hold out every real frame of these scenes as the test split, and draw the real
+    /// training frames from the other scenes only; empty: a seeded draw of `counts.test`
+    /// frames. Not together with `counts.test`.
+    pub test_scenes: Vec<SceneRef>,
 }
 
 /// Renderers that fill in what a source's frames lack, one per source: BOP's `mask/` and
@@ -284,14 +310,41 @@ pub fn write_mix(
     let synth_frames = synth.frames(&[])?;
     let real_keys: Vec<Vec<u32>> = real_frames.iter().map(SourceFrame::object_set).collect();
     let synth_keys: Vec<Vec<u32>> = synth_frames.iter().map(SourceFrame::object_set).collect();
-    let mut plan = plan_mix(
-        &real_keys,
-        &synth_keys,
-        opts.counts,
-        opts.seed,
-        real.root(),
-        synth.root(),
-    )?;
+    let mut plan = if opts.test_scenes.is_empty() {
+        plan_mix(
+            &real_keys,
+            &synth_keys,
+            opts.counts,
+            opts.seed,
+            real.root(),
+            synth.root(),
+        )?
+    } else {
+        if let Some(n) = opts.counts.test {
+            return Err(Error::InvalidRequest(format!(
+                "a test count ({n}) and test scenes ({}) do not go together: the test split is every frame of the test scenes",
+                scene_list(&opts.test_scenes)
+            )));
+        }
+        let locations: Vec<&FrameLocation> = real_frames.iter().map(|f| &f.location).collect();
+        let test = scene_test_frames(&locations, &opts.test_scenes, real.root())?;
+        let note = format!(
+            " ({} real frames, {} of them in the test scenes {})",
+            real_frames.len(),
+            test.len(),
+            scene_list(&opts.test_scenes)
+        );
+        plan_mix_with_test(
+            &real_keys,
+            &synth_keys,
+            opts.counts,
+            test,
+            &note,
+            opts.seed,
+            real.root(),
+            synth.root(),
+        )?
+    };
     let frame_of = |&(origin, i): &(Origin, usize)| match origin {
         Origin::Real => &real_frames[i],
         Origin::Synth => &synth_frames[i],
@@ -448,6 +501,14 @@ pub fn write_mix(
             "provenance": PROVENANCE_FILE,
         }
     });
+    if !opts.test_scenes.is_empty() {
+        // The test split is these scenes' frames, not a seeded draw.
+        manifest.extra["mix"]["test_scenes"] = serde_json::json!(opts
+            .test_scenes
+            .iter()
+            .map(SceneRef::to_string)
+            .collect::<Vec<_>>());
+    }
     write_manifest(out, &manifest)?;
     Ok(report)
 }
@@ -627,6 +688,7 @@ fn write_models(
     write_map(&models.join("models_info.json"), &info, false)
 }
 
+pub mod scenes;
 mod shared;
 
 #[cfg(test)]

@@ -82,6 +82,11 @@ struct FakeSource {
 
 impl FakeSource {
     fn new(root: &Path, objects: &[u32]) -> FakeSource {
+        FakeSource::in_scenes(root, objects, 0)
+    }
+
+    /// Frames in scenes of `per_scene` consecutive frames (scene 0, 1, ...); 0: one scene.
+    fn in_scenes(root: &Path, objects: &[u32], per_scene: usize) -> FakeSource {
         std::fs::create_dir_all(root).unwrap();
         let frames = objects
             .iter()
@@ -95,7 +100,7 @@ impl FakeSource {
             .map(|(i, obj_id, rgb)| SourceFrame {
                 location: crate::source::FrameLocation {
                     split: "train_pbr".into(),
-                    scene_id: 0,
+                    scene_id: i.checked_div(per_scene).unwrap_or(0) as u32,
                     im_id: i as u32,
                 },
                 camera: SceneCamera {
@@ -162,6 +167,7 @@ proptest! {
             command_line: vec!["synthgen".into(), "mix".into()],
             force: false,
             exclude_shared: false,
+            test_scenes: Vec::new(),
         };
         let mut texts = Vec::new();
         for out in ["a", "b"] {
@@ -225,4 +231,146 @@ proptest! {
         let again = plan_mix(&real, &synth, counts(a), seed, p(), p()).unwrap();
         prop_assert_eq!(pa, again);
     }
+}
+
+#[test]
+fn a_given_test_split_is_kept_out_of_training() {
+    let real = vec![1u32; 10];
+    let synth = vec![1u32; 4];
+    let c = MixCounts {
+        real: 7,
+        synth: 4,
+        test: Some(99),
+    };
+    let plan = plan_mix_with_test(&real, &synth, c, vec![2, 3, 4], "", 1, p(), p()).unwrap();
+    assert_eq!(plan.test, [2, 3, 4]);
+    let mut real_train: Vec<usize> = plan
+        .train
+        .iter()
+        .filter(|t| t.0 == Origin::Real)
+        .map(|t| t.1)
+        .collect();
+    real_train.sort_unstable();
+    assert_eq!(real_train, [0, 1, 5, 6, 7, 8, 9]);
+    let c = MixCounts { real: 8, ..c };
+    let e = plan_mix_with_test(&real, &synth, c, vec![2, 3, 4], " (why)", 1, p(), p())
+        .unwrap_err()
+        .to_string();
+    assert_eq!(
+        e,
+        "asked for 8 real training frames but only 7 are available (why): /data/x"
+    );
+}
+
+fn scene_mix(
+    real: &FakeSource,
+    synth: &FakeSource,
+    out: &Path,
+    real_count: usize,
+    test: Option<usize>,
+    scenes: &[&str],
+) -> Result<MixReport> {
+    let opts = MixOptions {
+        counts: MixCounts {
+            real: real_count,
+            synth: 3,
+            test,
+        },
+        seed: 4,
+        command_line: vec!["synthgen".into(), "mix".into()],
+        force: true,
+        exclude_shared: false,
+        test_scenes: scenes.iter().map(|s| s.parse().unwrap()).collect(),
+    };
+    write_mix(
+        real,
+        synth,
+        out,
+        &opts,
+        Completion::default(),
+        &synthgen_core::NoProgress,
+    )
+}
+
+/// (split, source scene, origin) of every frame of a mix's provenance.json.
+fn provenance_scenes(out: &Path) -> Vec<(String, u64, String)> {
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join(PROVENANCE_FILE)).unwrap()).unwrap();
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|e| {
+            (
+                e["split"].as_str().unwrap().to_string(),
+                e["source_scene_id"].as_u64().unwrap(),
+                e["origin"].as_str().unwrap().to_string(),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn test_scenes_hold_out_whole_scenes_for_every_count() {
+    let dir = tempfile::tempdir().unwrap();
+    // Three scenes of 6 frames; the objects differ by scene as in a video dataset.
+    let objects: Vec<u32> = (0..18).map(|i| 1 + (i / 6) as u32).collect();
+    let real = FakeSource::in_scenes(&dir.path().join("real"), &objects, 6);
+    let synth = FakeSource::new(&dir.path().join("synth"), &[1, 2, 3, 1, 2]);
+    let mut tests = Vec::new();
+    for real_count in [0, 5, 12] {
+        let out = dir.path().join(format!("mix{real_count}"));
+        let r = scene_mix(&real, &synth, &out, real_count, None, &["1"]).unwrap();
+        assert_eq!((r.test, r.train_real, r.train_synth), (6, real_count, 3));
+        let prov = provenance_scenes(&out);
+        let test: Vec<u64> = prov
+            .iter()
+            .filter(|p| p.0 == TEST_SPLIT)
+            .map(|p| p.1)
+            .collect();
+        assert_eq!(test, [1; 6], "every frame of scene 1, nothing else");
+        assert!(prov
+            .iter()
+            .filter(|p| p.0 == TRAIN_SPLIT && p.2 == "real")
+            .all(|p| p.1 != 1));
+        tests.push(std::fs::read(out.join("test/000000/scene_gt.json")).unwrap());
+        let manifest: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("synthgen.json")).unwrap())
+                .unwrap();
+        assert_eq!(
+            manifest["extra"]["mix"]["test_scenes"],
+            serde_json::json!(["1"])
+        );
+    }
+    assert!(tests.windows(2).all(|w| w[0] == w[1]));
+
+    // Two scenes held out: 12 test frames, training only from scene 0.
+    let out = dir.path().join("two");
+    let r = scene_mix(&real, &synth, &out, 6, None, &["2", "1"]).unwrap();
+    assert_eq!(r.test, 12);
+    let prov = provenance_scenes(&out);
+    assert!(prov
+        .iter()
+        .all(|p| p.2 == "synth" || (p.1 == 0) == (p.0 == TRAIN_SPLIT)));
+}
+
+#[test]
+fn test_scenes_errors_name_what_is_there() {
+    let dir = tempfile::tempdir().unwrap();
+    let real = FakeSource::in_scenes(&dir.path().join("real"), &[1; 12], 4);
+    let synth = FakeSource::new(&dir.path().join("synth"), &[1; 3]);
+    let out = dir.path().join("mix");
+    let e = scene_mix(&real, &synth, &out, 1, None, &["5"]).unwrap_err();
+    assert!(matches!(e, Error::UnknownScenes { .. }), "{e}");
+    assert!(e.to_string().contains("its scenes are 0, 1, 2"), "{e}");
+    let e = scene_mix(&real, &synth, &out, 9, None, &["0"])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("only 8 are available (12 real frames, 4 of them in the test scenes 0)"),
+        "{e}"
+    );
+    let e = scene_mix(&real, &synth, &out, 1, Some(2), &["0"])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("do not go together"), "{e}");
 }

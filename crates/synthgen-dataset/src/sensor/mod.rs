@@ -43,6 +43,22 @@ impl Default for MeasureOptions {
 /// The frames of `source` to measure: those with GT in the chosen scenes. Errors when the
 /// dataset has no annotated frame there, or a chosen scene does not exist.
 pub fn select_frames(source: &dyn FrameSource, scenes: &[u32]) -> Result<Vec<SourceFrame>> {
+    select_frames_for(
+        source,
+        scenes,
+        "fitting and comparing sensors needs objects at known poses",
+        "fitting and comparing sensors needs the depth readings",
+    )
+}
+
+/// [`select_frames`] with the errors' reasons (`why_gt`, `why_depth`: what needs the GT
+/// poses and the depth images) given by the caller.
+pub(crate) fn select_frames_for(
+    source: &dyn FrameSource,
+    scenes: &[u32],
+    why_gt: &str,
+    why_depth: &str,
+) -> Result<Vec<SourceFrame>> {
     let all = source.frames(&[])?;
     if all.is_empty() {
         return Err(Error::InvalidRequest(format!(
@@ -73,8 +89,7 @@ pub fn select_frames(source: &dyn FrameSource, scenes: &[u32]) -> Result<Vec<Sou
         .collect();
     if frames.is_empty() {
         return Err(Error::InvalidRequest(format!(
-            "{} has no frame with GT poses{}: fitting and comparing sensors needs objects at \
-             known poses",
+            "{} has no frame with GT poses{}: {why_gt}",
             source.root().display(),
             if scenes.is_empty() {
                 String::new()
@@ -85,8 +100,7 @@ pub fn select_frames(source: &dyn FrameSource, scenes: &[u32]) -> Result<Vec<Sou
     }
     if let Some(f) = frames.iter().find(|f| f.depth.is_none()) {
         return Err(Error::InvalidRequest(format!(
-            "{} has no depth images ({}/{:06} image {} has none): fitting and comparing \
-             sensors needs the depth readings",
+            "{} has no depth images ({}/{:06} image {} has none): {why_depth}",
             source.root().display(),
             f.location.split,
             f.location.scene_id,

@@ -2,10 +2,14 @@
 //! each composition of a fixed-size training set: `synthgen mix` (the same held-out real test
 //! split for every row), `synthgen train`, then the errors on the trained frames and on the
 //! real test frames. Rows are resumable: a row is done when its `row.json` exists (written
-//! atomically, last); an unfinished row is redone from scratch.
+//! atomically, last); an unfinished row is redone from scratch. With `--test-scenes` the test
+//! split is whole scenes of the real set, and `--plus-synth` adds rows "all the real training
+//! frames + K× as many synthetic".
 
 mod plot;
+mod real;
 mod row;
+pub mod sim2real;
 mod sources;
 mod table;
 
@@ -18,6 +22,7 @@ use serde::{Deserialize, Serialize};
 use synthgen_core::Progress;
 use synthgen_dataset::io::atomic_write;
 use synthgen_dataset::manifest::{write_manifest, Manifest};
+use synthgen_dataset::mix::{scene_list, SceneRef};
 
 use crate::cli::{ExperimentMixArgs, ModelArg};
 use crate::commands::user_error;
@@ -32,6 +37,7 @@ pub const TEST_SPLIT_FILE: &str = "test_split.json";
 pub const TABLE_MD: &str = "table.md";
 pub const TABLE_CSV: &str = "table.csv";
 pub const PLOT_FILE: &str = "plot.png";
+pub const TABLE_OBJECTS_CSV: &str = "table_objects.csv";
 
 /// Everything that decides an experiment's numbers.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -50,11 +56,59 @@ pub struct Settings {
     pub quick: bool,
     pub real: sources::SourceSettings,
     pub synth: sources::SourceSettings,
+    /// `--test-scenes`: the test split is every real frame of these scenes (`test_count` of
+    /// them); empty: a seeded draw of `test_count` frames.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub test_scenes: Vec<SceneRef>,
+    /// `--plus-synth` factors K: rows of `plus_real` real + K × `plus_real` synthetic frames,
+    /// after `rows`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub plus_synth: Vec<usize>,
+    /// All the real training frames (the plus rows' real count).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub plus_real: usize,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
+}
+
+/// One line of the table: its training frame counts, and K for a `--plus-synth` row.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RowDef {
+    pub real: usize,
+    pub synth: usize,
+    pub plus: Option<usize>,
+}
+
+impl RowDef {
+    /// `real 33 + synth 7`; `real 40 + 4× synth 160` for a plus row.
+    pub fn label(&self) -> String {
+        match self.plus {
+            Some(k) => format!("real {} + {k}× synth {}", self.real, self.synth),
+            None => format!("real {} + synth {}", self.real, self.synth),
+        }
+    }
 }
 
 impl Settings {
     pub fn real_is_proxy(&self) -> bool {
         self.real.rendered.is_some()
+    }
+
+    /// The fixed-total rows, then the plus rows.
+    pub fn row_defs(&self) -> Vec<RowDef> {
+        let fixed = self.rows.iter().map(|&(real, synth)| RowDef {
+            real,
+            synth,
+            plus: None,
+        });
+        let plus = self.plus_synth.iter().map(|&k| RowDef {
+            real: self.plus_real,
+            synth: k * self.plus_real,
+            plus: Some(k),
+        });
+        fixed.chain(plus).collect()
     }
 }
 
@@ -90,9 +144,32 @@ pub fn parse_rows(items: &[String]) -> Result<Vec<(usize, usize)>> {
 pub fn run_mix(args: ExperimentMixArgs, printer: &Printer) -> Result<ExitStatus> {
     let started = Instant::now();
     let out = args.out.clone();
-    let total = args.total.unwrap_or(if args.quick { 42 } else { 1500 });
+    // The real set as it is (before any conversion): its scenes and annotated objects.
+    let inventory = match &args.real {
+        Some(dir) => Some(real::RealInventory::open(&sources::existing(dir, "real")?)?),
+        None => None,
+    };
+    let scene_test = match &inventory {
+        Some(inv) if !args.test_scenes.is_empty() => Some(inv.test_frames(&args.test_scenes)?),
+        _ => None,
+    };
+    // Real frames outside the test scenes: all the rows may train on.
+    let scene_pool = scene_test
+        .as_ref()
+        .zip(inventory.as_ref())
+        .map(|(t, inv)| inv.len() - t.len());
+    let default_total = if args.quick { 42 } else { 1500 };
+    let total = args
+        .total
+        .unwrap_or(scene_pool.map_or(default_total, |p| p.min(default_total)));
     let rows = if args.ratios.is_empty() {
         if total == 0 {
+            if scene_pool == Some(0) {
+                return Err(user_error(
+                    "every real frame is in the --test-scenes: nothing is left to train on",
+                    "hold out fewer scenes",
+                ));
+            }
             return Err(user_error("--total must be positive", "e.g. --total 1500"));
         }
         default_rows(total)
@@ -100,11 +177,14 @@ pub fn run_mix(args: ExperimentMixArgs, printer: &Printer) -> Result<ExitStatus>
         parse_rows(&args.ratios)?
     };
     let max_total = rows.iter().map(|r| r.0 + r.1).max().unwrap_or(total);
-    let test_count = args.test_count.unwrap_or(if args.quick {
-        8
-    } else {
-        (max_total / 5).max(1)
-    });
+    let test_count = match &scene_test {
+        Some(t) => t.len(),
+        None => args.test_count.unwrap_or(if args.quick {
+            8
+        } else {
+            (max_total / 5).max(1)
+        }),
+    };
     let pick = |v: Option<usize>, quick: usize, normal: usize| {
         v.unwrap_or(if args.quick { quick } else { normal })
     };
@@ -138,8 +218,71 @@ pub fn run_mix(args: ExperimentMixArgs, printer: &Printer) -> Result<ExitStatus>
     check_apart(&out, &inputs)?;
     let _lock = OutputLock::acquire(&out)?;
     let max_real = rows.iter().map(|r| r.0).max().unwrap_or(0);
-    let max_synth = rows.iter().map(|r| r.1).max().unwrap_or(0);
-    let plan = sources::plan(&args, &out, max_real + test_count, max_synth.max(1))?;
+    if let (Some(pool), Some(inv)) = (scene_pool, &inventory) {
+        if max_real > pool {
+            return Err(user_error(
+                format!(
+                    "the rows need up to {max_real} real training frames, but only {pool} real \
+                     frames lie outside the test scene(s) {} ({} frames, {test_count} of them held \
+                     out): {}",
+                    scene_list(&args.test_scenes),
+                    inv.len(),
+                    inv.root.display()
+                ),
+                format!(
+                    "lower --total (or the --ratios) to at most {pool}, or hold out other scenes"
+                ),
+            ));
+        }
+    }
+    if args.plus_synth.contains(&0) {
+        return Err(user_error(
+            "--plus-synth factors must be positive",
+            "e.g. --plus-synth 1,4,16",
+        ));
+    }
+    // The plus rows train on all the real training frames: those outside the test split
+    // (the proxy renders exactly the largest real count of the rows).
+    let plus_real = if args.plus_synth.is_empty() {
+        0
+    } else {
+        match (scene_pool, &inventory) {
+            (Some(pool), _) => pool,
+            (None, Some(inv)) => inv.len().saturating_sub(test_count),
+            (None, None) => max_real,
+        }
+    };
+    if plus_real == 0 && !args.plus_synth.is_empty() {
+        return Err(user_error(
+            "--plus-synth: there are no real training frames to add synthetic frames to",
+            "drop --plus-synth, or leave real frames for training",
+        ));
+    }
+    let max_plus = args.plus_synth.iter().max().copied().unwrap_or(0) * plus_real;
+    let max_synth = rows.iter().map(|r| r.1).max().unwrap_or(0).max(max_plus);
+    let objects = if !args.objects.is_empty() {
+        real::RenderObjects {
+            paths: args.objects.clone(),
+            ids: args.obj_ids.clone(),
+            units: None,
+        }
+    } else if let (None, Some(inv)) = (&args.synth, &inventory) {
+        inv.render_objects(scene_test.as_deref(), &args.test_scenes, printer)?
+    } else if args.real_proxy || args.synth.is_none() {
+        return Err(user_error(
+            "no --objects to render the synthetic (or proxy real) set from",
+            "pass --objects MESH..., or --real DIR (its annotated models), or both --real DIR and --synth DIR",
+        ));
+    } else {
+        real::RenderObjects::default()
+    };
+    let plan = sources::plan(
+        &args,
+        &out,
+        max_real + test_count,
+        max_synth.max(1),
+        &objects,
+    )?;
     let settings = Settings {
         model: model_name(args.model).into(),
         rows: rows.clone(),
@@ -154,8 +297,29 @@ pub fn run_mix(args: ExperimentMixArgs, printer: &Printer) -> Result<ExitStatus>
         quick: args.quick,
         real: plan.real.settings.clone(),
         synth: plan.synth.settings.clone(),
+        test_scenes: args.test_scenes.clone(),
+        plus_synth: args.plus_synth.clone(),
+        plus_real,
     };
     check_settings(&out, &settings, args.force)?;
+    if let Some(pool) = scene_pool {
+        printer.info(format!(
+            "test split: every real frame of scene(s) {} ({test_count} frames); the rows' real \
+             training frames come from the other {pool}",
+            scene_list(&args.test_scenes)
+        ));
+    }
+    if args.objects.is_empty() && args.synth.is_none() && !objects.ids.is_empty() {
+        printer.info(format!(
+            "the synthetic set shows the real set's annotated objects with models: ids {}",
+            objects
+                .ids
+                .iter()
+                .map(u32::to_string)
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
 
     if settings.real_is_proxy() {
         printer.warning(
@@ -237,6 +401,10 @@ pub fn run_mix(args: ExperimentMixArgs, printer: &Printer) -> Result<ExitStatus>
     let csv = table::csv(&settings, &records);
     atomic_write(&out.join(TABLE_MD), md.as_bytes())?;
     atomic_write(&out.join(TABLE_CSV), csv.as_bytes())?;
+    atomic_write(
+        &out.join(TABLE_OBJECTS_CSV),
+        table::objects_csv(&settings, &records).as_bytes(),
+    )?;
     plot::write(&out.join(PLOT_FILE), &table::aggregate(&settings, &records))?;
     let mut manifest = Manifest::new(std::env::args().collect(), args.seed);
     manifest.extra = serde_json::json!({ "experiment": settings });
@@ -249,10 +417,7 @@ pub fn run_mix(args: ExperimentMixArgs, printer: &Printer) -> Result<ExitStatus>
         started.elapsed().as_secs_f64()
     ));
     printer.info(format!(
-        "wrote {}, {}, {} in {}",
-        TABLE_MD,
-        TABLE_CSV,
-        PLOT_FILE,
+        "wrote {TABLE_MD}, {TABLE_CSV}, {TABLE_OBJECTS_CSV}, {PLOT_FILE} in {}",
         out.display()
     ));
     if settings.real_is_proxy() {

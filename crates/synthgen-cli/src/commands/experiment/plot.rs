@@ -1,6 +1,8 @@
 //! `plot.png`: test error (blue, ±1 std error bars) and train error (grey) in cm against the
 //! synthetic fraction 0..1, linear axes from 0; a dashed orange line at the all-real test
-//! error + 15% (the target for the all-synthetic row). Digits only (the canvas'
+//! error + 15% (the target for the all-synthetic row). The `--plus-synth` rows
+//! (all the real frames + K× synthetic, at x = K / (K + 1)) are a green series of their own,
+//! starting from the all-real row when it has as many real frames. Digits only (the canvas'
 //! font): x ticks at 0, 0.25, 0.5, 0.75, 1; y ticks in cm.
 
 use std::path::Path;
@@ -8,13 +10,14 @@ use std::path::Path;
 use anyhow::Result;
 use synthgen_dataset::draw::Canvas;
 
-use super::table::Line;
+use super::table::{all_real, Line};
 
 const W: u32 = 640;
 const H: u32 = 420;
 const BLUE: [u8; 3] = [31, 119, 180];
 const GREY: [u8; 3] = [150, 150, 150];
 const ORANGE: [u8; 3] = [255, 127, 14];
+const GREEN: [u8; 3] = [44, 160, 44];
 const GRID: [u8; 3] = [225, 225, 225];
 const AXIS: [u8; 3] = [60, 60, 60];
 /// Labels: the canvas draws text on a dark box.
@@ -56,12 +59,7 @@ pub fn write(path: &Path, lines: &[Line]) -> Result<()> {
             ]
         })
         .flatten()
-        .chain(
-            lines
-                .iter()
-                .find(|l| l.synth == 0)
-                .and_then(|l| finite(l.test_cm.mean * 1.15)),
-        )
+        .chain(all_real(lines).and_then(|l| finite(l.test_cm.mean * 1.15)))
         .fold(0.0f64, f64::max);
     let step = tick_step(if top > 0.0 { top * 1.05 } else { 1.0 });
     let y_max = (top * 1.05 / step).ceil().max(1.0) * step;
@@ -100,7 +98,8 @@ pub fn write(path: &Path, lines: &[Line]) -> Result<()> {
     c.line((X0, Y0), (X0, Y1), AXIS, 2);
     c.line((X0, Y1), (X1, Y1), AXIS, 2);
 
-    if let Some(r) = lines.iter().find(|l| l.synth == 0) {
+    let reference = all_real(lines);
+    if let Some(r) = reference {
         let target = y(r.test_cm.mean * 1.15);
         let mut px = X0;
         while px < X1 {
@@ -108,9 +107,20 @@ pub fn write(path: &Path, lines: &[Line]) -> Result<()> {
             px += 16.0;
         }
     }
-    let mut pts: Vec<&Line> = lines.iter().collect();
+    let mut pts: Vec<&Line> = lines.iter().filter(|l| l.plus.is_none()).collect();
     pts.sort_by(|a, b| a.synth_fraction().total_cmp(&b.synth_fraction()));
-    for (series, colour) in [(false, GREY), (true, BLUE)] {
+    let mut plus: Vec<&Line> = lines.iter().filter(|l| l.plus.is_some()).collect();
+    plus.sort_by(|a, b| a.synth_fraction().total_cmp(&b.synth_fraction()));
+    if let (Some(r), Some(first)) = (reference, plus.first()) {
+        if r.real == first.real {
+            plus.insert(0, r);
+        }
+    }
+    for (series, colour, pts) in [
+        (false, GREY, &pts),
+        (true, BLUE, &pts),
+        (true, GREEN, &plus),
+    ] {
         let val = |l: &Line| {
             if series {
                 l.test_cm.mean
@@ -129,7 +139,7 @@ pub fn write(path: &Path, lines: &[Line]) -> Result<()> {
                 );
             }
         }
-        for l in &pts {
+        for l in pts.iter() {
             let m = val(l);
             if !m.is_finite() {
                 continue;

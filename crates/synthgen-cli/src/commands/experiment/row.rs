@@ -1,6 +1,6 @@
 //! One row of the experiment: mix, train, evaluate; `row.json` written last marks it done.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -14,7 +14,7 @@ use synthgen_dataset::mix::{
 };
 use synthgen_dataset::source::FrameSource;
 use synthgen_train::data::{load_instances, DataOptions, Instance};
-use synthgen_train::eval::{read_gt, score_predictions, GtInstance};
+use synthgen_train::eval::{read_gt, score_predictions, EvalReport, GtInstance};
 use synthgen_train::models::tnet::DEFAULT_SCALE;
 use synthgen_train::models::ModelKind;
 use synthgen_train::pose_model::{load_dataset_objects, Objects, Prediction};
@@ -40,6 +40,8 @@ pub struct RowSpec {
     pub name: String,
     pub real: usize,
     pub synth: usize,
+    /// K of a `--plus-synth` row.
+    pub plus: Option<usize>,
     pub repeat: usize,
     pub train_seed: u64,
 }
@@ -47,9 +49,13 @@ pub struct RowSpec {
 /// The rows × repeats of an experiment, in table order.
 pub fn specs(s: &Settings) -> Vec<RowSpec> {
     let mut out = Vec::new();
-    for &(real, synth) in &s.rows {
+    for row in s.row_defs() {
+        let (real, synth) = (row.real, row.synth);
         for repeat in 0..s.repeats {
             let mut name = format!("r{real:05}_s{synth:05}");
+            if let Some(k) = row.plus {
+                name += &format!("_x{k}");
+            }
             if s.repeats > 1 {
                 name += &format!("_rep{repeat}");
             }
@@ -57,6 +63,7 @@ pub fn specs(s: &Settings) -> Vec<RowSpec> {
                 name,
                 real,
                 synth,
+                plus: row.plus,
                 repeat,
                 train_seed: s.seed.wrapping_add(repeat as u64),
             });
@@ -78,6 +85,23 @@ pub struct Errors {
     pub acc_5cm5deg: Option<f64>,
 }
 
+/// The test errors of one object, and how often the row trained on it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ObjectErrors {
+    pub obj_id: u32,
+    /// Test instances scored (centre error).
+    pub n: usize,
+    /// Mean centre error over them, cm.
+    pub centre_error_cm: f64,
+    /// Full: the object's ADD(-S) and 5cm5° accuracy over its GT test instances.
+    pub add_s_acc: Option<f64>,
+    pub acc_5cm5deg: Option<f64>,
+    /// Instances of the object loaded for training (validation frames included) from real
+    /// and from synthetic frames; 0 real: the row never saw it in a real frame.
+    pub n_train_real: usize,
+    pub n_train_synth: usize,
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Seconds {
     pub mix: f64,
@@ -93,6 +117,9 @@ pub struct RowRecord {
     pub name: String,
     pub real: usize,
     pub synth: usize,
+    /// K of a `--plus-synth` row (all the real training frames + K× as many synthetic).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plus_synth: Option<usize>,
     pub repeat: usize,
     pub train_seed: u64,
     pub mix_seed: u64,
@@ -108,6 +135,9 @@ pub struct RowRecord {
     pub train: Errors,
     /// Errors on the held-out real test frames.
     pub test: Errors,
+    /// The test errors per object, by obj_id.
+    #[serde(default)]
+    pub test_per_object: Vec<ObjectErrors>,
     pub last_epoch: Option<EpochMetrics>,
     pub seconds: Seconds,
 }
@@ -169,16 +199,19 @@ pub fn run(ctx: &RowContext, spec: &RowSpec) -> Result<RowRecord> {
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
 
     let mix_dir = dir.join("mix");
+    let by_scenes = !s.test_scenes.is_empty();
     let opts = MixOptions {
         counts: MixCounts {
             real: spec.real,
             synth: spec.synth,
-            test: Some(s.test_count),
+            // With test scenes the test split is all their frames.
+            test: (!by_scenes).then_some(s.test_count),
         },
         seed: s.seed,
         command_line: std::env::args().collect(),
         force: false,
         exclude_shared: false,
+        test_scenes: s.test_scenes.clone(),
     };
     // The sources are BOP datasets with scene_gt_info (sources.rs converts other layouts).
     let report = write_mix(
@@ -195,7 +228,8 @@ pub fn run(ctx: &RowContext, spec: &RowSpec) -> Result<RowRecord> {
             ctx.printer.warning(w);
         }
     }
-    let (hash, test_list) = test_split(&mix_dir)?;
+    let provenance = read_provenance(&mix_dir)?;
+    let (hash, test_list) = test_split(&provenance);
     record_test_split(ctx.out, &hash, &test_list)?;
     let t_mix = t0.elapsed().as_secs_f64();
 
@@ -290,18 +324,21 @@ pub fn run(ctx: &RowContext, spec: &RowSpec) -> Result<RowRecord> {
         .collect();
     let train_preds = net.predict(&trained, objects.as_ref(), 64)?;
     let train_gts: Vec<GtInstance> = trained.iter().map(|i| gt_of(i)).collect();
-    let train_err = errors(&trained, &train_preds, objects.as_ref(), &train_gts)?;
+    let (train_err, _) = errors(&trained, &train_preds, objects.as_ref(), &train_gts)?;
     let tested: Vec<&Instance> = test_set.instances.iter().collect();
     let test_preds = net.predict(&tested, objects.as_ref(), 64)?;
     // Full: every GT test instance counts (one without enough valid pixels counts as wrong).
     let test_gts = read_gt(&BopDataset::open(&mix_dir)?, TEST_SPLIT, MIN_VISIB_FRACT)?;
-    let test_err = errors(&tested, &test_preds, objects.as_ref(), &test_gts)?;
+    let (test_err, scores) = errors(&tested, &test_preds, objects.as_ref(), &test_gts)?;
+    let trained_on = train_counts(&set.instances, &provenance);
+    let test_per_object = per_object(&tested, &test_preds, scores.as_ref(), &trained_on);
     let t_eval = t3.elapsed().as_secs_f64();
 
     let record = RowRecord {
         name: spec.name.clone(),
         real: spec.real,
         synth: spec.synth,
+        plus_synth: spec.plus,
         repeat: spec.repeat,
         train_seed: spec.train_seed,
         mix_seed: s.seed,
@@ -313,6 +350,7 @@ pub fn run(ctx: &RowContext, spec: &RowSpec) -> Result<RowRecord> {
         n_val: outcome.n_val,
         train: train_err,
         test: test_err,
+        test_per_object,
         last_epoch: outcome.history.last().cloned(),
         seconds: Seconds {
             mix: t_mix,
@@ -338,48 +376,110 @@ fn gt_of(i: &Instance) -> GtInstance {
     }
 }
 
+/// Mean centre error of the predictions, cm (NaN for none).
+fn mean_centre_cm<'a>(pairs: impl Iterator<Item = (&'a Prediction, &'a Instance)>) -> f64 {
+    let centres: Vec<f64> = pairs
+        .filter_map(|(p, i)| p.centre_m.map(|c| centre_error_m(c, i)))
+        .collect();
+    if centres.is_empty() {
+        f64::NAN
+    } else {
+        100.0 * centres.iter().sum::<f64>() / centres.len() as f64
+    }
+}
+
 /// Centre error over the instances; for rotation models also ADD(-S) and 5cm5° accuracy
-/// over `gts`, scored as `synthgen eval` scores a checkpoint.
+/// over `gts`, scored as `synthgen eval` scores a checkpoint (the report is returned too).
 fn errors(
     instances: &[&Instance],
     preds: &[Prediction],
     objects: Option<&Objects>,
     gts: &[GtInstance],
-) -> Result<Errors> {
-    let centres: Vec<f64> = preds
-        .iter()
-        .zip(instances)
-        .filter_map(|(p, i)| p.centre_m.map(|c| centre_error_m(c, i)))
-        .collect();
-    let centre_error_cm = if centres.is_empty() {
-        f64::NAN
-    } else {
-        100.0 * centres.iter().sum::<f64>() / centres.len() as f64
-    };
+) -> Result<(Errors, Option<EvalReport>)> {
+    let centre_error_cm = mean_centre_cm(preds.iter().zip(instances.iter().copied()));
     let Some(objects) = objects else {
-        return Ok(Errors {
+        let e = Errors {
             n: instances.len(),
             centre_error_cm,
             add_s_acc: None,
             acc_5cm5deg: None,
-        });
+        };
+        return Ok((e, None));
     };
     let report = score_predictions(preds, instances.iter().copied(), gts, objects)?;
-    Ok(Errors {
+    let e = Errors {
         n: report.all.n_gt,
         centre_error_cm,
         add_s_acc: Some(report.all.add_s_acc),
         acc_5cm5deg: Some(report.all.acc_5cm5deg),
-    })
+    };
+    Ok((e, Some(report)))
 }
 
-/// The mix's test frames as sorted "source|split|scene|image" lines, and their hash.
-fn test_split(mix_dir: &Path) -> Result<(String, Vec<String>)> {
+/// Training instances per object from (real, synthetic) frames; the mix's provenance says
+/// which frame came from where.
+fn train_counts(
+    instances: &[Instance],
+    provenance: &[serde_json::Value],
+) -> BTreeMap<u32, (usize, usize)> {
+    let real: HashMap<(u64, u64), bool> = provenance
+        .iter()
+        .filter(|e| e["split"] == TRAIN_SPLIT)
+        .filter_map(|e| {
+            let key = (e["scene_id"].as_u64()?, e["im_id"].as_u64()?);
+            Some((key, e["origin"] == "real"))
+        })
+        .collect();
+    let mut out: BTreeMap<u32, (usize, usize)> = BTreeMap::new();
+    for i in instances {
+        let c = out.entry(i.obj_id).or_default();
+        match real.get(&(u64::from(i.scene_id), u64::from(i.im_id))) {
+            Some(true) => c.0 += 1,
+            _ => c.1 += 1,
+        }
+    }
+    out
+}
+
+/// The test errors of each object (sorted by id).
+fn per_object(
+    tested: &[&Instance],
+    preds: &[Prediction],
+    report: Option<&EvalReport>,
+    trained_on: &BTreeMap<u32, (usize, usize)>,
+) -> Vec<ObjectErrors> {
+    let ids: BTreeSet<u32> = tested.iter().map(|i| i.obj_id).collect();
+    ids.into_iter()
+        .map(|id| {
+            let pairs = preds
+                .iter()
+                .zip(tested.iter().copied())
+                .filter(|(_, i)| i.obj_id == id);
+            let scores = report.and_then(|r| r.per_object.get(&id));
+            let (n_train_real, n_train_synth) = trained_on.get(&id).copied().unwrap_or_default();
+            ObjectErrors {
+                obj_id: id,
+                n: tested.iter().filter(|i| i.obj_id == id).count(),
+                centre_error_cm: mean_centre_cm(pairs),
+                add_s_acc: scores.map(|s| s.add_s_acc),
+                acc_5cm5deg: scores.map(|s| s.acc_5cm5deg),
+                n_train_real,
+                n_train_synth,
+            }
+        })
+        .collect()
+}
+
+/// The entries of the mix's `provenance.json`.
+fn read_provenance(mix_dir: &Path) -> Result<Vec<serde_json::Value>> {
     let path = mix_dir.join(PROVENANCE_FILE);
     let text = std::fs::read_to_string(&path)
         .with_context(|| format!("cannot read {}", path.display()))?;
-    let entries: Vec<serde_json::Value> =
-        serde_json::from_str(&text).with_context(|| format!("malformed {}", path.display()))?;
+    serde_json::from_str(&text).with_context(|| format!("malformed {}", path.display()))
+}
+
+/// The mix's test frames as sorted "source|split|scene|image" lines, and their hash.
+fn test_split(entries: &[serde_json::Value]) -> (String, Vec<String>) {
     let mut lines: Vec<String> = entries
         .iter()
         .filter(|e| e["split"] == TEST_SPLIT)
@@ -394,10 +494,10 @@ fn test_split(mix_dir: &Path) -> Result<(String, Vec<String>)> {
         })
         .collect();
     lines.sort();
-    Ok((
+    (
         format!("{:016x}", fnv1a(lines.join("\n").as_bytes())),
         lines,
-    ))
+    )
 }
 
 fn fnv1a(bytes: &[u8]) -> u64 {

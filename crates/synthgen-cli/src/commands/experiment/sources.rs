@@ -12,6 +12,7 @@ use synthgen_dataset::io::atomic_write;
 use synthgen_dataset::validate::Layout;
 
 use super::absolute;
+use super::real::RenderObjects;
 use crate::cli::{Cli, Command, ExperimentMixArgs};
 use crate::commands::user_error;
 use crate::{ExitStatus, Printer};
@@ -53,21 +54,16 @@ pub struct Plan {
     pub synth: SourcePlan,
 }
 
-/// Decides the sources: `real_frames` / `synth_frames` are what a rendered set needs.
+/// Decides the sources: `real_frames` / `synth_frames` are what a rendered set needs, and
+/// `objects` what it shows (the caller has checked there are some where a set is rendered).
 pub fn plan(
     args: &ExperimentMixArgs,
     out: &Path,
     real_frames: usize,
     synth_frames: usize,
+    objects: &RenderObjects,
 ) -> Result<Plan> {
     let sources = absolute(&out.join("sources"));
-    let needs_objects = args.real_proxy || args.synth.is_none();
-    if needs_objects && args.objects.is_empty() {
-        return Err(user_error(
-            "no --objects to render the synthetic (or proxy real) set from",
-            "pass --objects MESH..., or both --real DIR and --synth DIR",
-        ));
-    }
     let real = match &args.real {
         Some(dir) => {
             let dir = existing(dir, "real")?;
@@ -105,6 +101,7 @@ pub fn plan(
                     path: dir.clone(),
                     rendered: Some(render_settings(
                         args,
+                        objects,
                         Some(&scene),
                         &spec,
                         &dir,
@@ -144,6 +141,7 @@ pub fn plan(
                     path: dir.clone(),
                     rendered: Some(render_settings(
                         args,
+                        objects,
                         scene.as_deref(),
                         &spec,
                         &dir,
@@ -159,7 +157,7 @@ pub fn plan(
     Ok(Plan { real, synth })
 }
 
-fn existing(path: &Path, flag: &str) -> Result<PathBuf> {
+pub(super) fn existing(path: &Path, flag: &str) -> Result<PathBuf> {
     path.canonicalize().map_err(|_| {
         user_error(
             format!("--{flag} not found: {}", path.display()),
@@ -170,6 +168,7 @@ fn existing(path: &Path, flag: &str) -> Result<PathBuf> {
 
 fn render_settings(
     args: &ExperimentMixArgs,
+    objects: &RenderObjects,
     scene: Option<&Path>,
     spec: &SceneSpec,
     dir: &Path,
@@ -182,13 +181,16 @@ fn render_settings(
         argv.push(s.display().to_string());
     }
     argv.push("--objects".into());
-    for o in &args.objects {
+    for o in &objects.paths {
         argv.push(existing(o, "objects")?.display().to_string());
     }
-    if !args.obj_ids.is_empty() {
-        let ids: Vec<String> = args.obj_ids.iter().map(u32::to_string).collect();
+    if !objects.ids.is_empty() {
+        let ids: Vec<String> = objects.ids.iter().map(u32::to_string).collect();
         argv.push("--obj-ids".into());
         argv.push(ids.join(","));
+    }
+    if let Some(units) = objects.units {
+        argv.extend(["--units".into(), units.into()]);
     }
     argv.extend([
         "--frames".into(),

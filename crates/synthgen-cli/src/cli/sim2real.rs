@@ -1,0 +1,125 @@
+//! Arguments of `synthgen experiment sim2real`.
+
+use std::path::PathBuf;
+
+use clap::Args;
+
+use synthgen_core::scene::UpAxis;
+
+use super::ModelArg;
+
+fn parse_up(s: &str) -> Result<UpAxis, String> {
+    UpAxis::ALL
+        .into_iter()
+        .chain([UpAxis::Any])
+        .find(|a| a.as_str() == s)
+        .ok_or_else(|| format!("{s:?}: one of +x, -x, +y, -y, +z, -z, any"))
+}
+
+pub const SIM2REAL_EXAMPLES: &str = "Examples:
+  # Fit the scene and the sensor to real frames, render, train on synthetic only, test on
+  # other real frames (their real depth and visible masks):
+  synthgen experiment sim2real --fit ../shared/data/ycbv_real --test data/ycbv_test --out runs/s2r
+
+  # One real dataset: the test scenes are held out of the fits (and of the real-only baseline):
+  synthgen experiment sim2real --fit ../shared/data/ycbv_real --test ../shared/data/ycbv_real \\
+      --test-scenes 2 --out runs/s2r_2
+
+  # Also the ablation rows (no scene fit, distractors, textured surfaces, physics):
+  synthgen experiment sim2real --fit REAL --test REAL --test-scenes 2 --ablation --out runs/s2r
+
+  # The whole pipeline on tiny settings (quarter resolution, few frames and epochs):
+  synthgen experiment sim2real --fit REAL --test REAL --test-scenes 2 --quick --out /tmp/s2r
+
+Steps (each kept on a re-run with the same options; an interrupted one is redone):
+  fit/        scene.toml (`synthgen scene fit` of the --fit frames), sensor.toml
+              (`synthgen sensor fit`), their reports
+  sources/    synthetic sets of the test objects: the fitted scene with the fitted sensor,
+              with no sensor model, with the D455 model (+ the ablation variants)
+  rows/NAME/  a model trained on one set (all test objects in one model), row.json with its
+              errors on the real test frames, overall and per object
+Rows of the report: the fitted synthetic set (the result), no sensor, D455, the naive
+baseline (the centre = the mean of the masked real depth points: no training), a model
+trained on real frames only (the --fit frames outside the test scenes, as many steps as
+the synthetic rows), and with --ablation one row per knob.
+
+Output (in --out): report.md (printed), report.json ({\"all\", \"objects\", \"baselines\"}),
+plot.png (mean centre error per row), experiment.json (the settings).";
+
+#[derive(Debug, Args)]
+pub struct ExperimentSim2realArgs {
+    /// Real frames with GT poses and depth (YCB-Video, BOP or Linemod) to fit the scene
+    /// (camera, views, objects' rest poses, objects per frame) and the depth sensor to.
+    #[arg(long, value_name = "DIR")]
+    pub fit: PathBuf,
+
+    /// Real frames to test on: their objects (those with a model) are rendered and scored.
+    /// May be --fit itself, with --test-scenes held out of the fits.
+    #[arg(long, value_name = "DIR")]
+    pub test: PathBuf,
+
+    /// Only these scene ids of --test are tested on (required when --test is --fit: they are
+    /// then left out of the scene and sensor fits and of the real-only baseline).
+    #[arg(long, value_delimiter = ',', value_name = "ID,...")]
+    pub test_scenes: Vec<u32>,
+
+    #[arg(long, value_enum, default_value_t = ModelArg::Tnet)]
+    pub model: ModelArg,
+
+    /// Synthetic frames per rendered set. [default: 1500; 48 with --quick]
+    #[arg(long)]
+    pub frames: Option<usize>,
+
+    /// Training epochs over a synthetic set. [default: 8; 2 with --quick]
+    #[arg(long)]
+    pub epochs: Option<usize>,
+
+    /// Instances per step. [default: 32; 8 with --quick]
+    #[arg(long)]
+    pub batch: Option<usize>,
+
+    /// Peak learning rate (AdamW, cosine schedule).
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1e-3)]
+    pub lr: f64,
+
+    /// Points sampled per object instance. [default: 500; 64 with --quick]
+    #[arg(long)]
+    pub points: Option<usize>,
+
+    /// Width of the global feature. [default: 128; 16 with --quick]
+    #[arg(long)]
+    pub width: Option<usize>,
+
+    /// Also the ablation rows: the fitted set without the scene fit (synthgen's default
+    /// scene, all objects standing on +z), with primitive distractors, with textured
+    /// ground and walls, with physics placement.
+    #[arg(long)]
+    pub ablation: bool,
+
+    /// How test objects that no --fit frame shows stand in the synthetic sets: a model axis
+    /// up (+x, -x, +y, -y, +z, -z), or `any` (each instance on one of the six, drawn
+    /// uniformly). Objects the fit frames show get their fitted rest pose.
+    #[arg(long, value_name = "AXIS", default_value = "+z", value_parser = parse_up, allow_hyphen_values = true)]
+    pub unseen_up: UpAxis,
+
+    /// Seeds the renders and the training.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+
+    /// Small and fast, to check the pipeline: the --quick defaults above, synthetic sets at a
+    /// quarter of the camera's resolution.
+    #[arg(long)]
+    pub quick: bool,
+
+    /// Output folder.
+    #[arg(long, default_value = "runs/sim2real")]
+    pub out: PathBuf,
+
+    /// Start over in a non-empty --out that holds an experiment with other settings.
+    #[arg(long)]
+    pub force: bool,
+
+    /// Worker threads (default: all cores).
+    #[arg(long, short = 'j')]
+    pub jobs: Option<usize>,
+}

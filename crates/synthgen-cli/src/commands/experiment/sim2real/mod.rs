@@ -1,0 +1,806 @@
+//! `synthgen experiment sim2real`: synthetic to real, measured on real frames. The scene
+//! (camera, views, rest poses, objects per frame) and the depth sensor are fitted to real
+//! frames (`scene fit`, `sensor fit`); synthetic sets of the test objects are rendered with
+//! them and with other sensors; one model per set is trained on synthetic frames only and
+//! scored on the real test frames (their real depth and visible masks), beside the naive
+//! centroid and a model trained on real frames. Every step is kept once done (a marker or
+//! `row.json`, written last), so a re-run with the same options resumes.
+
+mod report;
+mod rows;
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use clap::Parser;
+use serde::{Deserialize, Serialize};
+use synthgen_core::scene::{DepthModel, ObjectSpec, PlacementMode, SensorSpec, UpAxis};
+use synthgen_core::SceneSpec;
+use synthgen_dataset::io::atomic_write;
+use synthgen_dataset::output::{check_apart, OutputLock};
+use synthgen_dataset::source::{open_source, FrameSource, SourceFrame};
+
+use self::rows::{RowRecord, TrainSpec};
+use crate::cli::{Cli, Command, ExperimentSim2realArgs, ModelArg};
+use crate::commands::user_error;
+use crate::{ExitStatus, Printer};
+
+/// The settings file at the output's root; a re-run must match it to resume.
+pub const SETTINGS_FILE: &str = "experiment.json";
+
+/// One object of the test set and the model file it is rendered from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TestObject {
+    pub obj_id: u32,
+    pub model: PathBuf,
+    /// `mm` or `m`.
+    pub units: String,
+}
+
+/// Everything that decides the numbers.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Settings {
+    pub fit: PathBuf,
+    pub test: PathBuf,
+    /// Scenes of `test` scored (all when empty).
+    pub test_scenes: Vec<u32>,
+    /// Scenes of `fit` the fits and the real-only baseline use.
+    pub fit_scenes: Vec<u32>,
+    pub objects: Vec<TestObject>,
+    pub model: String,
+    pub frames: usize,
+    pub epochs: usize,
+    pub batch: usize,
+    pub lr: f64,
+    pub points: usize,
+    pub width: usize,
+    pub ablation: bool,
+    /// The rest pose of test objects no fit frame shows.
+    #[serde(default)]
+    pub unseen_up: UpAxis,
+    pub seed: u64,
+    pub quick: bool,
+}
+
+/// A synthetic set: how its scene differs from the fitted one.
+struct Variant {
+    name: &'static str,
+    what: &'static str,
+    ablation: bool,
+}
+
+const VARIANTS: &[Variant] = &[
+    Variant {
+        name: "synth_fitted",
+        what: "synthetic, fitted scene and fitted sensor",
+        ablation: false,
+    },
+    Variant {
+        name: "synth_no_sensor",
+        what: "synthetic, fitted scene, clean depth (no sensor model)",
+        ablation: false,
+    },
+    Variant {
+        name: "synth_d455",
+        what: "synthetic, fitted scene, the D455 model",
+        ablation: false,
+    },
+    Variant {
+        name: "ablation_no_scene_fit",
+        what: "synthetic, synthgen's default scene (all objects every frame, standing on +z), fitted sensor",
+        ablation: true,
+    },
+    Variant {
+        name: "ablation_distractors",
+        what: "synthetic, fitted scene and sensor, 1-3 primitive distractors per frame",
+        ablation: true,
+    },
+    Variant {
+        name: "ablation_textures",
+        what: "synthetic, fitted scene and sensor, textured ground and 2-4 textured walls",
+        ablation: true,
+    },
+    Variant {
+        name: "ablation_physics",
+        what: "synthetic, fitted scene and sensor, objects dropped and settled (physics)",
+        ablation: true,
+    },
+];
+
+/// The row of a model trained on real frames only.
+pub const REAL_ONLY: &str = "real_only";
+
+pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus> {
+    let started = Instant::now();
+    let out = args.out.clone();
+    let pick = |v: Option<usize>, quick: usize, normal: usize| {
+        v.unwrap_or(if args.quick { quick } else { normal })
+    };
+    let (frames, epochs) = (pick(args.frames, 48, 1500), pick(args.epochs, 2, 8));
+    let (batch, points, width) = (
+        pick(args.batch, 8, 32),
+        pick(args.points, 64, 500),
+        pick(args.width, 16, 128),
+    );
+    if frames == 0 || epochs == 0 || batch == 0 || points == 0 || width == 0 {
+        return Err(user_error(
+            "--frames, --epochs, --batch, --points and --width must be positive",
+            "e.g. --frames 1500 --epochs 8",
+        ));
+    }
+    if let Some(j) = args.jobs {
+        let _ = rayon::ThreadPoolBuilder::new()
+            .num_threads(j)
+            .build_global();
+    }
+    let fit_dir = existing(&args.fit, "fit")?;
+    let test_dir = existing(&args.test, "test")?;
+    check_apart(
+        &out,
+        &[("--fit dataset", &fit_dir), ("--test dataset", &test_dir)],
+    )?;
+    let fit_src = open_source(&fit_dir)
+        .with_context(|| format!("cannot open the --fit dataset {}", fit_dir.display()))?;
+    let test_src = open_source(&test_dir)
+        .with_context(|| format!("cannot open the --test dataset {}", test_dir.display()))?;
+    let same = fit_dir == test_dir;
+    if same && args.test_scenes.is_empty() {
+        return Err(user_error(
+            "--test is the --fit dataset but no --test-scenes are held out",
+            "name the test scenes, e.g. --test-scenes 0; they are left out of the scene and sensor \
+             fits and of the real-only baseline",
+        ));
+    }
+    let test_frames = frames_in(test_src.as_ref(), &args.test_scenes, "--test")?;
+    let fit_scenes: Vec<u32> = if same {
+        scenes_of(&fit_src.frames(&[])?)
+            .into_iter()
+            .filter(|s| !args.test_scenes.contains(s))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    if same && fit_scenes.is_empty() {
+        return Err(user_error(
+            "every scene of the dataset is a test scene: nothing is left to fit to",
+            "hold out fewer scenes with --test-scenes",
+        ));
+    }
+    let fit_frames = frames_in(fit_src.as_ref(), &fit_scenes, "--fit")?;
+    for (what, frames, dir) in [
+        ("--test", &test_frames, &test_dir),
+        ("--fit", &fit_frames, &fit_dir),
+    ] {
+        if let Some(f) = frames.iter().find(|f| f.depth.is_none()) {
+            return Err(user_error(
+                format!(
+                    "the {what} dataset {} has no depth images ({}/{:06} image {} has none)",
+                    dir.display(),
+                    f.location.split,
+                    f.location.scene_id,
+                    f.location.im_id
+                ),
+                "sim2real fits the sensor to real depth and tests on it: use frames with depth",
+            ));
+        }
+    }
+    let objects = test_objects(
+        test_src.as_ref(),
+        fit_src.as_ref(),
+        &test_frames,
+        &fit_frames,
+    )?;
+    let settings = Settings {
+        fit: fit_dir.clone(),
+        test: test_dir.clone(),
+        test_scenes: args.test_scenes.clone(),
+        fit_scenes: fit_scenes.clone(),
+        objects,
+        model: match args.model {
+            ModelArg::Tnet => "tnet",
+            ModelArg::Rnet => "rnet",
+            ModelArg::Full => "full",
+        }
+        .into(),
+        frames,
+        epochs,
+        batch,
+        lr: args.lr,
+        points,
+        width,
+        ablation: args.ablation,
+        unseen_up: args.unseen_up,
+        seed: args.seed,
+        quick: args.quick,
+    };
+    let _lock = OutputLock::acquire(&out)?;
+    check_settings(&out, &settings, args.force)?;
+    printer.info(format!(
+        "objects: {} (from the test frames' GT); test frames: {}{}; fit frames: {}",
+        settings
+            .objects
+            .iter()
+            .map(|o| o.obj_id.to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
+        test_frames.len(),
+        if args.test_scenes.is_empty() {
+            String::new()
+        } else {
+            format!(" (scenes {})", list(&args.test_scenes))
+        },
+        fit_frames.len()
+    ));
+
+    // 1. The scene and the sensor, fitted to the --fit frames.
+    let mut timing = read_timing(&out);
+    let t_fit = Instant::now();
+    let fit_out = out.join("fit");
+    if ensure_fits(&settings, &fit_out, printer)? {
+        timing.fit_s = t_fit.elapsed().as_secs_f64();
+        write_timing(&out, &timing)?;
+    }
+
+    // 2. The synthetic sets.
+    let test_k = most_common_k(
+        &test_frames,
+        test_src.camera().width,
+        test_src.camera().height,
+    );
+    let mut notes = Vec::new();
+    let base = base_scene(&settings, &fit_out, &test_k, &mut notes)?;
+    let variants: Vec<&Variant> = VARIANTS
+        .iter()
+        .filter(|v| !v.ablation || settings.ablation)
+        .collect();
+    let mut sets: Vec<(&Variant, PathBuf)> = Vec::new();
+    for v in &variants {
+        let Some(spec) = variant_scene(v, &base, &settings, &test_k, &mut notes)? else {
+            continue;
+        };
+        let t = Instant::now();
+        let (dir, computed) = ensure_render(&settings, &out, v.name, &spec, printer)?;
+        if computed {
+            timing
+                .render_s
+                .insert(v.name.to_string(), t.elapsed().as_secs_f64());
+            write_timing(&out, &timing)?;
+        }
+        sets.push((v, dir));
+    }
+
+    // 3. Train and score.
+    let test = rows::load_test(&settings, test_src.as_ref(), &args.test_scenes)?;
+    printer.info(format!(
+        "{} real test instances with enough depth readings",
+        test.instances.len()
+    ));
+    let mut records: Vec<RowRecord> = Vec::new();
+    let mut computed = 0;
+    let naive = match rows::read_record(&out, rows::NAIVE) {
+        Some(r) => r,
+        None => {
+            computed += 1;
+            rows::naive_row(&out, &test)?
+        }
+    };
+    let mut synth_steps = None;
+    for (v, dir) in &sets {
+        let record = match rows::read_record(&out, v.name) {
+            Some(r) => r,
+            None => {
+                let src =
+                    open_source(dir).with_context(|| format!("cannot open {}", dir.display()))?;
+                printer.info(format!("training {} on {}", v.name, dir.display()));
+                computed += 1;
+                let r = rows::train_row(
+                    &settings,
+                    &out,
+                    &TrainSpec {
+                        name: v.name,
+                        what: v.what.to_string(),
+                        data: src.as_ref(),
+                        scenes: &[],
+                        epochs: Some(settings.epochs),
+                        steps: None,
+                    },
+                    &test,
+                    printer,
+                )?;
+                printer.info(format!(
+                    "{}: mean centre error {:.2} cm on the real test frames",
+                    v.name, r.all.mean_centre_error_cm
+                ));
+                r
+            }
+        };
+        if v.name == "synth_fitted" {
+            synth_steps =
+                Some(settings.epochs * (record.train_instances.div_ceil(settings.batch)).max(1));
+        }
+        records.push(record);
+    }
+    let real_only = match rows::read_record(&out, REAL_ONLY) {
+        Some(r) => r,
+        None => {
+            computed += 1;
+            printer.info(format!(
+                "training {REAL_ONLY} on the real frames of {}",
+                if fit_scenes.is_empty() {
+                    fit_dir.display().to_string()
+                } else {
+                    format!("{} scenes {}", fit_dir.display(), list(&fit_scenes))
+                }
+            ));
+            rows::train_row(
+                &settings,
+                &out,
+                &TrainSpec {
+                    name: REAL_ONLY,
+                    what: format!(
+                        "real frames only ({}), as many optimizer steps as the synthetic rows",
+                        if fit_scenes.is_empty() {
+                            "every --fit frame".to_string()
+                        } else {
+                            format!("--fit scenes {}", list(&fit_scenes))
+                        }
+                    ),
+                    data: fit_src.as_ref(),
+                    scenes: &fit_scenes,
+                    epochs: None,
+                    steps: synth_steps,
+                },
+                &test,
+                printer,
+            )?
+        }
+    };
+    records.push(real_only);
+    records.push(naive);
+
+    let elapsed = started.elapsed().as_secs_f64();
+    timing
+        .render_s
+        .retain(|k, _| sets.iter().any(|(v, _)| v.name == k));
+    timing.rows_s = records
+        .iter()
+        .map(|r| (r.name.clone(), r.seconds_train + r.seconds_eval))
+        .collect();
+    timing.steps_total_s =
+        timing.fit_s + timing.render_s.values().sum::<f64>() + timing.rows_s.values().sum::<f64>();
+    timing.this_run_s = elapsed;
+    write_timing(&out, &timing)?;
+    let rep = report::Report::new(&settings, records, timing, notes);
+    rep.write(&out)?;
+    print!("{}", rep.markdown());
+    printer.info(format!(
+        "{} rows ({computed} computed now) in {elapsed:.0} s; wrote report.md, report.json, plot.png in {}",
+        rep.rows.len(),
+        out.display()
+    ));
+    Ok(ExitStatus::Success)
+}
+
+fn list(ids: &[u32]) -> String {
+    ids.iter().map(u32::to_string).collect::<Vec<_>>().join(",")
+}
+
+fn existing(path: &Path, flag: &str) -> Result<PathBuf> {
+    path.canonicalize().map_err(|_| {
+        user_error(
+            format!("--{flag} not found: {}", path.display()),
+            "check the path",
+        )
+    })
+}
+
+fn scenes_of(frames: &[SourceFrame]) -> Vec<u32> {
+    let s: BTreeSet<u32> = frames.iter().map(|f| f.location.scene_id).collect();
+    s.into_iter().collect()
+}
+
+/// The frames with GT of `scenes` (all when empty); unknown scenes and no GT are errors.
+fn frames_in(src: &dyn FrameSource, scenes: &[u32], flag: &str) -> Result<Vec<SourceFrame>> {
+    let all = src.frames(&[])?;
+    let known = scenes_of(&all);
+    for s in scenes {
+        if !known.contains(s) {
+            return Err(user_error(
+                format!(
+                    "scene {s} is not in the {flag} dataset {} (scenes: {})",
+                    src.root().display(),
+                    list(&known)
+                ),
+                "name scenes the dataset has",
+            ));
+        }
+    }
+    let frames: Vec<SourceFrame> = all
+        .into_iter()
+        .filter(|f| scenes.is_empty() || scenes.contains(&f.location.scene_id))
+        .filter(|f| !f.gt.is_empty())
+        .collect();
+    if frames.is_empty() {
+        return Err(user_error(
+            format!(
+                "the {flag} dataset {} has no frames with GT poses{}",
+                src.root().display(),
+                if scenes.is_empty() {
+                    String::new()
+                } else {
+                    format!(" in scenes {}", list(scenes))
+                }
+            ),
+            "sim2real needs annotated real frames",
+        ));
+    }
+    Ok(frames)
+}
+
+/// The objects annotated in the test frames, each with a model file (the test dataset's,
+/// else the fit dataset's). A test object without any model, or no test object that the fit
+/// frames show, is an error naming them.
+fn test_objects(
+    test: &dyn FrameSource,
+    fit: &dyn FrameSource,
+    test_frames: &[SourceFrame],
+    fit_frames: &[SourceFrame],
+) -> Result<Vec<TestObject>> {
+    let ids: BTreeSet<u32> = test_frames.iter().flat_map(|f| f.object_set()).collect();
+    let mut out = Vec::new();
+    let mut missing = Vec::new();
+    for id in ids {
+        let found = [test, fit]
+            .into_iter()
+            .find_map(|src| src.model_path(id).map(|p| (p, src.model_units())));
+        match found {
+            Some((model, units)) => out.push(TestObject {
+                obj_id: id,
+                model: model.canonicalize().unwrap_or(model),
+                units: units.to_string(),
+            }),
+            None => missing.push(format!(
+                "{id} (looked for {} and {})",
+                test.model_file(id).display(),
+                fit.model_file(id).display()
+            )),
+        }
+    }
+    if !missing.is_empty() {
+        return Err(user_error(
+            format!("test objects without a model file: {}", missing.join("; ")),
+            "every object scored must be rendered: add its model to the --test or --fit dataset",
+        ));
+    }
+    let fit_ids: BTreeSet<u32> = fit_frames.iter().flat_map(|f| f.object_set()).collect();
+    if !out.iter().any(|o| fit_ids.contains(&o.obj_id)) {
+        return Err(user_error(
+            format!(
+                "no test object ({}) is annotated in the --fit frames ({})",
+                out.iter()
+                    .map(|o| o.obj_id.to_string())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                fit_ids
+                    .iter()
+                    .map(u32::to_string)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+            "fit to real frames of (some of) the same objects: their rest poses come from there",
+        ));
+    }
+    Ok(out)
+}
+
+/// The intrinsics most test frames share (what the renders use: the test camera is known
+/// without looking at any label).
+fn most_common_k(frames: &[SourceFrame], w: u32, h: u32) -> synthgen_core::Intrinsics {
+    let mut counts: BTreeMap<String, (usize, synthgen_core::Intrinsics)> = BTreeMap::new();
+    for f in frames {
+        let k = f.camera.intrinsics(w, h);
+        let key = format!("{:.3},{:.3},{:.3},{:.3}", k.fx, k.fy, k.cx, k.cy);
+        counts.entry(key).or_insert((0, k)).0 += 1;
+    }
+    counts
+        .into_values()
+        .max_by_key(|(n, _)| *n)
+        .map(|(_, k)| k)
+        .unwrap_or_else(|| synthgen_core::Intrinsics::YCBV)
+}
+
+/// Writes the settings, or checks them against those of the experiment already in `out`.
+fn check_settings(out: &Path, settings: &Settings, force: bool) -> Result<()> {
+    let path = out.join(SETTINGS_FILE);
+    if let Ok(text) = std::fs::read_to_string(&path) {
+        let same = serde_json::from_str::<Settings>(&text).is_ok_and(|s| &s == settings);
+        if same {
+            return Ok(());
+        }
+        if !force {
+            return Err(user_error(
+                format!(
+                    "{} holds an experiment with other settings ({SETTINGS_FILE} differs)",
+                    out.display()
+                ),
+                "pass the same options to resume it, choose another --out, or add --force to start over",
+            ));
+        }
+        for dir in ["rows", "sources", "fit"] {
+            let p = out.join(dir);
+            if p.is_dir() {
+                std::fs::remove_dir_all(&p)
+                    .with_context(|| format!("cannot remove {}", p.display()))?;
+            }
+        }
+    } else if out.is_dir() && !synthgen_dataset::output::is_empty(out) && !force {
+        return Err(user_error(
+            format!("output folder is not empty: {}", out.display()),
+            "choose another --out, or pass --force",
+        ));
+    }
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let text = serde_json::to_string_pretty(settings)? + "\n";
+    atomic_write(&path, text.as_bytes())?;
+    Ok(())
+}
+
+/// Where the steps' times are kept between runs.
+const TIMING_FILE: &str = "timing.json";
+
+fn read_timing(out: &Path) -> report::Timing {
+    std::fs::read_to_string(out.join(TIMING_FILE))
+        .ok()
+        .and_then(|t| serde_json::from_str(&t).ok())
+        .unwrap_or_default()
+}
+
+fn write_timing(out: &Path, t: &report::Timing) -> Result<()> {
+    atomic_write(
+        &out.join(TIMING_FILE),
+        (serde_json::to_string_pretty(t)? + "\n").as_bytes(),
+    )?;
+    Ok(())
+}
+
+/// `fit/scene.toml` and `fit/sensor.toml` (with their reports), unless a finished fit of
+/// the same frames is there (`fit/fit.done`). True when they were fitted now.
+fn ensure_fits(s: &Settings, dir: &Path, printer: &Printer) -> Result<bool> {
+    let record = serde_json::to_string_pretty(&serde_json::json!({
+        "fit": s.fit, "scenes": s.fit_scenes
+    }))? + "\n";
+    let marker = dir.join("fit.done");
+    if std::fs::read_to_string(&marker).is_ok_and(|t| t == record) {
+        printer.info(format!("reusing the fits in {}", dir.display()));
+        return Ok(false);
+    }
+    if dir.exists() {
+        std::fs::remove_dir_all(dir).with_context(|| format!("cannot remove {}", dir.display()))?;
+    }
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    printer.info(format!("fitting the sensor to {}", s.fit.display()));
+    let sensor = crate::commands::sensor::fit_to_file(
+        &s.fit,
+        &s.fit_scenes,
+        0.02,
+        synthgen_core::scene::StructuredLightSpec::default(),
+        &dir.join("sensor.toml"),
+        printer,
+    )?;
+    atomic_write(
+        &dir.join("sensor_report.json"),
+        (serde_json::to_string_pretty(&sensor)? + "\n").as_bytes(),
+    )?;
+    printer.info(format!("fitting the scene to {}", s.fit.display()));
+    let scene = crate::commands::scene::fit_to_file(
+        &s.fit,
+        &s.fit_scenes,
+        Some(&dir.join("sensor.toml")),
+        &dir.join("scene.toml"),
+        printer,
+    )?;
+    atomic_write(
+        &dir.join("scene_report.json"),
+        (serde_json::to_string_pretty(&scene)? + "\n").as_bytes(),
+    )?;
+    atomic_write(&marker, record.as_bytes())?;
+    Ok(true)
+}
+
+/// The fitted scene with the test objects and the test camera. Rest poses come from the fit
+/// where it saw the object; an object no fit frame shows gets `--unseen-up` (default +z, as
+/// scanned: chosen over `any` on the validation scene, docs/experiments.md).
+fn base_scene(
+    s: &Settings,
+    fit: &Path,
+    k: &synthgen_core::Intrinsics,
+    notes: &mut Vec<String>,
+) -> Result<SceneSpec> {
+    let path = fit.join("scene.toml");
+    let mut spec = SceneSpec::from_toml_file(&path)
+        .with_context(|| format!("cannot read the fitted scene {}", path.display()))?;
+    let fitted: BTreeMap<u32, ObjectSpec> = spec
+        .objects
+        .iter()
+        .filter_map(|o| Some((o.obj_id?, o.clone())))
+        .collect();
+    spec.objects = s
+        .objects
+        .iter()
+        .map(|o| {
+            let mut obj = ObjectSpec::new(&o.model);
+            obj.obj_id = Some(o.obj_id);
+            obj.units = Some(o.units.clone());
+            match fitted.get(&o.obj_id) {
+                Some(f) => {
+                    obj.up = f.up;
+                    obj.tilt_deg = f.tilt_deg;
+                }
+                None => obj.up = s.unseen_up,
+            }
+            obj
+        })
+        .collect();
+    let unseen: Vec<String> = s
+        .objects
+        .iter()
+        .filter(|o| !fitted.contains_key(&o.obj_id))
+        .map(|o| o.obj_id.to_string())
+        .collect();
+    if !unseen.is_empty() {
+        notes.push(format!(
+            "objects {}: no fit frame shows them, so their rest pose is --unseen-up {} in the synthetic sets",
+            unseen.join(", "),
+            s.unseen_up
+        ));
+    }
+    set_camera(&mut spec, k);
+    Ok(spec)
+}
+
+fn set_camera(spec: &mut SceneSpec, k: &synthgen_core::Intrinsics) {
+    spec.camera.width = Some(k.width);
+    spec.camera.height = Some(k.height);
+    spec.camera.fx = Some(k.fx);
+    spec.camera.fy = Some(k.fy);
+    spec.camera.cx = Some(k.cx);
+    spec.camera.cy = Some(k.cy);
+}
+
+/// The scene of a variant (`None`: skipped, with a note why).
+fn variant_scene(
+    v: &Variant,
+    base: &SceneSpec,
+    s: &Settings,
+    k: &synthgen_core::Intrinsics,
+    notes: &mut Vec<String>,
+) -> Result<Option<SceneSpec>> {
+    let mut spec = base.clone();
+    match v.name {
+        "synth_fitted" => {}
+        "synth_no_sensor" => {
+            spec.sensor.depth = DepthModel::None;
+        }
+        "synth_d455" => {
+            let rgb = spec.sensor.rgb.clone();
+            spec.sensor = SensorSpec::builtin("d455").unwrap_or_default();
+            spec.sensor.rgb = rgb;
+        }
+        "ablation_no_scene_fit" => {
+            let mut d = SceneSpec {
+                sensor: base.sensor.clone(),
+                objects: base.objects.clone(),
+                ..SceneSpec::default()
+            };
+            for o in &mut d.objects {
+                o.up = UpAxis::default();
+                o.tilt_deg = 0.0;
+            }
+            set_camera(&mut d, k);
+            spec = d;
+        }
+        "ablation_distractors" => spec.distractors.count = [1, 3],
+        "ablation_textures" => match textures_dir() {
+            Some(t) => {
+                spec.ground.texture_dir = Some(t.join("ground"));
+                spec.walls.count = [2, 4];
+                spec.walls.texture_dir = Some(t.join("walls"));
+            }
+            None => {
+                notes.push(
+                    "ablation_textures skipped: no textures/ folder here (run from the repository)"
+                        .into(),
+                );
+                return Ok(None);
+            }
+        },
+        "ablation_physics" => spec.placement.mode = PlacementMode::Physics,
+        _ => {}
+    }
+    let _ = s;
+    spec.validate()?;
+    Ok(Some(spec))
+}
+
+/// The shipped procedural textures: `./textures`, else the repository's.
+fn textures_dir() -> Option<PathBuf> {
+    [
+        PathBuf::from("textures"),
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../textures"),
+    ]
+    .into_iter()
+    .find(|p| p.join("ground").is_dir() && p.join("walls").is_dir())
+    .and_then(|p| p.canonicalize().ok())
+}
+
+/// Renders a variant's set into `sources/NAME` unless a finished render of the same scene and
+/// arguments is there (`sources/NAME.done`). The flag: rendered now.
+fn ensure_render(
+    s: &Settings,
+    out: &Path,
+    name: &str,
+    spec: &SceneSpec,
+    printer: &Printer,
+) -> Result<(PathBuf, bool)> {
+    let sources = out.join("sources");
+    std::fs::create_dir_all(&sources)
+        .with_context(|| format!("cannot create {}", sources.display()))?;
+    let dir = std::path::absolute(sources.join(name))?;
+    let scene_path = sources.join(format!("{name}.toml"));
+    let scene_text = spec.to_toml();
+    let mut argv: Vec<String> = vec![
+        "render".into(),
+        "--scene".into(),
+        std::path::absolute(&scene_path)?.display().to_string(),
+        "--frames".into(),
+        s.frames.to_string(),
+        "--seed".into(),
+        s.seed.to_string(),
+        "--out".into(),
+        dir.display().to_string(),
+    ];
+    if s.quick {
+        let k = spec.camera.intrinsics()?;
+        argv.extend([
+            "--image-size".into(),
+            format!("{},{}", (k.width / 4).max(8), (k.height / 4).max(8)),
+            "--camera-k".into(),
+            format!(
+                "{},{},{},{}",
+                k.fx / 4.0,
+                k.fy / 4.0,
+                k.cx / 4.0,
+                k.cy / 4.0
+            ),
+        ]);
+    }
+    let record = serde_json::to_string_pretty(&serde_json::json!({
+        "argv": argv, "scene": scene_text
+    }))? + "\n";
+    let marker = sources.join(format!("{name}.done"));
+    if std::fs::read_to_string(&marker).is_ok_and(|t| t == record) && dir.is_dir() {
+        printer.info(format!("reusing {} (rendered earlier)", dir.display()));
+        return Ok((dir, false));
+    }
+    if dir.exists() {
+        std::fs::remove_dir_all(&dir)
+            .with_context(|| format!("cannot remove {}", dir.display()))?;
+    }
+    atomic_write(&scene_path, scene_text.as_bytes())?;
+    printer.info(format!("rendering {name}: synthgen {}", argv.join(" ")));
+    let cli = Cli::try_parse_from(std::iter::once("synthgen".to_string()).chain(argv))
+        .context("internal: the render arguments do not parse")?;
+    let Command::Render(args) = cli.command else {
+        anyhow::bail!("internal: not a render command");
+    };
+    if crate::commands::render::run(*args, printer)? != ExitStatus::Success {
+        return Err(user_error(
+            format!("some frames of {} failed to render", dir.display()),
+            "see the warnings above",
+        ));
+    }
+    atomic_write(&marker, record.as_bytes())?;
+    Ok((dir, true))
+}

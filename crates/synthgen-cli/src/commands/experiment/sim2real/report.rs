@@ -1,0 +1,280 @@
+//! `report.md`, `report.json` and `plot.png` of `experiment sim2real`.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::Path;
+
+use anyhow::Result;
+use serde::{Deserialize, Serialize};
+use synthgen_dataset::draw::Canvas;
+use synthgen_dataset::io::atomic_write;
+
+use super::rows::{Metrics, RowRecord, NAIVE};
+use super::{Settings, REAL_ONLY};
+
+/// The row whose numbers are the result (`all`, `objects`); the others are baselines.
+pub const MAIN_ROW: &str = "synth_fitted";
+
+/// Seconds each step took when it was computed (kept in `timing.json`, so that a resumed
+/// run still reports them), and this run's wall time.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct Timing {
+    pub fit_s: f64,
+    /// Per rendered set.
+    pub render_s: BTreeMap<String, f64>,
+    /// Per row: training (with loading) and scoring.
+    #[serde(default)]
+    pub rows_s: BTreeMap<String, f64>,
+    /// The fits, renders and rows together, whenever they were computed.
+    #[serde(default)]
+    pub steps_total_s: f64,
+    /// This invocation.
+    #[serde(default)]
+    pub this_run_s: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Baseline {
+    pub all: Metrics,
+    pub objects: BTreeMap<String, Metrics>,
+}
+
+/// `report.json`: the schema scripts depend on (`all`, `objects`, `baselines`), then the
+/// rows in full, the settings and the timing.
+#[derive(Debug, Clone, Serialize)]
+pub struct Report {
+    pub all: Option<Metrics>,
+    pub objects: BTreeMap<String, Metrics>,
+    pub baselines: BTreeMap<String, Baseline>,
+    pub rows: Vec<RowRecord>,
+    pub settings: Settings,
+    pub timing: Timing,
+    pub notes: Vec<String>,
+}
+
+impl Report {
+    pub fn new(
+        settings: &Settings,
+        rows: Vec<RowRecord>,
+        timing: Timing,
+        notes: Vec<String>,
+    ) -> Report {
+        let main = rows.iter().find(|r| r.name == MAIN_ROW);
+        Report {
+            all: main.map(|r| r.all.clone()),
+            objects: main.map(|r| r.objects.clone()).unwrap_or_default(),
+            baselines: rows
+                .iter()
+                .filter(|r| r.name != MAIN_ROW)
+                .map(|r| {
+                    (
+                        r.name.clone(),
+                        Baseline {
+                            all: r.all.clone(),
+                            objects: r.objects.clone(),
+                        },
+                    )
+                })
+                .collect(),
+            rows,
+            settings: settings.clone(),
+            timing,
+            notes,
+        }
+    }
+
+    pub fn write(&self, out: &Path) -> Result<()> {
+        atomic_write(
+            &out.join("report.json"),
+            (serde_json::to_string_pretty(self)? + "\n").as_bytes(),
+        )?;
+        atomic_write(&out.join("report.md"), self.markdown().as_bytes())?;
+        self.plot().write_png(&out.join("plot.png"))?;
+        Ok(())
+    }
+
+    pub fn markdown(&self) -> String {
+        let s = &self.settings;
+        let full = s.model != "tnet";
+        let mut o = String::new();
+        let _ = writeln!(o, "# Synthetic to real: {} on real frames\n", s.model);
+        let _ = writeln!(
+            o,
+            "Test: {}{} (real depth, real visible masks). Fits: {}{}. {} synthetic frames per set, {} epochs, seed {}{}.\n",
+            s.test.display(),
+            if s.test_scenes.is_empty() {
+                String::new()
+            } else {
+                format!(", scenes {}", super::list(&s.test_scenes))
+            },
+            s.fit.display(),
+            if s.fit_scenes.is_empty() {
+                String::new()
+            } else {
+                format!(", scenes {}", super::list(&s.fit_scenes))
+            },
+            s.frames,
+            s.epochs,
+            s.seed,
+            if s.quick { " (--quick)" } else { "" }
+        );
+        let _ = write!(
+            o,
+            "| row | trained on | n | mean centre error cm | median cm |"
+        );
+        if full {
+            let _ = write!(o, " ADD(-S) % | 5cm5° % | mean te cm | mean re ° |");
+        }
+        let _ = writeln!(o);
+        let _ = write!(o, "|---|---|---:|---:|---:|");
+        if full {
+            let _ = write!(o, "---:|---:|---:|---:|");
+        }
+        let _ = writeln!(o);
+        for r in &self.rows {
+            let trained = match &r.trained_on {
+                None => "—".to_string(),
+                Some(_) => format!("{} inst., {} epochs", r.train_instances, r.epochs),
+            };
+            let name = if r.name == MAIN_ROW {
+                format!("**{}**", r.name)
+            } else {
+                r.name.clone()
+            };
+            let _ = write!(
+                o,
+                "| {name} | {trained} | {} | {:.2} | {:.2} |",
+                r.all.n, r.all.mean_centre_error_cm, r.all.median_centre_error_cm
+            );
+            if full {
+                let f =
+                    |v: Option<f64>, k: f64| v.map_or("—".into(), |v| format!("{:.2}", v * k));
+                let _ = write!(
+                    o,
+                    " {} | {} | {} | {} |",
+                    f(r.all.add_s_acc, 100.0),
+                    f(r.all.acc_5cm5deg, 100.0),
+                    f(r.all.mean_te_cm, 1.0),
+                    f(r.all.mean_re_deg, 1.0)
+                );
+            }
+            let _ = writeln!(o);
+        }
+        let _ = writeln!(o);
+        for r in &self.rows {
+            let _ = writeln!(o, "- `{}`: {}", r.name, r.what);
+        }
+        // Per object: mean centre error of every row.
+        let ids: Vec<String> = {
+            let mut v: Vec<String> = self
+                .rows
+                .iter()
+                .flat_map(|r| r.objects.keys().cloned())
+                .collect();
+            v.sort_by_key(|k| k.parse::<u32>().unwrap_or(u32::MAX));
+            v.dedup();
+            v
+        };
+        let _ = writeln!(o, "\nMean centre error (cm) per object:\n");
+        let _ = write!(o, "| object | n |");
+        for r in &self.rows {
+            let _ = write!(o, " {} |", r.name);
+        }
+        let _ = writeln!(o);
+        let _ = write!(o, "|---|---:|");
+        for _ in &self.rows {
+            let _ = write!(o, "---:|");
+        }
+        let _ = writeln!(o);
+        for id in &ids {
+            let n = self
+                .rows
+                .iter()
+                .find_map(|r| r.objects.get(id).map(|m| m.n))
+                .unwrap_or(0);
+            let _ = write!(o, "| {id} | {n} |");
+            for r in &self.rows {
+                match r.objects.get(id) {
+                    Some(m) => {
+                        let _ = write!(o, " {:.2} |", m.mean_centre_error_cm);
+                    }
+                    None => {
+                        let _ = write!(o, " — |");
+                    }
+                }
+            }
+            let _ = writeln!(o);
+        }
+        let t = &self.timing;
+        let join = |m: &BTreeMap<String, f64>| {
+            m.iter()
+                .map(|(k, v)| format!("{k} {v:.0} s"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let _ = writeln!(
+            o,
+            "\nWall time: {:.0} s for all the steps (fits {:.0} s; renders: {}; rows, training and scoring: {}); this invocation {:.0} s.",
+            t.steps_total_s,
+            t.fit_s,
+            join(&t.render_s),
+            join(&t.rows_s),
+            t.this_run_s
+        );
+        for n in &self.notes {
+            let _ = writeln!(o, "\nNote: {n}");
+        }
+        o
+    }
+
+    /// Horizontal bars of the mean centre error per row (the result in blue, synthetic
+    /// baselines orange, real-only green, naive grey), median as a dark tick.
+    pub fn plot(&self) -> Canvas {
+        let (w, row_h, top, left) = (760i64, 34i64, 40i64, 250i64);
+        let h = top + row_h * self.rows.len() as i64 + 40;
+        let mut c = Canvas::new(w as u32, h as u32, [255, 255, 255]);
+        c.label(
+            10,
+            12,
+            "MEAN CENTRE ERROR ON THE REAL TEST FRAMES, CM (TICK: MEDIAN)",
+            2,
+            [20, 20, 20],
+        );
+        let max = self
+            .rows
+            .iter()
+            .map(|r| r.all.mean_centre_error_cm.max(r.all.median_centre_error_cm))
+            .filter(|v| v.is_finite())
+            .fold(0.0, f64::max)
+            .max(0.1);
+        let scale = (w - left - 80) as f64 / max;
+        for (k, r) in self.rows.iter().enumerate() {
+            let y = top + k as i64 * row_h;
+            let color = match r.name.as_str() {
+                MAIN_ROW => [31, 119, 180],
+                REAL_ONLY => [44, 160, 44],
+                NAIVE => [150, 150, 150],
+                _ => [255, 127, 14],
+            };
+            c.label(10, y + 10, &r.name.to_uppercase(), 2, [20, 20, 20]);
+            let v = r.all.mean_centre_error_cm;
+            if v.is_finite() {
+                let len = (v * scale).round() as i64;
+                c.fill_rect(left, y + 4, len.max(1), row_h - 10, color);
+                c.label(left + len + 6, y + 10, &format!("{v:.2}"), 2, [20, 20, 20]);
+            }
+            let m = r.all.median_centre_error_cm;
+            if m.is_finite() {
+                let x = left + (m * scale).round() as i64;
+                c.fill_rect(x - 1, y + 1, 3, row_h - 4, [20, 20, 20]);
+            }
+        }
+        c.line(
+            (left as f64, top as f64 - 4.0),
+            (left as f64, (h - 36) as f64),
+            [60, 60, 60],
+            2,
+        );
+        c
+    }
+}

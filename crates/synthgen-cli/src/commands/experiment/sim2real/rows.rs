@@ -1,0 +1,383 @@
+//! The rows of `experiment sim2real`: a model trained on one dataset (synthetic or real),
+//! or the naive centroid, scored on the real test instances, overall and per object.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use serde::{Deserialize, Serialize};
+use synthgen_core::NoProgress;
+use synthgen_dataset::io::atomic_write;
+use synthgen_dataset::source::FrameSource;
+use synthgen_train::data::{load_source_instances, DataOptions, Instance};
+use synthgen_train::eval::{read_gt, score_predictions, GtInstance};
+use synthgen_train::models::tnet::DEFAULT_SCALE;
+use synthgen_train::models::ModelKind;
+use synthgen_train::pose_model::{load_dataset_objects, Objects, Prediction};
+use synthgen_train::train::{
+    self, centre_error_m, load_model, EpochMetrics, Schedule, TrainConfig, TrainObserver,
+    MODEL_FILE,
+};
+
+use super::Settings;
+use crate::Printer;
+
+/// The completion record of a row, in `rows/NAME/`.
+pub const ROW_FILE: &str = "row.json";
+/// Instances below this visible fraction are neither trained on nor scored (BOP's rule).
+pub const MIN_VISIB_FRACT: f64 = 0.1;
+/// Model points per object in the full model's loss.
+const LOSS_POINTS: usize = 100;
+
+/// Errors on a set of instances (the names `report.json` promises).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Metrics {
+    pub n: usize,
+    pub mean_centre_error_cm: f64,
+    pub median_centre_error_cm: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub add_s_acc: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub acc_5cm5deg: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mean_te_cm: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mean_re_deg: Option<f64>,
+}
+
+/// `row.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RowRecord {
+    pub name: String,
+    /// What the row is, in words.
+    pub what: String,
+    /// The training set (None: no training).
+    pub trained_on: Option<PathBuf>,
+    pub train_instances: usize,
+    pub epochs: usize,
+    pub all: Metrics,
+    /// Per object id.
+    pub objects: BTreeMap<String, Metrics>,
+    pub last_epoch: Option<EpochMetrics>,
+    pub seconds_train: f64,
+    pub seconds_eval: f64,
+}
+
+pub fn row_dir(out: &Path, name: &str) -> PathBuf {
+    out.join("rows").join(name)
+}
+
+/// The finished row's record, if one reads.
+pub fn read_record(out: &Path, name: &str) -> Option<RowRecord> {
+    let text = std::fs::read_to_string(row_dir(out, name).join(ROW_FILE)).ok()?;
+    serde_json::from_str(&text).ok()
+}
+
+fn write_record(out: &Path, r: &RowRecord) -> Result<()> {
+    let text = serde_json::to_string_pretty(r)? + "\n";
+    atomic_write(&row_dir(out, &r.name).join(ROW_FILE), text.as_bytes())?;
+    Ok(())
+}
+
+/// The real test instances, loaded once for every row.
+pub struct TestSet {
+    pub instances: Vec<Instance>,
+    /// GT instances for the rotation metrics of `full` (every one counts).
+    pub gts: Vec<GtInstance>,
+    /// The objects' models for `full`'s metrics.
+    pub objects: Option<Objects>,
+}
+
+fn model_kind(s: &Settings) -> ModelKind {
+    match s.model.as_str() {
+        "full" => ModelKind::Full,
+        "rnet" => ModelKind::Rnet,
+        _ => ModelKind::Tnet,
+    }
+}
+
+fn data_options(s: &Settings, seed: u64, split: Option<String>) -> DataOptions {
+    DataOptions {
+        n_points: s.points,
+        min_visib_fract: MIN_VISIB_FRACT,
+        seed,
+        split,
+        crop_size: if model_kind(s).needs_rgb() { 48 } else { 0 },
+        ..DataOptions::default()
+    }
+}
+
+/// Loads the test frames' instances (the chosen scenes), with their real depth and visible
+/// masks.
+pub fn load_test(s: &Settings, test: &dyn FrameSource, scenes: &[u32]) -> Result<TestSet> {
+    let set = load_source_instances(test, &data_options(s, s.seed, None), &NoProgress)
+        .with_context(|| format!("cannot load the test frames of {}", test.root().display()))?;
+    let keep = |scene: u32| scenes.is_empty() || scenes.contains(&scene);
+    let instances: Vec<Instance> = set
+        .instances
+        .into_iter()
+        .filter(|i| keep(i.scene_id))
+        .collect();
+    if instances.is_empty() {
+        anyhow::bail!(
+            "no test instance with enough depth readings in {}",
+            test.root().display()
+        );
+    }
+    let (gts, objects) = if model_kind(s) == ModelKind::Tnet {
+        (Vec::new(), None)
+    } else {
+        let ids: BTreeSet<u32> = instances.iter().map(|i| i.obj_id).collect();
+        let gts = read_gt(test, &set.split, MIN_VISIB_FRACT)?
+            .into_iter()
+            .filter(|g| keep(g.scene_id))
+            .collect();
+        (gts, Some(load_dataset_objects(test, ids, LOSS_POINTS)?))
+    };
+    Ok(TestSet {
+        instances,
+        gts,
+        objects,
+    })
+}
+
+/// Advances the bar once per epoch; the message shows the row and its loss.
+struct Observer<'a> {
+    printer: &'a Printer,
+    name: &'a str,
+}
+
+impl TrainObserver for Observer<'_> {
+    fn epoch_start(&self, epoch: usize, epochs: usize, _steps: usize) {
+        self.printer
+            .set_message(format!("{} epoch {epoch}/{epochs}", self.name));
+    }
+
+    fn epoch_end(&self, m: &EpochMetrics) {
+        self.printer.set_message(format!(
+            "{} epoch {} loss {:.4}",
+            self.name, m.epoch, m.train_loss
+        ));
+    }
+}
+
+/// What to train a row on.
+pub struct TrainSpec<'a> {
+    pub name: &'a str,
+    pub what: String,
+    pub data: &'a dyn FrameSource,
+    /// Only these scenes of `data` (all when empty).
+    pub scenes: &'a [u32],
+    /// Epochs, or `None` for as many optimizer steps as `steps` gives.
+    pub epochs: Option<usize>,
+    pub steps: Option<usize>,
+}
+
+/// Trains a model on `spec.data` and scores it on `test` (a row from scratch; `row.json`
+/// last).
+pub fn train_row(
+    s: &Settings,
+    out: &Path,
+    spec: &TrainSpec,
+    test: &TestSet,
+    printer: &Printer,
+) -> Result<RowRecord> {
+    let dir = row_dir(out, spec.name);
+    if dir.exists() {
+        std::fs::remove_dir_all(&dir)
+            .with_context(|| format!("cannot remove {}", dir.display()))?;
+    }
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let t0 = Instant::now();
+    let set = load_source_instances(spec.data, &data_options(s, s.seed, None), &NoProgress)
+        .with_context(|| format!("cannot load {}", spec.data.root().display()))?;
+    let mut set = set;
+    if !spec.scenes.is_empty() {
+        set.instances.retain(|i| spec.scenes.contains(&i.scene_id));
+    }
+    if set.instances.is_empty() {
+        anyhow::bail!(
+            "no usable training instance in {}",
+            spec.data.root().display()
+        );
+    }
+    let model = model_kind(s);
+    let objects = if model == ModelKind::Tnet {
+        None
+    } else {
+        Some(load_dataset_objects(spec.data, set.obj_ids(), LOSS_POINTS)?)
+    };
+    let per_epoch = set.instances.len().div_ceil(s.batch).max(1);
+    let epochs = match (spec.epochs, spec.steps) {
+        (Some(e), _) => e,
+        (None, Some(steps)) => steps.div_ceil(per_epoch).clamp(1, 2000),
+        (None, None) => s.epochs,
+    };
+    let cfg = TrainConfig {
+        model,
+        width: s.width,
+        n_points: s.points,
+        normalization_scale: DEFAULT_SCALE,
+        epochs,
+        batch: s.batch,
+        lr: s.lr,
+        weight_decay: 1e-4,
+        schedule: Schedule::Cosine,
+        seed: s.seed,
+        val_fraction: 0.1,
+        min_visib_fract: MIN_VISIB_FRACT,
+        data: spec.data.root().to_path_buf(),
+        split: set.split.clone(),
+        crop_size: if model.needs_rgb() { 48 } else { 0 },
+        loss_points: LOSS_POINTS,
+        init: Vec::new(),
+        plain_add_loss: false,
+    };
+    let run_dir = dir.join("train");
+    let device = train::device(false)?;
+    let outcome = train::train(
+        &cfg,
+        &set,
+        objects.as_ref(),
+        &run_dir,
+        false,
+        &device,
+        &Observer {
+            printer,
+            name: spec.name,
+        },
+    )?;
+    let seconds_train = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    let net = load_model(&run_dir.join(MODEL_FILE), &cfg, &device)?;
+    let tested: Vec<&Instance> = test.instances.iter().collect();
+    let preds = net.predict(&tested, test.objects.as_ref(), 64)?;
+    let (all, objects_m) = score(&tested, &preds, test)?;
+    let record = RowRecord {
+        name: spec.name.to_string(),
+        what: spec.what.clone(),
+        trained_on: Some(spec.data.root().to_path_buf()),
+        train_instances: outcome.n_train,
+        epochs,
+        all,
+        objects: objects_m,
+        last_epoch: outcome.history.last().cloned(),
+        seconds_train,
+        seconds_eval: t1.elapsed().as_secs_f64(),
+    };
+    write_record(out, &record)?;
+    Ok(record)
+}
+
+/// The naive baseline: the centre is the mean of the instance's masked depth points.
+pub fn naive_row(out: &Path, test: &TestSet) -> Result<RowRecord> {
+    let t0 = Instant::now();
+    std::fs::create_dir_all(row_dir(out, NAIVE))?;
+    let errors: Vec<(u32, f64)> = test
+        .instances
+        .iter()
+        .map(|i| (i.obj_id, centre_error_m(centroid(&i.points_m), i)))
+        .collect();
+    let record = RowRecord {
+        name: NAIVE.into(),
+        what: "the mean of the masked real depth points as the centre (no training)".into(),
+        trained_on: None,
+        train_instances: 0,
+        epochs: 0,
+        all: centre_metrics(errors.iter().map(|e| e.1)),
+        objects: per_object(&errors)
+            .into_iter()
+            .map(|(id, v)| (id.to_string(), centre_metrics(v.into_iter())))
+            .collect(),
+        last_epoch: None,
+        seconds_train: 0.0,
+        seconds_eval: t0.elapsed().as_secs_f64(),
+    };
+    write_record(out, &record)?;
+    Ok(record)
+}
+
+pub const NAIVE: &str = "naive_centroid";
+
+fn centroid(points: &[[f32; 3]]) -> [f32; 3] {
+    let n = points.len().max(1) as f64;
+    let mut c = [0f64; 3];
+    for p in points {
+        for k in 0..3 {
+            c[k] += f64::from(p[k]);
+        }
+    }
+    [(c[0] / n) as f32, (c[1] / n) as f32, (c[2] / n) as f32]
+}
+
+fn per_object(errors: &[(u32, f64)]) -> BTreeMap<u32, Vec<f64>> {
+    let mut m: BTreeMap<u32, Vec<f64>> = BTreeMap::new();
+    for &(id, e) in errors {
+        m.entry(id).or_default().push(e);
+    }
+    m
+}
+
+/// Mean and median of centre errors given in metres, reported in cm.
+fn centre_metrics(errors_m: impl Iterator<Item = f64>) -> Metrics {
+    let mut v: Vec<f64> = errors_m.filter(|e| e.is_finite()).collect();
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    let mean = if n == 0 {
+        f64::NAN
+    } else {
+        100.0 * v.iter().sum::<f64>() / n as f64
+    };
+    let median = if n == 0 {
+        f64::NAN
+    } else if n % 2 == 1 {
+        100.0 * v[n / 2]
+    } else {
+        50.0 * (v[n / 2 - 1] + v[n / 2])
+    };
+    Metrics {
+        n,
+        mean_centre_error_cm: mean,
+        median_centre_error_cm: median,
+        add_s_acc: None,
+        acc_5cm5deg: None,
+        mean_te_cm: None,
+        mean_re_deg: None,
+    }
+}
+
+/// Centre errors (all models that predict a centre) and, for rotation models, the ADD(-S),
+/// 5cm5° and mean errors as `synthgen eval --checkpoint` scores them.
+fn score(
+    tested: &[&Instance],
+    preds: &[Prediction],
+    test: &TestSet,
+) -> Result<(Metrics, BTreeMap<String, Metrics>)> {
+    let errors: Vec<(u32, f64)> = preds
+        .iter()
+        .zip(tested)
+        .filter_map(|(p, i)| p.centre_m.map(|c| (i.obj_id, centre_error_m(c, i))))
+        .collect();
+    let mut all = centre_metrics(errors.iter().map(|e| e.1));
+    let mut objects: BTreeMap<String, Metrics> = per_object(&errors)
+        .into_iter()
+        .map(|(id, v)| (id.to_string(), centre_metrics(v.into_iter())))
+        .collect();
+    if let Some(objs) = &test.objects {
+        let report = score_predictions(preds, tested.iter().copied(), &test.gts, objs)?;
+        let fill = |m: &mut Metrics, s: &synthgen_train::eval::ObjectScores| {
+            m.add_s_acc = Some(s.add_s_acc);
+            m.acc_5cm5deg = Some(s.acc_5cm5deg);
+            m.mean_te_cm = s.mean_te_cm;
+            m.mean_re_deg = s.mean_re_deg;
+        };
+        fill(&mut all, &report.all);
+        for (id, sc) in &report.per_object {
+            if let Some(m) = objects.get_mut(&id.to_string()) {
+                fill(m, sc);
+            }
+        }
+    }
+    Ok((all, objects))
+}

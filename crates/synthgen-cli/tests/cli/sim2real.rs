@@ -1,0 +1,226 @@
+//! `synthgen experiment sim2real --quick` end to end on the real YCB-Video frames (test scene
+//! 2 held out of the fits): fits, renders, rows, report; resume; bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::Output;
+
+use serde_json::Value;
+
+use crate::common::{run, shared_data, stderr, synthgen};
+
+fn ycbv_real() -> Option<PathBuf> {
+    shared_data().map(|d| d.join("ycbv_real"))
+}
+
+fn sim2real(fit: &Path, test: &Path, out: &Path, extra: &[&str]) -> Output {
+    run(synthgen()
+        .args(["experiment", "sim2real", "--quick", "--fit"])
+        .arg(fit)
+        .arg("--test")
+        .arg(test)
+        .arg("--out")
+        .arg(out)
+        .args(extra))
+}
+
+fn refused(o: &Output, words: &[&str]) {
+    let e = stderr(o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    for w in words {
+        assert!(e.contains(w), "{w:?} not in: {e}");
+    }
+}
+
+#[test]
+fn quick_sim2real_on_real_frames_reports_every_row_and_resumes() {
+    let Some(real) = ycbv_real() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("s2r");
+    let o = sim2real(
+        &real,
+        &real,
+        &out,
+        &["--test-scenes", "2", "--frames", "24", "--unseen-up", "any"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+
+    // The fits saw scenes 0 and 1 only.
+    let settings: Value =
+        serde_json::from_slice(&std::fs::read(out.join("experiment.json")).unwrap()).unwrap();
+    assert_eq!(settings["fit_scenes"], serde_json::json!([0, 1]));
+    assert_eq!(settings["test_scenes"], serde_json::json!([2]));
+    let sensor = std::fs::read_to_string(out.join("fit/sensor.toml")).unwrap();
+    assert!(sensor.contains("scenes 0,1"), "{sensor}");
+    // The objects are scene 2's: 5, 7, 9, 10, 16, 18.
+    let ids: Vec<u64> = settings["objects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|o| o["obj_id"].as_u64().unwrap())
+        .collect();
+    assert_eq!(ids, [5, 7, 9, 10, 16, 18]);
+    // Object 5 (mustard bottle) stands in the fit scenes: its fitted rest pose (+z); the
+    // others no fit frame shows: --unseen-up.
+    let scene =
+        synthgen_core::SceneSpec::from_toml_file(&out.join("sources/synth_fitted.toml")).unwrap();
+    for o in &scene.objects {
+        let want = if o.obj_id == Some(5) { "+z" } else { "any" };
+        assert_eq!(o.up.as_str(), want, "object {:?}", o.obj_id);
+    }
+
+    // report.json has the promised schema and finite numbers.
+    let r: Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    let check = |m: &Value| {
+        assert!(m["n"].as_u64().unwrap() > 0, "{m}");
+        for k in ["mean_centre_error_cm", "median_centre_error_cm"] {
+            let v = m[k].as_f64().unwrap();
+            assert!(v.is_finite() && v > 0.0, "{k}: {m}");
+        }
+    };
+    check(&r["all"]);
+    // 20 frames × 6 objects, every one with depth readings.
+    assert_eq!(r["all"]["n"], 120);
+    for id in ["5", "7", "9", "10", "16", "18"] {
+        check(&r["objects"][id]);
+    }
+    for b in [
+        "naive_centroid",
+        "real_only",
+        "synth_no_sensor",
+        "synth_d455",
+    ] {
+        check(&r["baselines"][b]["all"]);
+        assert!(r["baselines"][b]["objects"].is_object(), "{b}");
+    }
+    // The naive centroid on these frames: a few cm (the visible surface is nearer than the
+    // centre).
+    let naive = r["baselines"]["naive_centroid"]["all"]["mean_centre_error_cm"]
+        .as_f64()
+        .unwrap();
+    assert!((1.0..6.0).contains(&naive), "naive {naive} cm");
+    assert!(out.join("report.md").is_file() && out.join("plot.png").is_file());
+
+    assert_eq!(settings["unseen_up"], "any");
+    // Resume: nothing is fitted, rendered or trained again.
+    let o = sim2real(
+        &real,
+        &real,
+        &out,
+        &["--test-scenes", "2", "--frames", "24", "--unseen-up", "any"],
+    );
+    let e = stderr(&o);
+    assert!(o.status.success(), "{e}");
+    assert!(e.contains("reusing the fits"), "{e}");
+    assert!(e.contains("(0 computed now)"), "{e}");
+    // The steps' times survive the resume (timing.json); only this invocation's is new.
+    let r2: Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    let steps = |r: &Value| r["timing"]["steps_total_s"].as_f64().unwrap();
+    assert!(steps(&r) > 0.0 && steps(&r2) == steps(&r), "{r2}");
+    assert_eq!(r2["timing"]["render_s"], r["timing"]["render_s"]);
+    // Other settings in the same folder are refused.
+    let o = sim2real(
+        &real,
+        &real,
+        &out,
+        &["--test-scenes", "1", "--frames", "24"],
+    );
+    refused(&o, &["other settings"]);
+}
+
+#[test]
+fn quick_full_model_reports_the_pose_metrics() {
+    let Some(real) = ycbv_real() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("s2r_full");
+    let o = sim2real(
+        &real,
+        &real,
+        &out,
+        &["--test-scenes", "1", "--frames", "16", "--model", "full"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r: Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    let pose_metrics = |m: &Value, what: &str| {
+        for k in ["add_s_acc", "acc_5cm5deg"] {
+            let v = m[k].as_f64().unwrap_or_else(|| panic!("{what} {k}: {m}"));
+            assert!((0.0..=1.0).contains(&v), "{what} {k}: {m}");
+        }
+        for k in ["mean_te_cm", "mean_re_deg"] {
+            let v = m[k].as_f64().unwrap_or_else(|| panic!("{what} {k}: {m}"));
+            assert!(v.is_finite() && v >= 0.0, "{what} {k}: {m}");
+        }
+    };
+    pose_metrics(&r["all"], "all");
+    for id in ["1", "2", "3", "5"] {
+        pose_metrics(&r["objects"][id], id);
+    }
+    for b in ["real_only", "synth_no_sensor", "synth_d455"] {
+        pose_metrics(&r["baselines"][b]["all"], b);
+    }
+    // The naive centroid has no rotation: only the centre errors.
+    let naive = &r["baselines"]["naive_centroid"]["all"];
+    assert!(naive["mean_centre_error_cm"].as_f64().is_some() && naive.get("add_s_acc").is_none());
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(md.contains("ADD(-S) %") && md.contains("5cm5° %"), "{md}");
+}
+
+#[test]
+fn sim2real_refuses_what_cannot_be_measured() {
+    let Some(real) = ycbv_real() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // --test is --fit without held-out scenes.
+    let o = sim2real(&real, &real, &d.join("a"), &[]);
+    refused(&o, &["no --test-scenes are held out"]);
+    // Every scene held out.
+    let o = sim2real(&real, &real, &d.join("b"), &["--test-scenes", "0,1,2"]);
+    refused(&o, &["nothing is left to fit to"]);
+    // An unknown scene.
+    let o = sim2real(&real, &real, &d.join("c"), &["--test-scenes", "9"]);
+    refused(&o, &["scene 9 is not in", "scenes: 0,1,2"]);
+
+    // A test set converted to BOP without its models and without depth.
+    let bop = d.join("bop");
+    let o = run(synthgen()
+        .args(["convert", "-q", "--to", "bop"])
+        .arg(&real)
+        .arg(&bop));
+    assert!(o.status.success(), "{}", stderr(&o));
+    // No model for object 21 anywhere: a fit set without models (a copy without models/).
+    std::fs::remove_file(bop.join("models/obj_000021.ply")).unwrap();
+    let nomodels = d.join("nomodels");
+    copy_dir(&real, &nomodels, &["models"]);
+    let o = sim2real(&nomodels, &bop, &d.join("e"), &["--test-scenes", "0"]);
+    refused(&o, &["test objects without a model file", "21"]);
+    // No depth in the test set.
+    std::fs::remove_dir_all(bop.join("train/000000/depth")).unwrap();
+    let o = sim2real(&real, &bop, &d.join("f"), &["--test-scenes", "0"]);
+    refused(&o, &["has no depth images"]);
+    // No overlap: test scene 0's objects (8, 14, 21) never appear in scenes 1 and 2, the fit.
+    let o = sim2real(&real, &real, &d.join("g"), &["--test-scenes", "0"]);
+    refused(
+        &o,
+        &["no test object (8, 14, 21) is annotated in the --fit frames"],
+    );
+}
+
+/// Copies `from` to `to` (files, recursively), leaving out the top-level entries `skip`.
+fn copy_dir(from: &Path, to: &Path, skip: &[&str]) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        let name = e.file_name();
+        if skip.iter().any(|s| name == *s) {
+            continue;
+        }
+        let dst = to.join(&name);
+        if e.file_type().unwrap().is_dir() {
+            copy_dir(&e.path(), &dst, &[]);
+        } else {
+            std::fs::copy(e.path(), dst).unwrap();
+        }
+    }
+}
