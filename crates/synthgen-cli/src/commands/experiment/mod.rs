@@ -437,30 +437,63 @@ fn model_name(m: ModelArg) -> &'static str {
 
 /// Writes the settings, or checks them against those of the experiment already in `out`.
 fn check_settings(out: &Path, settings: &Settings, force: bool) -> Result<()> {
-    let path = out.join(SETTINGS_FILE);
+    check_settings_file(
+        out,
+        SETTINGS_FILE,
+        settings,
+        force,
+        &["rows", "sources", TEST_SPLIT_FILE],
+        false,
+    )
+}
+
+/// Writes an experiment's settings `file` in `out`, or checks it against the one already
+/// there: the same settings resume; others are refused unless `force`, which removes the old
+/// run's `stale` folders and files first. With `refuse_foreign`, a non-empty `out` without
+/// a settings file is refused too (unless `force`).
+pub(crate) fn check_settings_file<S>(
+    out: &Path,
+    file: &str,
+    settings: &S,
+    force: bool,
+    stale: &[&str],
+    refuse_foreign: bool,
+) -> Result<()>
+where
+    S: Serialize + serde::de::DeserializeOwned + PartialEq,
+{
+    let path = out.join(file);
     if let Ok(text) = std::fs::read_to_string(&path) {
-        let same = serde_json::from_str::<Settings>(&text).is_ok_and(|s| &s == settings);
+        let same = serde_json::from_str::<S>(&text).is_ok_and(|s| &s == settings);
         if same {
             return Ok(());
         }
         if !force {
             return Err(user_error(
                 format!(
-                    "{} holds an experiment with other settings ({SETTINGS_FILE} differs)",
+                    "{} holds an experiment with other settings ({file} differs)",
                     out.display()
                 ),
                 "pass the same options to resume it, choose another --out, or add --force to start over",
             ));
         }
-        for dir in ["rows", "sources"] {
-            let p = out.join(dir);
+        for name in stale {
+            let p = out.join(name);
             if p.is_dir() {
                 std::fs::remove_dir_all(&p)
                     .with_context(|| format!("cannot remove {}", p.display()))?;
+            } else if p.is_file() {
+                std::fs::remove_file(&p)
+                    .with_context(|| format!("cannot remove {}", p.display()))?;
             }
         }
-        let _ = std::fs::remove_file(out.join(TEST_SPLIT_FILE));
+    } else if refuse_foreign && out.is_dir() && !synthgen_dataset::output::is_empty(out) && !force {
+        return Err(user_error(
+            format!("output folder is not empty: {}", out.display()),
+            "choose another --out, or pass --force",
+        ));
     }
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
     let text = serde_json::to_string_pretty(settings)? + "\n";
     atomic_write(&path, text.as_bytes())?;
     Ok(())

@@ -148,6 +148,11 @@ pub fn row_dir(out: &Path, name: &str) -> PathBuf {
 
 /// The finished row's record, if it has one that reads.
 pub fn read_record(out: &Path, name: &str) -> Option<RowRecord> {
+    read_row_file(out, name)
+}
+
+/// `rows/NAME/row.json` as `T`, if it reads (an experiment's completion record of a row).
+pub fn read_row_file<T: serde::de::DeserializeOwned>(out: &Path, name: &str) -> Option<T> {
     let text = std::fs::read_to_string(row_dir(out, name).join(ROW_FILE)).ok()?;
     serde_json::from_str(&text).ok()
 }

@@ -23,7 +23,7 @@ use synthgen_dataset::output::{check_apart, OutputLock};
 use synthgen_dataset::source::{open_source, FrameSource, SourceFrame};
 
 use self::rows::{RowRecord, TrainSpec};
-use crate::cli::{Cli, Command, ExperimentSim2realArgs, ModelArg};
+use crate::cli::{Cli, Command, ExperimentSim2realArgs};
 use crate::commands::user_error;
 use crate::{ExitStatus, Printer};
 
@@ -198,12 +198,7 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
         test_scenes: args.test_scenes.clone(),
         fit_scenes: fit_scenes.clone(),
         objects,
-        model: match args.model {
-            ModelArg::Tnet => "tnet",
-            ModelArg::Rnet => "rnet",
-            ModelArg::Full => "full",
-        }
-        .into(),
+        model: super::model_name(args.model).into(),
         frames,
         epochs,
         batch,
@@ -513,38 +508,14 @@ fn most_common_k(frames: &[SourceFrame], w: u32, h: u32) -> synthgen_core::Intri
 
 /// Writes the settings, or checks them against those of the experiment already in `out`.
 fn check_settings(out: &Path, settings: &Settings, force: bool) -> Result<()> {
-    let path = out.join(SETTINGS_FILE);
-    if let Ok(text) = std::fs::read_to_string(&path) {
-        let same = serde_json::from_str::<Settings>(&text).is_ok_and(|s| &s == settings);
-        if same {
-            return Ok(());
-        }
-        if !force {
-            return Err(user_error(
-                format!(
-                    "{} holds an experiment with other settings ({SETTINGS_FILE} differs)",
-                    out.display()
-                ),
-                "pass the same options to resume it, choose another --out, or add --force to start over",
-            ));
-        }
-        for dir in ["rows", "sources", "fit"] {
-            let p = out.join(dir);
-            if p.is_dir() {
-                std::fs::remove_dir_all(&p)
-                    .with_context(|| format!("cannot remove {}", p.display()))?;
-            }
-        }
-    } else if out.is_dir() && !synthgen_dataset::output::is_empty(out) && !force {
-        return Err(user_error(
-            format!("output folder is not empty: {}", out.display()),
-            "choose another --out, or pass --force",
-        ));
-    }
-    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
-    let text = serde_json::to_string_pretty(settings)? + "\n";
-    atomic_write(&path, text.as_bytes())?;
-    Ok(())
+    super::check_settings_file(
+        out,
+        SETTINGS_FILE,
+        settings,
+        force,
+        &["rows", "sources", "fit", TIMING_FILE],
+        true,
+    )
 }
 
 /// Where the steps' times are kept between runs.

@@ -21,10 +21,9 @@ use synthgen_train::train::{
 };
 
 use super::Settings;
+use crate::commands::experiment::row::{read_row_file, row_dir, ROW_FILE};
 use crate::Printer;
 
-/// The completion record of a row, in `rows/NAME/`.
-pub const ROW_FILE: &str = "row.json";
 /// Instances below this visible fraction are neither trained on nor scored (BOP's rule).
 pub const MIN_VISIB_FRACT: f64 = 0.1;
 /// Model points per object in the full model's loss.
@@ -64,14 +63,9 @@ pub struct RowRecord {
     pub seconds_eval: f64,
 }
 
-pub fn row_dir(out: &Path, name: &str) -> PathBuf {
-    out.join("rows").join(name)
-}
-
 /// The finished row's record, if one reads.
 pub fn read_record(out: &Path, name: &str) -> Option<RowRecord> {
-    let text = std::fs::read_to_string(row_dir(out, name).join(ROW_FILE)).ok()?;
-    serde_json::from_str(&text).ok()
+    read_row_file(out, name)
 }
 
 fn write_record(out: &Path, r: &RowRecord) -> Result<()> {
