@@ -105,6 +105,10 @@ impl Progress for Printer {
         self.warning(message);
     }
 
+    fn info(&self, message: &str) {
+        Printer::info(self, message);
+    }
+
     fn finish(&self) {
         if let Ok(mut b) = self.bar.lock() {
             if let Some(bar) = b.take() {

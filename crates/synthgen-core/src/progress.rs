@@ -8,6 +8,8 @@ pub trait Progress: Sync {
     fn advance(&self, _n: u64) {}
     /// A non-fatal problem worth telling the user about (a missing texture, a fallback).
     fn warn(&self, _message: &str) {}
+    /// An informational line (which units a mesh was read in, what was loaded), for a log.
+    fn info(&self, _message: &str) {}
     fn finish(&self) {}
 }
 

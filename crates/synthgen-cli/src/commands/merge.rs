@@ -8,8 +8,8 @@ use synthgen_dataset::bop::merge::{merge, MergeOptions};
 use synthgen_dataset::manifest::{read_manifest, write_manifest, Manifest};
 
 use crate::cli::MergeArgs;
-use crate::commands::render_resume::RUN_PLAN;
 use synthgen_dataset::output::{check_apart, is_empty, OutputLock};
+use synthgen_pipeline::RUN_PLAN;
 
 use crate::commands::user_error;
 use crate::{ExitStatus, Printer};

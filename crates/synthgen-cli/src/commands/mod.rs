@@ -32,6 +32,8 @@ pub fn exit_status_for(err: &anyhow::Error) -> ExitStatus {
             || is_train_user_error(c)
             || c.is::<std::io::Error>()
             || c.is::<UserError>()
+            || c.downcast_ref::<synthgen_pipeline::Error>()
+                .is_some_and(synthgen_pipeline::Error::is_user_error)
     });
     if user {
         ExitStatus::Failure
@@ -69,10 +71,13 @@ pub fn user_error(message: impl Into<String>, hint: impl Into<String>) -> anyhow
 }
 
 pub fn hint_for(err: &anyhow::Error) -> Option<String> {
-    let given = err
-        .chain()
-        .find_map(|c| c.downcast_ref::<UserError>())
-        .and_then(|u| u.hint.clone());
+    let given = err.chain().find_map(|c| {
+        if let Some(u) = c.downcast_ref::<UserError>() {
+            return u.hint.clone();
+        }
+        c.downcast_ref::<synthgen_pipeline::Error>()
+            .and_then(|e| e.hint().map(str::to_string))
+    });
     given.or_else(|| {
         // A rotation beyond the reading tolerance: say how to accept it if it is real data.
         err.chain()

@@ -17,12 +17,13 @@ use synthgen_dataset::manifest::{write_manifest, Manifest};
 use synthgen_dataset::output::{check_apart, is_empty, OutputLock};
 use synthgen_dataset::source::{open_source, FrameSource, SourceFrame};
 use synthgen_dataset::validate::{detect_layout, Layout as SourceLayout};
+use synthgen_pipeline::{render_annotated, ycbv_class_index, Layout, Sink};
 use synthgen_render::{CpuRenderer, SensorModel};
 
 use crate::cli::{Backend, FormatArg, RenderArgs};
 use crate::commands::object_models::{frame_obj_ids, load_models};
-use crate::commands::render_sink::{self, Layout, Sink};
-use crate::commands::{render, render_extras, user_error};
+use crate::commands::render_sink::sink_options;
+use crate::commands::{render_extras, user_error};
 use crate::{ExitStatus, Printer};
 
 /// Images per scene folder in the output: frame index = scene_id × this + im_id, so the BOP
@@ -127,8 +128,7 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
                 .par_iter()
                 .map(|job| {
                     let scene = frame_scene(job, &index, cam.width, cam.height);
-                    let (frame, ann) =
-                        render::render_annotated(&renderer, &scene, &sensor, delta_m)?;
+                    let (frame, ann) = render_annotated(&renderer, &scene, &sensor, delta_m)?;
                     let rec = sinks[job.sink].write_frame_in(
                         Some(&job.split),
                         job.index,
@@ -175,7 +175,7 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     if overflow > 0 {
         printer.warning(format!(
             "{overflow} depth pixels were beyond what a 16-bit PNG holds at depth_scale {} and were written as 0 (invalid)",
-            render_sink::depth_scale(&args)
+            sink_options(&args).depth_scale()
         ));
     }
     if let Some(first) = nothing_visible.first() {
@@ -191,7 +191,7 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
         "sensor": serde_json::to_value(&sensor_spec).context("cannot serialize the sensor")?,
     });
     manifest.frames = written;
-    let mut dataset = render_sink::dataset_options(&args);
+    let mut dataset = sink_options(&args).manifest_json();
     if let Some(o) = dataset.as_object_mut() {
         let splits: BTreeSet<&str> = jobs.iter().map(|j| j.split.as_str()).collect();
         o.insert(
@@ -383,7 +383,14 @@ fn plan(
                     chunk_size: CHUNK as u32,
                     frames: None,
                 };
-                sinks.push(Sink::create_with(args, intrinsics, layout, classes)?);
+                sinks.push(Sink::create_with(
+                    &args.out,
+                    &sink_options(args),
+                    args.resume,
+                    intrinsics,
+                    layout,
+                    classes,
+                )?);
                 sink_of.insert(split.clone(), sinks.len() - 1);
                 sinks.len() - 1
             }
@@ -467,7 +474,7 @@ fn ycbv_classes(source: &dyn FrameSource, obj_ids: &[u32]) -> Vec<String> {
             if let Some(class) = model.parent().and_then(|p| p.file_name()) {
                 *name = class.to_string_lossy().into_owned();
             }
-        } else if render::ycbv_class_index(&model) == Some(id) {
+        } else if ycbv_class_index(&model) == Some(id) {
             *name = synthgen_dataset::ycbv::YCBV_CLASSES[i].into();
         }
     }
