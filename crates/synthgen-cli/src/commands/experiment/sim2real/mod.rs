@@ -14,16 +14,16 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use clap::Parser;
 use serde::{Deserialize, Serialize};
 use synthgen_core::scene::{DepthModel, ObjectSpec, PlacementMode, SensorSpec, UpAxis};
 use synthgen_core::SceneSpec;
 use synthgen_dataset::io::atomic_write;
 use synthgen_dataset::output::{check_apart, OutputLock};
 use synthgen_dataset::source::{open_source, FrameSource, SourceFrame};
+use synthgen_pipeline::{Format, RenderJob, SinkOptions, WriteOptions};
 
 use self::rows::{RowRecord, TrainSpec};
-use crate::cli::{Cli, Command, ExperimentSim2realArgs};
+use crate::cli::ExperimentSim2realArgs;
 use crate::commands::user_error;
 use crate::{ExitStatus, Printer};
 
@@ -706,8 +706,9 @@ fn textures_dir() -> Option<PathBuf> {
     .and_then(|p| p.canonicalize().ok())
 }
 
-/// Renders a variant's set into `sources/NAME` unless a finished render of the same scene and
-/// arguments is there (`sources/NAME.done`). The flag: rendered now.
+/// Renders a variant's set into `sources/NAME` (BOP) through the pipeline library, unless a
+/// finished render of the same scene, frames and seed is there (`sources/NAME.done`). The
+/// flag: rendered now.
 fn ensure_render(
     s: &Settings,
     out: &Path,
@@ -719,36 +720,22 @@ fn ensure_render(
     std::fs::create_dir_all(&sources)
         .with_context(|| format!("cannot create {}", sources.display()))?;
     let dir = std::path::absolute(sources.join(name))?;
+    let mut spec = spec.clone();
+    if s.quick {
+        // A quarter of the camera's resolution, the same field of view.
+        let k = spec.camera.intrinsics()?;
+        spec.camera.width = Some((k.width / 4).max(8));
+        spec.camera.height = Some((k.height / 4).max(8));
+        spec.camera.fx = Some(k.fx / 4.0);
+        spec.camera.fy = Some(k.fy / 4.0);
+        spec.camera.cx = Some(k.cx / 4.0);
+        spec.camera.cy = Some(k.cy / 4.0);
+        spec.validate()?;
+    }
     let scene_path = sources.join(format!("{name}.toml"));
     let scene_text = spec.to_toml();
-    let mut argv: Vec<String> = vec![
-        "render".into(),
-        "--scene".into(),
-        std::path::absolute(&scene_path)?.display().to_string(),
-        "--frames".into(),
-        s.frames.to_string(),
-        "--seed".into(),
-        s.seed.to_string(),
-        "--out".into(),
-        dir.display().to_string(),
-    ];
-    if s.quick {
-        let k = spec.camera.intrinsics()?;
-        argv.extend([
-            "--image-size".into(),
-            format!("{},{}", (k.width / 4).max(8), (k.height / 4).max(8)),
-            "--camera-k".into(),
-            format!(
-                "{},{},{},{}",
-                k.fx / 4.0,
-                k.fy / 4.0,
-                k.cx / 4.0,
-                k.cy / 4.0
-            ),
-        ]);
-    }
     let record = serde_json::to_string_pretty(&serde_json::json!({
-        "argv": argv, "scene": scene_text
+        "scene": scene_text, "frames": s.frames, "seed": s.seed
     }))? + "\n";
     let marker = sources.join(format!("{name}.done"));
     if std::fs::read_to_string(&marker).is_ok_and(|t| t == record) && dir.is_dir() {
@@ -760,18 +747,40 @@ fn ensure_render(
             .with_context(|| format!("cannot remove {}", dir.display()))?;
     }
     atomic_write(&scene_path, scene_text.as_bytes())?;
-    printer.info(format!("rendering {name}: synthgen {}", argv.join(" ")));
-    let cli = Cli::try_parse_from(std::iter::once("synthgen".to_string()).chain(argv))
-        .context("internal: the render arguments do not parse")?;
-    let Command::Render(args) = cli.command else {
-        anyhow::bail!("internal: not a render command");
-    };
-    if crate::commands::render::run(*args, printer)? != ExitStatus::Success {
+    printer.info(format!(
+        "rendering {name}: {} frames of {}, seed {}",
+        s.frames,
+        scene_path.display(),
+        s.seed
+    ));
+    let t = Instant::now();
+    let job = RenderJob::new(spec)
+        .frames(0..s.frames as u64)
+        .seed(s.seed)
+        .build(printer)
+        .with_context(|| format!("cannot prepare the render of {name}"))?;
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let _lock = OutputLock::acquire(&dir)?;
+    let mut options = WriteOptions::new(&dir, SinkOptions::new(Format::Bop));
+    options.command_line = std::env::args().collect();
+    let report = job.write(&options, printer)?;
+    if let Some((i, e)) = report.failures.first() {
         return Err(user_error(
-            format!("some frames of {} failed to render", dir.display()),
-            "see the warnings above",
+            format!(
+                "{} of {} frames of {} failed to render (first: frame {i}: {e})",
+                report.failures.len(),
+                s.frames,
+                dir.display()
+            ),
+            "check the objects' models and the scene",
         ));
     }
+    printer.info(format!(
+        "rendered {} frames into {} in {:.1} s",
+        report.written,
+        dir.display(),
+        t.elapsed().as_secs_f64()
+    ));
     atomic_write(&marker, record.as_bytes())?;
     Ok((dir, true))
 }
