@@ -1,0 +1,185 @@
+"""`render`, `mix`, `evaluate`: what `synthgen render`, `synthgen mix` and `synthgen eval
+--results` do, from Python."""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Sequence
+from typing import Any, Dict, Optional, Tuple, Union
+
+from . import _native
+from ._progress import ProgressCallback, callback
+from ._types import PathLike
+
+Progress = Union[bool, None, ProgressCallback]
+
+
+def _command_line(name: str, args: Dict[str, Any]) -> list:
+    shown = ", ".join(f"{k}={v!r}" for k, v in args.items() if v is not None)
+    return [
+        os.path.basename(sys.argv[0]) if sys.argv and sys.argv[0] else "python",
+        f"synthgen.{name}({shown})",
+    ]
+
+
+def render(
+    objects: Sequence[PathLike],
+    out: PathLike,
+    frames: int = 100,
+    *,
+    first_frame: int = 0,
+    scene: Optional[PathLike] = None,
+    camera: Optional[str] = None,
+    image_size: Optional[Tuple[int, int]] = None,
+    units: str = "auto",
+    obj_ids: Optional[Sequence[int]] = None,
+    seed: int = 0,
+    threads: int = 0,
+    format: str = "bop",
+    split: str = "train_pbr",
+    chunk_size: int = 1000,
+    rgb_format: str = "png",
+    jpg_quality: int = 95,
+    depth_scale: Optional[float] = None,
+    force: bool = False,
+    fail_fast: bool = False,
+    progress: Progress = None,
+) -> Dict[str, Any]:
+    """Renders frames ``first_frame .. first_frame + frames`` and writes them as a dataset,
+    as ``synthgen render`` does (same files, ``synthgen.json`` manifest, lock on ``out``).
+
+    Args:
+        objects, scene, camera, image_size, units, obj_ids, seed, threads: as for
+            :class:`Generator`.
+        out: the dataset folder; it must be empty or absent unless ``force``.
+        format: ``"bop"`` (default), ``"linemod"`` or ``"ycbv"``.
+        split, chunk_size: BOP's split folder and frames per scene folder.
+        rgb_format, jpg_quality: ``"png"`` or ``"jpg"`` RGB images.
+        depth_scale: depth PNG value x this = millimetres (default: the format's).
+        fail_fast: stop at the first failed frame instead of recording it and going on.
+        progress: ``None``: a bar on stderr when it is a terminal; ``True``/``False``: always
+            / never; or a callable ``(event, text, n)``.
+
+    Returns:
+        ``out``, ``written``, ``rendered``, ``failures`` (``(frame, message)`` pairs),
+        ``nothing_visible``, ``physics_fallbacks``, ``depth_out_of_range_px``,
+        ``description``.
+
+    Raises:
+        synthgen.InputError: a bad mesh, scene or option, an output folder in use or not
+            empty, or most frames showing no object.
+    """
+    args = dict(
+        objects=[os.fspath(o) for o in objects],
+        out=os.fspath(out),
+        frames=frames,
+        first_frame=first_frame,
+        scene=scene,
+        camera=camera,
+        seed=seed,
+        format=format,
+    )
+    return _native.render(
+        [os.fspath(o) for o in objects],
+        os.fspath(out),
+        frames=int(frames),
+        first_frame=int(first_frame),
+        scene=None if scene is None else os.fspath(scene),
+        camera=camera,
+        image_size=(
+            None if image_size is None else (int(image_size[0]), int(image_size[1]))
+        ),
+        units=units,
+        obj_ids=None if obj_ids is None else [int(i) for i in obj_ids],
+        seed=int(seed),
+        threads=int(threads),
+        format=format,
+        split=split,
+        chunk_size=int(chunk_size),
+        rgb_format=rgb_format,
+        jpg_quality=int(jpg_quality),
+        depth_scale=depth_scale,
+        force=force,
+        fail_fast=fail_fast,
+        command_line=_command_line("render", args),
+        progress=callback(progress),
+    )
+
+
+def mix(
+    real: PathLike,
+    synth: PathLike,
+    out: PathLike,
+    real_count: int,
+    synth_count: int,
+    *,
+    test_count: Optional[int] = None,
+    seed: int = 0,
+    force: bool = False,
+    exclude_shared: bool = False,
+    test_scenes: Sequence[Union[int, str]] = (),
+    progress: Progress = None,
+) -> Dict[str, Any]:
+    """Draws a reproducible mix of ``real_count`` real and ``synth_count`` synthetic training
+    frames plus a real test split into ``out`` (BOP, with ``provenance.json``), as ``synthgen
+    mix`` does. Frames without ``mask/`` and ``scene_gt_info`` (YCB-Video, Linemod) get them
+    computed from their poses and models.
+
+    Args:
+        test_count: real frames held out for testing (default: 10% of the real frames).
+        test_scenes: hold out every frame of these scenes (``2`` or ``"test/2"``) instead.
+        force: replace an existing mix in ``out``.
+        exclude_shared: leave out training frames that are the same image as a test frame.
+
+    Returns:
+        ``out``, ``train_real``, ``train_synth``, ``test``, ``linked``, ``copied``,
+        ``completed``, ``excluded_shared``, ``duplicate_train``, ``warnings``.
+    """
+    args = dict(
+        real=os.fspath(real),
+        synth=os.fspath(synth),
+        out=os.fspath(out),
+        real_count=real_count,
+        synth_count=synth_count,
+        seed=seed,
+    )
+    return _native.mix(
+        os.fspath(real),
+        os.fspath(synth),
+        os.fspath(out),
+        real_count=int(real_count),
+        synth_count=int(synth_count),
+        test_count=None if test_count is None else int(test_count),
+        seed=int(seed),
+        force=force,
+        exclude_shared=exclude_shared,
+        test_scenes=[str(s) for s in test_scenes],
+        command_line=_command_line("mix", args),
+        progress=callback(progress),
+    )
+
+
+def evaluate(
+    data: PathLike,
+    results: PathLike,
+    *,
+    split: Optional[str] = None,
+    min_visib_fract: float = 0.1,
+) -> Dict[str, Any]:
+    """Scores a BOP results CSV (``scene_id,im_id,obj_id,score,R,t,time``) against
+    ``data``'s ground truth, as ``synthgen eval --results`` does.
+
+    Returns:
+        ``scores``: per object id (as a string) and ``"all"``: ``n_gt``, ``n_est``,
+        ``add_s_acc``, ``mean_add_mm``, ``acc_5cm5deg``, ``mean_te_cm``, ``mean_re_deg`` (the
+        JSON ``synthgen eval --json`` writes); ``markdown`` (the table the CLI prints);
+        ``split``; ``estimates``; ``unmatched_estimates``; ``skipped_rows`` (``(line,
+        message)`` of rows that could not be read).
+    """
+    return _native.evaluate(
+        os.fspath(data),
+        os.fspath(results),
+        split=split,
+        min_visib_fract=float(min_visib_fract),
+    )
