@@ -70,6 +70,24 @@ pub fn points_to_py<'py>(py: Python<'py>, pts: &[DVec3]) -> PyResult<Bound<'py, 
     Ok(a.into_pyarray(py).into_any())
 }
 
+/// The arrays of a (points, GT pose, estimated pose) metric read, then `metric` run without
+/// the GIL.
+#[allow(non_snake_case)]
+fn points_and_poses(
+    py: Python<'_>,
+    points_m: &PyReadonlyArray2<'_, f64>,
+    (R_gt, t_gt): (&PyReadonlyArray2<'_, f64>, &PyReadonlyArray1<'_, f64>),
+    (R_est, t_est): (&PyReadonlyArray2<'_, f64>, &PyReadonlyArray1<'_, f64>),
+    metric: fn(&[DVec3], &Pose, &Pose) -> f64,
+) -> PyResult<f64> {
+    let (p, gt, est) = (
+        points(points_m)?,
+        pose("gt", R_gt, t_gt)?,
+        pose("est", R_est, t_est)?,
+    );
+    Ok(py.detach(|| metric(&p, &gt, &est)))
+}
+
 /// ADD: mean distance between the model points under both poses (metres).
 #[pyfunction]
 #[allow(non_snake_case)]
@@ -81,12 +99,13 @@ fn add(
     R_est: PyReadonlyArray2<'_, f64>,
     t_est: PyReadonlyArray1<'_, f64>,
 ) -> PyResult<f64> {
-    let (p, gt, est) = (
-        points(&points_m)?,
-        pose("gt", &R_gt, &t_gt)?,
-        pose("est", &R_est, &t_est)?,
-    );
-    Ok(py.detach(|| metrics::add(&p, &gt, &est)))
+    points_and_poses(
+        py,
+        &points_m,
+        (&R_gt, &t_gt),
+        (&R_est, &t_est),
+        metrics::add,
+    )
 }
 
 /// ADD-S (bop_toolkit's ADI): mean distance from each GT-posed point to the nearest
@@ -101,12 +120,13 @@ fn add_s(
     R_est: PyReadonlyArray2<'_, f64>,
     t_est: PyReadonlyArray1<'_, f64>,
 ) -> PyResult<f64> {
-    let (p, gt, est) = (
-        points(&points_m)?,
-        pose("gt", &R_gt, &t_gt)?,
-        pose("est", &R_est, &t_est)?,
-    );
-    Ok(py.detach(|| metrics::adi(&p, &gt, &est)))
+    points_and_poses(
+        py,
+        &points_m,
+        (&R_gt, &t_gt),
+        (&R_est, &t_est),
+        metrics::adi,
+    )
 }
 
 /// Rotation error arccos((tr(R_est R_gt^T) - 1) / 2) in degrees.
