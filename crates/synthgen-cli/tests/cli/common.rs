@@ -32,6 +32,26 @@ pub fn shared_data() -> Option<PathBuf> {
     }
 }
 
+/// `../shared/data/ycbv_real` (the real YCB-Video frames), when the shared data is there.
+pub fn ycbv_real() -> Option<PathBuf> {
+    shared_data().map(|d| d.join("ycbv_real"))
+}
+
+/// A successful run's stdout, parsed as JSON.
+pub fn stdout_json(o: &Output) -> serde_json::Value {
+    assert!(o.status.success(), "{}", stderr(o));
+    serde_json::from_slice(&o.stdout).expect("JSON on stdout")
+}
+
+/// A run refused as a user error (exit 1) whose stderr names every one of `words`.
+pub fn refused(o: &Output, words: &[&str]) {
+    let e = stderr(o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    for w in words {
+        assert!(e.contains(w), "{w:?} not in: {e}");
+    }
+}
+
 /// The repository root.
 pub fn repo_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

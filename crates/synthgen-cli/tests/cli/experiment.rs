@@ -7,7 +7,7 @@ use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::time::SystemTime;
 
-use crate::common::{repo_root, run, shared_data, stderr, synthgen};
+use crate::common::{repo_root, run, stderr, synthgen, ycbv_real};
 use crate::render::write_box_ply;
 
 fn experiment(mesh: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
@@ -167,16 +167,6 @@ fn experiment_rejects_bad_ratios_and_missing_objects() {
 }
 
 /// `../shared/data/ycbv_real`, when present.
-fn ycbv_real() -> Option<PathBuf> {
-    let p = shared_data()?.join("ycbv_real");
-    if p.is_dir() {
-        Some(p)
-    } else {
-        eprintln!("skipped: {} not found", p.display());
-        None
-    }
-}
-
 fn real_experiment(real: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
     run(synthgen()
         .args(["experiment", "mix", "--real"])

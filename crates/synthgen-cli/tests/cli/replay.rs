@@ -12,13 +12,9 @@ use synthgen_dataset::bop::image::{read_depth_raw, read_mask};
 use synthgen_dataset::source::{open_source, SourceFrame};
 use synthgen_render::ObjectRenderer;
 
-use crate::common::{run, shared_data, stderr, synthgen};
+use crate::common::{refused, run, stderr, synthgen, ycbv_real};
 use crate::mix::render_tiny;
 use crate::render::write_box_ply;
-
-fn ycbv_real() -> Option<PathBuf> {
-    shared_data().map(|d| d.join("ycbv_real"))
-}
 
 fn ok(cmd: &mut Command) -> String {
     let o = run(cmd);
@@ -27,14 +23,6 @@ fn ok(cmd: &mut Command) -> String {
 }
 
 /// Exit 1 with every one of `words` in the message.
-fn refused(o: &Output, words: &[&str]) {
-    let e = stderr(o);
-    assert_eq!(o.status.code(), Some(1), "{e}");
-    for w in words {
-        assert!(e.contains(w), "{w:?} not in: {e}");
-    }
-}
-
 fn replay(real: &Path, out: &Path, extra: &[&str]) -> Output {
     run(synthgen()
         .args(["render", "-q", "--replay"])

@@ -10,24 +10,7 @@ use serde_json::Value;
 use synthgen_core::glam::{DMat3, DVec3};
 use synthgen_core::scene::{SceneSpec, UpAxis};
 
-use crate::common::{run, shared_data, stderr, synthgen};
-
-fn ycbv_real() -> Option<PathBuf> {
-    shared_data().map(|d| d.join("ycbv_real"))
-}
-
-fn json(o: &Output) -> Value {
-    assert!(o.status.success(), "{}", stderr(o));
-    serde_json::from_slice(&o.stdout).expect("JSON on stdout")
-}
-
-fn refused(o: &Output, words: &[&str]) {
-    let e = stderr(o);
-    assert_eq!(o.status.code(), Some(1), "{e}");
-    for w in words {
-        assert!(e.contains(w), "{w:?} not in: {e}");
-    }
-}
+use crate::common::{refused, run, stderr, stdout_json, synthgen, ycbv_real};
 
 fn fit(data: &Path, out: &Path, extra: &[&str]) -> Output {
     run(synthgen()
@@ -109,7 +92,7 @@ fn fit_recovers_a_known_scene() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let syn = render_known(&real, d, "syn", 12, "");
-    let r = json(&fit(&syn, &d.join("fit.toml"), &[]));
+    let r = stdout_json(&fit(&syn, &d.join("fit.toml"), &[]));
     assert_eq!(r["frames_used"], 12);
     let within = |key: &str, lo: f64, hi: f64| {
         let (a, b) = (
@@ -255,7 +238,7 @@ fn fits_the_real_frames_and_the_scene_renders() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let out = d.join("scenes/fitted.toml");
-    let r = json(&fit(&real, &out, &[]));
+    let r = stdout_json(&fit(&real, &out, &[]));
     assert_eq!(r["frames_used"], 60);
     let spec = SceneSpec::from_toml_file(&out).unwrap();
     let text = std::fs::read_to_string(&out).unwrap();
@@ -315,7 +298,7 @@ fn fits_the_real_frames_and_the_scene_renders() {
 
     // One scene: its three objects, three per frame.
     let one = d.join("scene0.toml");
-    let r = json(&fit(&real, &one, &["--scenes", "0"]));
+    let r = stdout_json(&fit(&real, &one, &["--scenes", "0"]));
     assert_eq!(r["frames_used"], 20);
     let spec = SceneSpec::from_toml_file(&one).unwrap();
     let ids: Vec<u32> = spec.objects.iter().map(|o| o.obj_id.unwrap()).collect();
@@ -392,7 +375,7 @@ fn frames_without_a_table_and_bad_input() {
         .save(depth(&syn, 1))
         .unwrap();
     let o = fit(&syn, &d.join("b.toml"), &[]);
-    let r = json(&o);
+    let r = stdout_json(&o);
     assert_eq!(r["frames_used"], 3);
     assert!(
         stderr(&o).contains("warning: skipped train_pbr/000000 image 1: no table plane"),

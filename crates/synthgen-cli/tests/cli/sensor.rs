@@ -4,29 +4,11 @@
 //! wrong GT left out; bad input refused.
 
 use std::path::{Path, PathBuf};
-use std::process::Output;
 
 use serde_json::Value;
 use synthgen_core::scene::SensorSpec;
 
-use crate::common::{run, shared_data, stderr, synthgen};
-
-fn ycbv_real() -> Option<PathBuf> {
-    shared_data().map(|d| d.join("ycbv_real"))
-}
-
-fn json(o: &Output) -> Value {
-    assert!(o.status.success(), "{}", stderr(o));
-    serde_json::from_slice(&o.stdout).expect("JSON on stdout")
-}
-
-fn refused(o: &Output, words: &[&str]) {
-    let e = stderr(o);
-    assert_eq!(o.status.code(), Some(1), "{e}");
-    for w in words {
-        assert!(e.contains(w), "{w:?} not in: {e}");
-    }
-}
+use crate::common::{refused, run, stderr, stdout_json, synthgen, ycbv_real};
 
 /// The known sensor of `fit_recovers_known_parameters`.
 const KNOWN: &str = r#"
@@ -93,7 +75,7 @@ fn fit_recovers_known_parameters() {
         .args(["--frames", "40", "--seed", "5", "--out"])
         .arg(d.join("syn")));
     assert!(o.status.success(), "{}", stderr(&o));
-    let r = json(&run(synthgen()
+    let r = stdout_json(&run(synthgen()
         .args(["sensor", "fit", "-q", "--json", "--data"])
         .arg(d.join("syn"))
         .arg("--out")
@@ -172,7 +154,7 @@ fn replay(real: &Path, out: &Path, scenes: &str, sensor: &Path) {
 }
 
 fn compare(real: &Path, synth: &Path, scenes: &str) -> Value {
-    json(&run(synthgen()
+    stdout_json(&run(synthgen()
         .args([
             "sensor", "compare", "-q", "--json", "--scenes", scenes, "--real",
         ])
@@ -262,7 +244,7 @@ fn fit_leaves_out_frames_whose_gt_is_obviously_off() {
         inst["cam_t_m2c"][2] = (z + 60.0).into();
     }
     std::fs::write(&gt_path, serde_json::to_vec(&gt).unwrap()).unwrap();
-    let r = json(&run(synthgen()
+    let r = stdout_json(&run(synthgen()
         .args(["sensor", "fit", "-q", "--json", "--scenes", "0", "--data"])
         .arg(&bop)
         .arg("--out")

@@ -1,16 +1,12 @@
 //! `synthgen experiment sim2real --quick` end to end on the real YCB-Video frames (test scene
 //! 2 held out of the fits): fits, renders, rows, report; resume; bad input.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Output;
 
 use serde_json::Value;
 
-use crate::common::{run, shared_data, stderr, synthgen};
-
-fn ycbv_real() -> Option<PathBuf> {
-    shared_data().map(|d| d.join("ycbv_real"))
-}
+use crate::common::{refused, run, stderr, synthgen, ycbv_real};
 
 fn sim2real(fit: &Path, test: &Path, out: &Path, extra: &[&str]) -> Output {
     run(synthgen()
@@ -21,14 +17,6 @@ fn sim2real(fit: &Path, test: &Path, out: &Path, extra: &[&str]) -> Output {
         .arg("--out")
         .arg(out)
         .args(extra))
-}
-
-fn refused(o: &Output, words: &[&str]) {
-    let e = stderr(o);
-    assert_eq!(o.status.code(), Some(1), "{e}");
-    for w in words {
-        assert!(e.contains(w), "{w:?} not in: {e}");
-    }
 }
 
 #[test]

@@ -9,11 +9,7 @@ use serde_json::Value;
 use synthgen_dataset::bop::image::{read_depth_raw, read_label};
 use synthgen_dataset::ycbv::read_meta;
 
-use crate::common::{run, shared_data, stderr, synthgen};
-
-fn ycbv_real() -> Option<PathBuf> {
-    shared_data().map(|d| d.join("ycbv_real"))
-}
+use crate::common::{run, stderr, synthgen, ycbv_real};
 
 fn ok(cmd: &mut Command) -> String {
     let o = run(cmd);
