@@ -11,7 +11,7 @@ mod scene;
 mod sensor;
 mod sim2real;
 mod train;
-pub use experiment::{ExperimentCommand, ExperimentMixArgs};
+pub use experiment::{ExperimentCommand, ExperimentMixArgs, TrainBudget, TrainBudgetArgs};
 pub use scale::{MergeArgs, Shard, MERGE_EXAMPLES};
 pub use scene::{SceneCommand, SceneFitArgs};
 pub use sensor::{SensorCommand, SensorCompareArgs, SensorFitArgs};

@@ -7,6 +7,63 @@ use synthgen_dataset::mix::SceneRef;
 
 use super::ModelArg;
 
+/// The training budget of every trained row, shared by `experiment mix` and `sim2real`.
+#[derive(Debug, Args)]
+pub struct TrainBudgetArgs {
+    /// Training epochs per trained row. [default: 8; 2 with --quick]
+    #[arg(long)]
+    pub epochs: Option<usize>,
+
+    /// Instances per step. [default: 32; 8 with --quick]
+    #[arg(long)]
+    pub batch: Option<usize>,
+
+    /// Peak learning rate (AdamW, cosine schedule).
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1e-3)]
+    pub lr: f64,
+
+    /// Points sampled per object instance. [default: 500; 64 with --quick]
+    #[arg(long)]
+    pub points: Option<usize>,
+
+    /// Width of the global feature. [default: 128; 16 with --quick]
+    #[arg(long)]
+    pub width: Option<usize>,
+}
+
+/// [`TrainBudgetArgs`] with the defaults filled in.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrainBudget {
+    pub epochs: usize,
+    pub batch: usize,
+    pub lr: f64,
+    pub points: usize,
+    pub width: usize,
+}
+
+impl TrainBudgetArgs {
+    /// The budget: the flags, else the defaults (smaller with `--quick`).
+    pub fn resolve(&self, quick: bool) -> TrainBudget {
+        let pick = |v: Option<usize>, small: usize, normal: usize| {
+            v.unwrap_or(if quick { small } else { normal })
+        };
+        TrainBudget {
+            epochs: pick(self.epochs, 2, 8),
+            batch: pick(self.batch, 8, 32),
+            lr: self.lr,
+            points: pick(self.points, 64, 500),
+            width: pick(self.width, 16, 128),
+        }
+    }
+}
+
+impl TrainBudget {
+    /// Whether every count is positive.
+    pub fn is_positive(&self) -> bool {
+        self.epochs > 0 && self.batch > 0 && self.points > 0 && self.width > 0
+    }
+}
+
 #[derive(Debug, Subcommand)]
 pub enum ExperimentCommand {
     /// The real/synthetic mixing table: for each composition of a fixed-size training set,
@@ -125,25 +182,8 @@ pub struct ExperimentMixArgs {
     #[arg(long, value_delimiter = ',', value_name = "K,...")]
     pub plus_synth: Vec<usize>,
 
-    /// Training epochs per row (the same budget for every row). [default: 8; 2 with --quick]
-    #[arg(long)]
-    pub epochs: Option<usize>,
-
-    /// Instances per step. [default: 32; 8 with --quick]
-    #[arg(long)]
-    pub batch: Option<usize>,
-
-    /// Peak learning rate (AdamW, cosine schedule).
-    #[arg(long, allow_negative_numbers = true, default_value_t = 1e-3)]
-    pub lr: f64,
-
-    /// Points sampled per object instance. [default: 500; 64 with --quick]
-    #[arg(long)]
-    pub points: Option<usize>,
-
-    /// Width of the global feature. [default: 128; 16 with --quick]
-    #[arg(long)]
-    pub width: Option<usize>,
+    #[command(flatten)]
+    pub budget: TrainBudgetArgs,
 
     /// Seeds the mix (and so the test split) and the rendering; training seed = seed + repeat.
     #[arg(long, default_value_t = 0)]

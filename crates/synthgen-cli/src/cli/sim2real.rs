@@ -70,25 +70,8 @@ pub struct ExperimentSim2realArgs {
     #[arg(long)]
     pub frames: Option<usize>,
 
-    /// Training epochs over a synthetic set. [default: 8; 2 with --quick]
-    #[arg(long)]
-    pub epochs: Option<usize>,
-
-    /// Instances per step. [default: 32; 8 with --quick]
-    #[arg(long)]
-    pub batch: Option<usize>,
-
-    /// Peak learning rate (AdamW, cosine schedule).
-    #[arg(long, allow_negative_numbers = true, default_value_t = 1e-3)]
-    pub lr: f64,
-
-    /// Points sampled per object instance. [default: 500; 64 with --quick]
-    #[arg(long)]
-    pub points: Option<usize>,
-
-    /// Width of the global feature. [default: 128; 16 with --quick]
-    #[arg(long)]
-    pub width: Option<usize>,
+    #[command(flatten)]
+    pub budget: super::experiment::TrainBudgetArgs,
 
     /// Also the ablation rows: the fitted set without the scene fit (synthgen's default
     /// scene, all objects standing on +z), with primitive distractors, with textured

@@ -24,7 +24,7 @@ use synthgen_dataset::io::atomic_write;
 use synthgen_dataset::manifest::{write_manifest, Manifest};
 use synthgen_dataset::mix::{scene_list, SceneRef};
 
-use crate::cli::{ExperimentMixArgs, ModelArg};
+use crate::cli::{ExperimentMixArgs, ModelArg, TrainBudget};
 use crate::commands::user_error;
 use crate::{ExitStatus, Printer};
 
@@ -185,12 +185,15 @@ pub fn run_mix(args: ExperimentMixArgs, printer: &Printer) -> Result<ExitStatus>
             (max_total / 5).max(1)
         }),
     };
-    let pick = |v: Option<usize>, quick: usize, normal: usize| {
-        v.unwrap_or(if args.quick { quick } else { normal })
-    };
-    let (epochs, batch) = (pick(args.epochs, 2, 8), pick(args.batch, 8, 32));
-    let (points, width) = (pick(args.points, 64, 500), pick(args.width, 16, 128));
-    if epochs == 0 || batch == 0 || points == 0 || width == 0 || args.repeats == 0 {
+    let budget = args.budget.resolve(args.quick);
+    let TrainBudget {
+        epochs,
+        batch,
+        lr,
+        points,
+        width,
+    } = budget;
+    if !budget.is_positive() || args.repeats == 0 {
         return Err(user_error(
             "--epochs, --batch, --points, --width and --repeats must be positive",
             "e.g. --epochs 8 --repeats 1",
@@ -289,7 +292,7 @@ pub fn run_mix(args: ExperimentMixArgs, printer: &Printer) -> Result<ExitStatus>
         test_count,
         epochs,
         batch,
-        lr: args.lr,
+        lr,
         points,
         width,
         seed: args.seed,

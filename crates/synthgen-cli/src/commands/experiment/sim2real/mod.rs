@@ -23,7 +23,7 @@ use synthgen_dataset::source::{open_source, FrameSource, SourceFrame};
 use synthgen_pipeline::{Format, RenderJob, SinkOptions, WriteOptions};
 
 use self::rows::{RowRecord, TrainSpec};
-use crate::cli::ExperimentSim2realArgs;
+use crate::cli::{ExperimentSim2realArgs, TrainBudget};
 use crate::commands::user_error;
 use crate::{ExitStatus, Printer};
 
@@ -115,16 +115,16 @@ pub const REAL_ONLY: &str = "real_only";
 pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus> {
     let started = Instant::now();
     let out = args.out.clone();
-    let pick = |v: Option<usize>, quick: usize, normal: usize| {
-        v.unwrap_or(if args.quick { quick } else { normal })
-    };
-    let (frames, epochs) = (pick(args.frames, 48, 1500), pick(args.epochs, 2, 8));
-    let (batch, points, width) = (
-        pick(args.batch, 8, 32),
-        pick(args.points, 64, 500),
-        pick(args.width, 16, 128),
-    );
-    if frames == 0 || epochs == 0 || batch == 0 || points == 0 || width == 0 {
+    let frames = args.frames.unwrap_or(if args.quick { 48 } else { 1500 });
+    let budget = args.budget.resolve(args.quick);
+    let TrainBudget {
+        epochs,
+        batch,
+        lr,
+        points,
+        width,
+    } = budget;
+    if frames == 0 || !budget.is_positive() {
         return Err(user_error(
             "--frames, --epochs, --batch, --points and --width must be positive",
             "e.g. --frames 1500 --epochs 8",
@@ -202,7 +202,7 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
         frames,
         epochs,
         batch,
-        lr: args.lr,
+        lr,
         points,
         width,
         ablation: args.ablation,
