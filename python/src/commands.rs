@@ -6,12 +6,13 @@ use std::path::{Path, PathBuf};
 
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use synthgen_core::{PoseRenderer, Progress};
+use synthgen_core::{NoProgress, PoseRenderer, Progress};
 use synthgen_dataset::mix::{write_mix, Completion, MixCounts, MixOptions, SceneRef};
 use synthgen_dataset::output::{check_apart, OutputLock};
 use synthgen_dataset::source::{open_source, FrameSource};
 use synthgen_pipeline::{error_chain, Format, ImageFormat, SinkOptions, WriteOptions};
 use synthgen_render::ObjectRenderer;
+use synthgen_train::bop::{load_render_models, prepare_bop, BopOptions};
 use synthgen_train::eval::{evaluate as score, load_eval_objects, pick_split, read_gt};
 use synthgen_train::results::read_results_csv;
 
@@ -273,17 +274,22 @@ fn mix<'py>(
 
 /// Scores a BOP results CSV against a dataset's GT, as `synthgen eval --results` does:
 /// returns the per-object scores and the `all` row (as `--json` writes them), the markdown
-/// table, and the rows of the CSV that could not be read.
+/// table, and the rows of the CSV that could not be read. With `bop`, also BOP's Average
+/// Recall (VSD, MSSD, MSPD) as `eval --bop` computes it, under `"bop"`.
 #[pyfunction]
-#[pyo3(signature = (data, results, *, split=None, min_visib_fract=0.1))]
+#[pyo3(signature = (data, results, *, split=None, min_visib_fract=0.1, bop=false, targets=None, visib_gt_min=-1.0))]
+#[allow(clippy::too_many_arguments)]
 fn evaluate<'py>(
     py: Python<'py>,
     data: PathBuf,
     results: PathBuf,
     split: Option<String>,
     min_visib_fract: f64,
+    bop: bool,
+    targets: Option<PathBuf>,
+    visib_gt_min: f64,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let (report, markdown, skipped, n_estimates, split) = detached(py, || {
+    let (report, bop_json, markdown, skipped, n_estimates, split) = detached(py, || {
         let ds = open_source(&data)?;
         let split = pick_split(ds.as_ref(), split.as_deref())?;
         let gts = read_gt(ds.as_ref(), &split, min_visib_fract)?;
@@ -291,8 +297,24 @@ fn evaluate<'py>(
         let objects = load_eval_objects(ds.as_ref(), gts.iter().map(|g| g.obj_id))?;
         let report = score(&gts, &file.estimates, &objects)?;
         let markdown = report.to_markdown(&objects);
+        let bop_json = if bop {
+            let opts = BopOptions {
+                visib_gt_min,
+                ..BopOptions::default()
+            };
+            let setup = prepare_bop(ds.as_ref(), &split, targets.as_deref(), &opts)?;
+            let renderer = ObjectRenderer::new(load_render_models(ds.as_ref(), setup.obj_ids())?)
+                .map_err(|e| synthgen_train::Error::InvalidOption(e.to_string()))?;
+            let r = setup.evaluate(&file.estimates, Some(&renderer), &opts, &NoProgress)?;
+            Some(serde_json::to_string(&r).map_err(|e| {
+                synthgen_train::Error::InvalidOption(format!("BOP report as JSON: {e}"))
+            })?)
+        } else {
+            None
+        };
         Ok::<_, synthgen_train::Error>((
             report,
+            bop_json,
             markdown,
             file.skipped,
             file.estimates.len(),
@@ -301,10 +323,14 @@ fn evaluate<'py>(
     })?;
     let json = serde_json::to_string(&report.to_json())
         .map_err(|e| crate::errors::py_err(crate::errors::Kind::Internal, &e, None))?;
-    let scores = py.import("json")?.call_method1("loads", (json,))?;
+    let loads = py.import("json")?.getattr("loads")?;
     let d = PyDict::new(py);
     d.set_item("split", split)?;
-    d.set_item("scores", scores)?;
+    d.set_item("scores", loads.call1((json,))?)?;
+    match bop_json {
+        Some(b) => d.set_item("bop", loads.call1((b,))?)?,
+        None => d.set_item("bop", py.None())?,
+    }
     d.set_item("markdown", markdown)?;
     d.set_item("estimates", n_estimates)?;
     d.set_item("unmatched_estimates", report.unmatched_estimates)?;

@@ -116,6 +116,36 @@ def test_evaluate_equals_the_cli(tmp_path: Path, rendered: Path) -> None:
     assert ours["scores"] == json.loads(out.read_text())
 
 
+def test_evaluate_bop_gt_is_perfect_and_equals_the_cli(
+    tmp_path: Path, rendered: Path
+) -> None:
+    ds = synthgen.open_dataset(rendered)
+    csv = tmp_path / "gt.csv"
+    results_csv(ds, csv)
+    r = synthgen.evaluate(rendered, csv, bop=True)
+    bop = r["bop"]
+    assert bop["ar"] == 1.0, bop
+    for err in ("vsd", "mssd", "mspd"):
+        assert bop[err]["recall_per_threshold"] == [1.0] * 10
+    assert synthgen.evaluate(rendered, csv)["bop"] is None
+    exe = Path(os.environ.get("SYNTHGEN_BIN", REPO / "target" / "debug" / "synthgen"))
+    if not exe.is_file():
+        pytest.skip(
+            f"no synthgen binary at {exe} (cargo build -p synthgen-cli, or set SYNTHGEN_BIN)"
+        )
+    off = tmp_path / "off.csv"
+    results_csv(ds, off, offset_m=0.01)
+    ours = synthgen.evaluate(rendered, off, bop=True)["bop"]
+    out = tmp_path / "cli.json"
+    subprocess.run(
+        [str(exe), "eval", "--bop", "--data", str(rendered), "--results", str(off)]
+        + ["--json", str(out)],
+        check=True,
+        capture_output=True,
+    )
+    assert ours == json.loads(out.read_text())["bop"]
+
+
 def test_metrics_equal_evaluate(tmp_path: Path, rendered: Path) -> None:
     ds = synthgen.open_dataset(rendered)
     points, diameter, symmetric = ds.eval_model(1)

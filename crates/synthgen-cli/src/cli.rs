@@ -6,17 +6,21 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use synthgen_dataset::mix::SceneRef;
 
 mod experiment;
+mod rgb;
 mod scale;
 mod scene;
 mod sensor;
 mod sim2real;
 mod train;
 pub use experiment::{ExperimentCommand, ExperimentMixArgs, TrainBudget, TrainBudgetArgs};
+pub use rgb::ExperimentRgbArgs;
 pub use scale::{MergeArgs, Shard, MERGE_EXAMPLES};
 pub use scene::{SceneCommand, SceneFitArgs};
 pub use sensor::{SensorCommand, SensorCompareArgs, SensorFitArgs};
 pub use sim2real::ExperimentSim2realArgs;
-pub use train::{DeviceArg, EvalArgs, ModelArg, ScheduleArg, TrainArgs};
+pub use train::{
+    DeviceArg, EvalArgs, ModelArg, ScheduleArg, TrainArgs, TrainModelArg, TranslationArg,
+};
 
 #[derive(Debug, Parser)]
 #[command(
@@ -67,6 +71,9 @@ pub enum Command {
     /// Draw a contact sheet of frames with their ground-truth poses overlaid.
     #[command(after_long_help = PREVIEW_EXAMPLES)]
     Preview(PreviewArgs),
+    /// Browse datasets in the web browser: a local, read-only server (prints its address).
+    #[command(after_long_help = VIEW_EXAMPLES)]
+    View(ViewArgs),
     /// Write a dataset's annotations in another tool's format (COCO).
     #[command(subcommand)]
     Export(ExportCommand),
@@ -239,6 +246,39 @@ pub struct StatsArgs {
     /// Also write PNG bar charts into this folder.
     #[arg(long, value_name = "DIR")]
     pub plot: Option<PathBuf>,
+}
+
+pub const VIEW_EXAMPLES: &str = "Examples:
+  # Browse a dataset: open the printed address (http://127.0.0.1:8765/) in a browser
+  synthgen view out/lm
+
+  # Real frames and a synthetic set side by side (the statistics page overlays them)
+  synthgen view data/real out/synth
+
+  # Estimated poses (dashed, white) beside the GT, with their ADD(-S), E_te and E_re
+  synthgen view out/lm --results results.csv
+
+The server only reads: it serves the datasets' images and annotations and never writes into
+them; it refuses any path outside them. It binds 127.0.0.1 unless --host says otherwise;
+Ctrl-C stops it. See docs/view.md.";
+
+#[derive(Debug, Args)]
+pub struct ViewArgs {
+    /// Dataset folders (BOP, Linemod or YCB-Video), up to 4.
+    #[arg(value_name = "DIR", required = true, num_args = 1..=4)]
+    pub dirs: Vec<PathBuf>,
+
+    /// A BOP results CSV: its estimates are matched to the first dataset's GT and drawn.
+    #[arg(long, value_name = "CSV")]
+    pub results: Option<PathBuf>,
+
+    /// Address to listen on (127.0.0.1: this machine only).
+    #[arg(long, default_value = "127.0.0.1")]
+    pub host: std::net::IpAddr,
+
+    /// Port (0: any free port).
+    #[arg(long, default_value_t = 8765)]
+    pub port: u16,
 }
 
 #[derive(Debug, Args)]

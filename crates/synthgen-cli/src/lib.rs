@@ -58,6 +58,7 @@ pub fn main() -> ExitCode {
         cli::Command::Mix(args) => commands::mix::run(args, &printer),
         cli::Command::Stats(args) => commands::stats::run(args, &printer),
         cli::Command::Preview(args) => commands::preview::run(args, &printer),
+        cli::Command::View(args) => commands::view::run(args, &printer),
         cli::Command::Annotate(args) => commands::annotate::run(args, &printer),
         cli::Command::Export(cli::ExportCommand::Coco(args)) => {
             commands::export::run_coco(args, &printer)
@@ -72,6 +73,9 @@ pub fn main() -> ExitCode {
         }
         cli::Command::Experiment(cli::ExperimentCommand::Sim2real(args)) => {
             commands::experiment::sim2real::run(args, &printer)
+        }
+        cli::Command::Experiment(cli::ExperimentCommand::Rgb(args)) => {
+            commands::experiment::rgb::run(args, &printer)
         }
         cli::Command::Sensor(cli::SensorCommand::Fit(args)) => {
             commands::sensor::run_fit(args, &printer)

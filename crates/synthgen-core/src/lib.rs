@@ -38,7 +38,7 @@ pub use error::Error;
 pub use glam;
 pub use mesh::{Aabb, Material, Model, Primitive, Texture};
 pub use pose::Pose;
-pub use pose_render::PoseRenderer;
+pub use pose_render::{DepthRenderer, DepthWindowMm, PoseRenderer};
 pub use progress::{NoProgress, Progress};
 pub use sample::{FrameScene, ObjectInstance, SceneObject, SceneSampler, Settle};
 pub use scene::SceneSpec;

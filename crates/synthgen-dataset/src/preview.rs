@@ -39,7 +39,7 @@ impl Default for PreviewOptions {
 
 /// Box colours per object, by id modulo 12 (the Linemod ids 1..15 get distinct colours
 /// within any 12 consecutive ids).
-const PALETTE: [Rgb; 12] = [
+pub const PALETTE: [Rgb; 12] = [
     [170, 170, 170],
     [0, 230, 255],
     [255, 0, 255],
@@ -54,10 +54,10 @@ const PALETTE: [Rgb; 12] = [
     [255, 180, 200],
 ];
 
-const AXIS_COLOURS: [Rgb; 3] = [[255, 0, 0], [0, 255, 0], [0, 90, 255]];
+pub const AXIS_COLOURS: [Rgb; 3] = [[255, 0, 0], [0, 255, 0], [0, 90, 255]];
 
 /// The 8 corners of a model's bounding box (metres, object frame).
-fn box_corners(info: &ModelInfo) -> [DVec3; 8] {
+pub fn box_corners(info: &ModelInfo) -> [DVec3; 8] {
     let min = DVec3::new(info.min_x, info.min_y, info.min_z) / 1000.0;
     let size = DVec3::new(info.size_x, info.size_y, info.size_z) / 1000.0;
     std::array::from_fn(|i| {
@@ -66,7 +66,7 @@ fn box_corners(info: &ModelInfo) -> [DVec3; 8] {
 }
 
 /// Corner index pairs of the 12 box edges.
-const EDGES: [(usize, usize); 12] = [
+pub const EDGES: [(usize, usize); 12] = [
     (0, 1),
     (2, 3),
     (4, 5),

@@ -5,8 +5,11 @@ use std::cell::RefCell;
 use std::sync::Arc;
 
 use rayon::prelude::*;
+use synthgen_core::glam::{DMat3, DVec3};
 use synthgen_core::scene::BackgroundKind;
-use synthgen_core::{AloneDepth, FrameScene, Model, ObjectInstance, RenderedFrame, Texture};
+use synthgen_core::{
+    AloneDepth, DepthWindowMm, FrameScene, Model, ObjectInstance, RenderedFrame, Texture,
+};
 
 use crate::background::Background;
 use crate::color::ColorLuts;
@@ -59,6 +62,8 @@ struct Scratch {
 
 thread_local! {
     static SCRATCH: RefCell<Scratch> = RefCell::new(Scratch::default());
+    /// Buffers of `render_depth_mm`.
+    static DEPTH_SCRATCH: RefCell<(ObjScratch, Vec<f32>)> = RefCell::new(Default::default());
 }
 
 /// Instance ids are u16 with 0 for the background.
@@ -190,6 +195,112 @@ impl CpuRenderer {
         Ok(())
     }
 
+    /// Depth (mm along z) of model `model_index` alone at `cam_from_obj` = (`r`, `t_mm`), on
+    /// the image of `k` only (a window of it in `out`): no shading, no compositing. Coverage
+    /// and the nearest triangle per pixel come from the rasterizer; the depth of each covered
+    /// pixel is then the exact (f64) intersection of its ray with that triangle's plane, so it
+    /// does not carry the rasterizer's fixed-point snapping. No face is culled (scanned models
+    /// have stray windings; OpenGL without face culling draws them). The rotation is used as
+    /// given.
+    /// Pixel (x, y) samples the projection at (x, y), as everywhere here.
+    pub fn render_depth_mm(
+        &self,
+        model_index: usize,
+        r: &DMat3,
+        t_mm: DVec3,
+        k: &synthgen_core::Intrinsics,
+        out: &mut DepthWindowMm,
+    ) -> Result<(), Error> {
+        k.validate().map_err(|e| Error::InvalidIntrinsics {
+            reason: e.to_string(),
+        })?;
+        let model = self.models.get(model_index).ok_or(Error::UnknownModel {
+            object: 0,
+            model_index,
+            model_count: self.models.len(),
+        })?;
+        let proj = self.projection(k);
+        let (_, image) = canvas_and_image(k);
+        DEPTH_SCRATCH.with(|cell| {
+            let mut guard = cell.try_borrow_mut();
+            let mut fresh = (ObjScratch::default(), Vec::new());
+            let (os, depth_m) = match guard.as_deref_mut() {
+                Ok(s) => (&mut s.0, &mut s.1),
+                Err(_) => (&mut fresh.0, &mut fresh.1),
+            };
+            self.depth_mm_with(model, r, t_mm, k, &proj, image, os, depth_m, out);
+        });
+        Ok(())
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn depth_mm_with(
+        &self,
+        model: &PreparedModel,
+        r: &DMat3,
+        t_mm: DVec3,
+        k: &synthgen_core::Intrinsics,
+        proj: &Projection,
+        image: Rect,
+        os: &mut ObjScratch,
+        depth_m: &mut Vec<f32>,
+        out: &mut DepthWindowMm,
+    ) {
+        let rot = r.as_mat3();
+        let t = (t_mm / 1000.0).as_vec3();
+        let win = raster_object(model, true, &rot, t, proj, image, os, depth_m);
+        out.x0 = win.x0;
+        out.y0 = win.y0;
+        out.width = win.width() as u32;
+        out.height = win.height() as u32;
+        out.depth_mm.clear();
+        out.depth_mm.resize(depth_m.len(), 0.0);
+        let vert = |i: u32| {
+            let i = i as usize;
+            let p = DVec3::new(model.xs[i] as f64, model.ys[i] as f64, model.zs[i] as f64);
+            *r * (p * 1000.0) + t_mm
+        };
+        let w = win.width();
+        if w == 0 {
+            return;
+        }
+        // The plane of the last triangle seen (n, n·a): neighbouring pixels share triangles.
+        let mut plane: Option<(u32, DVec3, f64)> = None;
+        for (row, (drow, orow)) in depth_m
+            .chunks_exact(w)
+            .zip(out.depth_mm.chunks_exact_mut(w))
+            .enumerate()
+        {
+            let ry = ((win.y0 + row as i32) as f64 - k.cy) / k.fy;
+            for (col, (&d, out_d)) in drow.iter().zip(orow.iter_mut()).enumerate() {
+                if d <= 0.0 {
+                    continue;
+                }
+                let id = os.ids[row * w + col];
+                let (n, na) = match plane {
+                    Some((pid, n, na)) if pid == id => (n, na),
+                    _ => {
+                        let tri = model.tris[id as usize];
+                        let (a, b, c) = (vert(tri[0]), vert(tri[1]), vert(tri[2]));
+                        let n = (b - a).cross(c - a);
+                        let na = n.dot(a);
+                        plane = Some((id, n, na));
+                        (n, na)
+                    }
+                };
+                let rx = ((win.x0 + col as i32) as f64 - k.cx) / k.fx;
+                let denom = n.dot(DVec3::new(rx, ry, 1.0));
+                let z = na / denom;
+                // A triangle seen edge-on has no usable plane: keep the rasterizer's depth.
+                *out_d = if denom.abs() > 1e-12 * n.length() && z.is_finite() && z > 0.0 {
+                    z as f32
+                } else {
+                    d * 1000.0
+                };
+            }
+        }
+    }
+
     /// Renders into `out`, reusing its buffers (no allocation once they have grown).
     pub fn render_into(&self, scene: &FrameScene, out: &mut RenderedFrame) -> Result<(), Error> {
         self.validate(scene)?;
@@ -258,7 +369,7 @@ impl CpuRenderer {
             let model = &self.models[inst.model_index];
             let rot = inst.cam_from_obj.rotation.as_mat3();
             let t = inst.cam_from_obj.translation_m.as_vec3();
-            let win = raster_object(model, &rot, t, &proj, canvas, os, &mut alone.depth_m);
+            let win = raster_object(model, false, &rot, t, &proj, canvas, os, &mut alone.depth_m);
             alone.x0 = win.x0;
             alone.y0 = win.y0;
             alone.width = win.width() as u32;
@@ -375,7 +486,7 @@ pub(crate) fn raster_into(
 ) {
     let rot = inst.cam_from_obj.rotation.as_mat3();
     let t = inst.cam_from_obj.translation_m.as_vec3();
-    let win = raster_object(model, &rot, t, proj, canvas, os, &mut alone.depth_m);
+    let win = raster_object(model, false, &rot, t, proj, canvas, os, &mut alone.depth_m);
     alone.x0 = win.x0;
     alone.y0 = win.y0;
     alone.width = win.width() as u32;

@@ -3,8 +3,11 @@
 
 use std::collections::BTreeMap;
 
+use synthgen_core::glam::{DMat3, DVec3};
 use synthgen_core::sample::ObjectInstance;
-use synthgen_core::{FrameScene, Intrinsics, Model, Pose, PoseRenderer, RenderedFrame};
+use synthgen_core::{
+    DepthRenderer, DepthWindowMm, FrameScene, Intrinsics, Model, Pose, PoseRenderer, RenderedFrame,
+};
 
 use crate::{CpuRenderer, Error, Renderer};
 
@@ -64,5 +67,24 @@ impl PoseRenderer for ObjectRenderer {
             .collect::<Result<Vec<_>, String>>()?;
         let scene = FrameScene::bare(0, *k, instances);
         self.renderer.render(&scene).map_err(|e| e.to_string())
+    }
+}
+
+impl DepthRenderer for ObjectRenderer {
+    fn render_depth_mm(
+        &self,
+        k: &Intrinsics,
+        obj_id: u32,
+        r: &DMat3,
+        t_mm: DVec3,
+        out: &mut DepthWindowMm,
+    ) -> Result<(), String> {
+        let model_index = *self
+            .index
+            .get(&obj_id)
+            .ok_or_else(|| format!("no model for object {obj_id}"))?;
+        self.renderer
+            .render_depth_mm(model_index, r, t_mm, k, out)
+            .map_err(|e| e.to_string())
     }
 }

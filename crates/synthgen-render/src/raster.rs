@@ -212,9 +212,12 @@ fn round_fixed(v: f32) -> i32 {
 
 /// Rasterizes `model` at `cam_from_obj` into `depth` (resized to the window, row-major, z in
 /// metres, 0 where uncovered) and `scratch.ids`. The window is the projected bounding box of
-/// the model clipped to `canvas`. Returns the window.
+/// the model clipped to `canvas`. Returns the window. With `all_faces`, no triangle is culled
+/// for facing away (as an OpenGL pipeline without face culling draws).
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn raster_object(
     model: &PreparedModel,
+    all_faces: bool,
     rot: &Mat3,
     t: Vec3,
     proj: &Projection,
@@ -246,7 +249,7 @@ pub(crate) fn raster_object(
     }
     if any_clipped {
         for prim in &model.prims {
-            let cull = !prim.double_sided;
+            let cull = !prim.double_sided && !all_faces;
             for id in prim.tri_start..prim.tri_end {
                 let tri = model.tris[id as usize];
                 if tri.iter().all(|&i| verts[i as usize].iz > 0.0) {
@@ -301,10 +304,10 @@ pub(crate) fn raster_object(
     // The camera in the object frame, for culling whole clusters that face away.
     let eye = -(rot.transpose() * t);
     for cl in &model.clusters {
-        if cl.faces_away(eye) {
+        if !all_faces && cl.faces_away(eye) {
             continue;
         }
-        let cull = !cl.double_sided;
+        let cull = !cl.double_sided && !all_faces;
         let tris = &model.tris[cl.start as usize..cl.end as usize];
         for (id, tri) in (cl.start..).zip(tris) {
             let a = verts[tri[0] as usize];

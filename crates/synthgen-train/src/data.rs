@@ -1,6 +1,7 @@
 //! From a dataset (BOP or Linemod, through [`FrameSource`]) to training instances: per
 //! annotated object, N points sampled from the visible mask's valid depth and back-projected
-//! to metres (camera frame), an optional RGB crop around `bbox_visib`, and the GT pose.
+//! to metres (camera frame), an optional RGB crop around `bbox_visib`, for the RGB model the
+//! colour around the box ([`BoxRegion`]) instead of the points, and the GT pose.
 //! Loaded in parallel, kept in memory.
 
 use std::collections::BTreeSet;
@@ -17,6 +18,8 @@ use synthgen_dataset::source::{open_source, FrameSource, SourceFrame};
 
 use crate::error::{Error, Result};
 use crate::eval::pick_split;
+use crate::models::rgb::Pinhole;
+use crate::rgb_input::BoxRegion;
 
 /// How instances are made.
 #[derive(Debug, Clone, PartialEq)]
@@ -29,6 +32,11 @@ pub struct DataOptions {
     pub min_pixels: usize,
     /// Side of the square RGB crop; 0 loads no RGB at all (TNet needs none).
     pub crop_size: u32,
+    /// Side of the RGB model's input crop; > 0 keeps each instance's [`BoxRegion`].
+    pub rgb_box: u32,
+    /// Sample points from the depth (every model but RGB). Without, no depth image is read
+    /// and the valid pixels are the visible mask's.
+    pub depth_points: bool,
     pub seed: u64,
     /// The split to read; `None` picks `test`, else the only split.
     pub split: Option<String>,
@@ -41,6 +49,8 @@ impl Default for DataOptions {
             min_visib_fract: 0.1,
             min_pixels: 50,
             crop_size: 0,
+            rgb_box: 0,
+            depth_points: true,
             seed: 0,
             split: None,
         }
@@ -60,6 +70,8 @@ pub struct Instance {
     pub crop_xy: Vec<[f32; 2]>,
     /// `crop_size² × 3` bytes, RGB, row-major; empty without crops.
     pub crop_rgb: Vec<u8>,
+    /// The colour around the visible box (the RGB model); `None` without `rgb_box`.
+    pub region: Option<BoxRegion>,
     /// GT `cam_from_obj`; its translation is the centre TNet predicts.
     pub pose: Pose,
 }
@@ -103,7 +115,13 @@ fn sample_indices(rng: &mut ChaCha8Rng, len: usize, n: usize) -> Vec<usize> {
 }
 
 /// Bilinear resize of the `bbox` region (x, y, w, h) of an RGB image to `size × size`.
-fn crop_resize(rgb: &[u8], width: u32, height: u32, bbox: [f64; 4], size: u32) -> Vec<u8> {
+pub(crate) fn crop_resize(
+    rgb: &[u8],
+    width: u32,
+    height: u32,
+    bbox: [f64; 4],
+    size: u32,
+) -> Vec<u8> {
     let [x0, y0, w, h] = bbox;
     let mut out = Vec::with_capacity((size * size * 3) as usize);
     let px = |x: i64, y: i64, c: usize| -> f32 {
@@ -127,6 +145,9 @@ fn crop_resize(rgb: &[u8], width: u32, height: u32, bbox: [f64; 4], size: u32) -
     }
     out
 }
+
+/// A sampled pixel: u, v and its index in the image.
+type Pixel = (f64, f64, usize);
 
 enum Outcome {
     Instance(Box<Instance>),
@@ -154,13 +175,17 @@ fn load_frame(frame: &SourceFrame, opts: &DataOptions) -> Result<Vec<Outcome>> {
     if wanted.is_empty() {
         return Ok(out);
     }
-    let depth_path = frame.depth.as_ref().ok_or_else(|| Error::Malformed {
-        what: "dataset",
-        message: format!("image {im_id} of scene {scene_id} has no depth image"),
-        path: frame.rgb.clone(),
-    })?;
-    let depth = read_depth_m(depth_path, cam.depth_scale)?;
-    let rgb = if opts.crop_size > 0 {
+    let depth = if opts.depth_points {
+        let depth_path = frame.depth.as_ref().ok_or_else(|| Error::Malformed {
+            what: "dataset",
+            message: format!("image {im_id} of scene {scene_id} has no depth image"),
+            path: frame.rgb.clone(),
+        })?;
+        Some(read_depth_m(depth_path, cam.depth_scale)?)
+    } else {
+        None
+    };
+    let rgb = if opts.crop_size > 0 || opts.rgb_box > 0 {
         Some(read_rgb(&frame.rgb)?)
     } else {
         None
@@ -174,60 +199,82 @@ fn load_frame(frame: &SourceFrame, opts: &DataOptions) -> Result<Vec<Outcome>> {
         };
         let mask_path = mask_ref.path();
         let mask = mask_ref.read()?;
-        if mask.width != depth.width || mask.height != depth.height {
-            return Err(Error::Malformed {
-                what: "mask",
-                message: format!(
-                    "size {}x{} differs from the depth image's {}x{}",
-                    mask.width, mask.height, depth.width, depth.height
-                ),
-                path: mask_path.to_path_buf(),
-            });
+        if let Some(depth) = &depth {
+            if mask.width != depth.width || mask.height != depth.height {
+                return Err(Error::Malformed {
+                    what: "mask",
+                    message: format!(
+                        "size {}x{} differs from the depth image's {}x{}",
+                        mask.width, mask.height, depth.width, depth.height
+                    ),
+                    path: mask_path.to_path_buf(),
+                });
+            }
         }
         let valid: Vec<usize> = (0..mask.data.len())
-            .filter(|&i| mask.data[i] > 0 && depth.data[i] > 0.0)
+            .filter(|&i| mask.data[i] > 0 && depth.as_ref().is_none_or(|d| d.data[i] > 0.0))
             .collect();
         if valid.len() < opts.min_pixels.max(1) {
             out.push(Outcome::FewPixels);
             continue;
         }
-        let mut rng = instance_rng(opts.seed, scene_id, im_id, gt_id);
-        let picks = sample_indices(&mut rng, valid.len(), opts.n_points);
-        let w = depth.width as usize;
-        let uv: Vec<(f64, f64, usize)> = picks
-            .iter()
-            .map(|&k| {
-                let i = valid[k];
-                ((i % w) as f64, (i / w) as f64, i)
-            })
-            .collect();
-        let points_m = uv
-            .iter()
-            .map(|&(u, v, i)| {
-                let z = f64::from(depth.data[i]);
-                [
-                    ((u - cx) * z / fx) as f32,
-                    ((v - cy) * z / fy) as f32,
-                    z as f32,
-                ]
-            })
-            .collect();
+        let w = mask.width as usize;
+        // The sampled pixels (u, v, index) and their back-projected points; none without depth.
+        let (uv, points_m): (Vec<Pixel>, Vec<[f32; 3]>) = match &depth {
+            Some(depth) => {
+                let mut rng = instance_rng(opts.seed, scene_id, im_id, gt_id);
+                let uv: Vec<Pixel> = sample_indices(&mut rng, valid.len(), opts.n_points)
+                    .iter()
+                    .map(|&k| {
+                        let i = valid[k];
+                        ((i % w) as f64, (i / w) as f64, i)
+                    })
+                    .collect();
+                let points = uv
+                    .iter()
+                    .map(|&(u, v, i)| {
+                        let z = f64::from(depth.data[i]);
+                        [
+                            ((u - cx) * z / fx) as f32,
+                            ((v - cy) * z / fy) as f32,
+                            z as f32,
+                        ]
+                    })
+                    .collect();
+                (uv, points)
+            }
+            None => (Vec::new(), Vec::new()),
+        };
+        // bbox_visib when known, else the bounding box of the valid pixels.
+        let bbox = || {
+            infos
+                .and_then(|i| i.get(gt_id))
+                .map(|i| i.bbox_visib)
+                .filter(|b| b[2] > 0 && b[3] > 0)
+                .map(|b| b.map(f64::from))
+                .unwrap_or_else(|| {
+                    let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, 0.0f64, 0.0f64);
+                    for &i in &valid {
+                        let (u, v) = ((i % w) as f64, (i / w) as f64);
+                        (x0, y0, x1, y1) = (x0.min(u), y0.min(v), x1.max(u), y1.max(v));
+                    }
+                    [x0, y0, (x1 - x0).max(1.0), (y1 - y0).max(1.0)]
+                })
+        };
+        let region = match &rgb {
+            Some(img) if opts.rgb_box > 0 => Some(BoxRegion::from_image(
+                &img.rgb,
+                img.width,
+                img.height,
+                bbox(),
+                opts.rgb_box,
+                Pinhole::from_cam_k(&cam.cam_k),
+            )),
+            _ => None,
+        };
         let (crop_xy, crop_rgb) = match &rgb {
-            Some(img) => {
-                // bbox_visib when known, else the bounding box of the valid pixels.
-                let bbox = infos
-                    .and_then(|i| i.get(gt_id))
-                    .map(|i| i.bbox_visib)
-                    .filter(|b| b[2] > 0 && b[3] > 0)
-                    .map(|b| b.map(f64::from))
-                    .unwrap_or_else(|| {
-                        let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, 0.0f64, 0.0f64);
-                        for &i in &valid {
-                            let (u, v) = ((i % w) as f64, (i / w) as f64);
-                            (x0, y0, x1, y1) = (x0.min(u), y0.min(v), x1.max(u), y1.max(v));
-                        }
-                        [x0, y0, (x1 - x0).max(1.0), (y1 - y0).max(1.0)]
-                    });
+            Some(img) if opts.crop_size > 0 => {
+                let bbox = bbox();
                 let s = f64::from(opts.crop_size);
                 let xy = uv
                     .iter()
@@ -243,7 +290,7 @@ fn load_frame(frame: &SourceFrame, opts: &DataOptions) -> Result<Vec<Outcome>> {
                     crop_resize(&img.rgb, img.width, img.height, bbox, opts.crop_size),
                 )
             }
-            None => (Vec::new(), Vec::new()),
+            _ => (Vec::new(), Vec::new()),
         };
         out.push(Outcome::Instance(Box::new(Instance {
             scene_id,
@@ -253,6 +300,7 @@ fn load_frame(frame: &SourceFrame, opts: &DataOptions) -> Result<Vec<Outcome>> {
             points_m,
             crop_xy,
             crop_rgb,
+            region,
             pose: gts[gt_id].cam_from_obj(),
         })));
     }
@@ -276,7 +324,7 @@ pub fn load_source_instances(
     opts: &DataOptions,
     progress: &dyn Progress,
 ) -> Result<InstanceSet> {
-    if opts.n_points == 0 {
+    if opts.depth_points && opts.n_points == 0 {
         return Err(Error::InvalidOption(
             "the number of points must be positive".into(),
         ));

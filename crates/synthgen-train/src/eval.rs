@@ -99,17 +99,21 @@ pub fn load_eval_objects(
         ds.models_info(),
         &ds.models_info_path(),
         &|id| ds.model_file(id),
+        ds.model_units(),
         obj_ids,
         eval_object,
     )
 }
 
 /// Loads each distinct object of `obj_ids` once (its models_info entry and its model file,
+/// whose numbers are in `units`: millimetres for BOP and Linemod, metres for YCB-Video; the
+/// model comes out in metres, or, with `Units::M` on a millimetre file, keeps its
 /// millimetres) and keeps what `f` makes of it.
 pub(crate) fn load_each_object<T>(
     models_info: Option<&BTreeMap<u32, ModelInfo>>,
     info_path: &Path,
     model_path: &dyn Fn(u32) -> PathBuf,
+    units: Units,
     obj_ids: impl IntoIterator<Item = u32>,
     mut f: impl FnMut(&Model, &ModelInfo) -> T,
 ) -> Result<BTreeMap<u32, T>> {
@@ -125,7 +129,7 @@ pub(crate) fn load_each_object<T>(
             obj_id,
             path: info_path.to_path_buf(),
         })?;
-        let loaded = synthgen_assets::load_model(&model_path(obj_id), Units::Mm, &NoProgress)
+        let loaded = synthgen_assets::load_model(&model_path(obj_id), units, &NoProgress)
             .map_err(|source| Error::Model { obj_id, source })?;
         out.insert(obj_id, f(&loaded.model, info));
     }
@@ -217,19 +221,32 @@ pub fn score_predictions<'a>(
     gts: &[GtInstance],
     objects: &Objects,
 ) -> Result<EvalReport> {
-    let estimates: Vec<Estimate> = preds
+    evaluate(
+        gts,
+        &prediction_estimates(preds, instances),
+        &eval_objects(objects),
+    )
+}
+
+/// A model's predictions for `instances` (in the same order) as estimates: its confidence as
+/// score; RNet, which predicts no translation, gets the GT translation.
+pub fn prediction_estimates<'a>(
+    preds: &[Prediction],
+    instances: impl IntoIterator<Item = &'a Instance>,
+) -> Vec<Estimate> {
+    preds
         .iter()
         .zip(instances)
-        .map(|(p, i)| Estimate {
-            scene_id: i.scene_id,
-            im_id: i.im_id,
-            obj_id: i.obj_id,
-            score: p.score(),
-            pose: p.pose(i.pose.translation_m),
-            time_s: -1.0,
+        .map(|(p, i)| {
+            Estimate::new(
+                i.scene_id,
+                i.im_id,
+                i.obj_id,
+                p.score(),
+                p.pose(i.pose.translation_m),
+            )
         })
-        .collect();
-    evaluate(gts, &estimates, &eval_objects(objects))
+        .collect()
 }
 
 /// The metric side of training objects, by id.
@@ -286,7 +303,7 @@ pub fn evaluate(
                     .iter()
                     .enumerate()
                     .filter(|(_, m)| m.estimate.is_none())
-                    .map(|(i, m)| (i, obj.errors(&m.gt.pose, &e.pose)))
+                    .map(|(i, m)| (i, obj.scoring_errors(&m.gt.pose, &e.pose)))
                     .min_by(|a, b| a.1.add_s_m.total_cmp(&b.1.add_s_m));
                 if let Some((i, err)) = best {
                     matches[i].estimate = Some((e, err));
@@ -390,14 +407,13 @@ mod tests {
     }
 
     fn est(im_id: u32, obj_id: u32, score: f64, t: [f64; 3]) -> Estimate {
-        Estimate {
-            scene_id: 0,
+        Estimate::new(
+            0,
             im_id,
             obj_id,
             score,
-            pose: Pose::new(DMat3::IDENTITY, DVec3::from_array(t)),
-            time_s: -1.0,
-        }
+            Pose::new(DMat3::IDENTITY, DVec3::from_array(t)),
+        )
     }
 
     fn objects() -> BTreeMap<u32, EvalObject> {

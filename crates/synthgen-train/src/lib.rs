@@ -1,5 +1,6 @@
-//! Pose models and their evaluation for synthgen: BOP data loading, TNet, RNet and Full (candle), the
-//! training loop, and the pose metrics (ADD, ADD-S, 5cm5°) with BOP results CSV scoring.
+//! Pose models and their evaluation for synthgen: BOP data loading, TNet, RNet, Full and the RGB
+//! model (candle), the training loop, and the pose metrics (ADD, ADD-S, 5cm5°, BOP's AR) with
+//! BOP results CSV scoring.
 //!
 //! ```no_run
 //! use std::path::Path;
@@ -11,6 +12,7 @@
 //! # Ok::<(), synthgen_train::Error>(())
 //! ```
 
+pub mod bop;
 pub mod data;
 mod error;
 pub mod eval;
@@ -21,6 +23,7 @@ pub mod models;
 pub mod plot;
 pub mod pose_model;
 pub mod results;
+pub mod rgb_input;
 pub mod stability;
 pub mod train;
 

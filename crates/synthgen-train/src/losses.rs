@@ -1,6 +1,7 @@
 //! The losses of RNet and Full: the confidence-weighted quaternion loss and the per-pixel
 //! ADD loss with the minimum over an object's symmetries (equation (6) of the reference
-//! study), plain and confidence-weighted.
+//! study), plain and confidence-weighted; and the RGB model's: smooth L1 for the translation,
+//! the rotation's point-matching loss with the minimum over the symmetries.
 
 use candle_core::{Result, Tensor, D};
 use synthgen_core::glam::{DMat3, DVec3};
@@ -63,6 +64,29 @@ pub fn symmetric_add_per_pixel(
 /// the per-pixel distances of [`symmetric_add_per_pixel`] (metres) and `conf`: (B, N).
 pub fn confident_add_loss(dist: &Tensor, conf: &Tensor, w: f64) -> Result<Tensor> {
     ((dist * conf)? - (conf.log()? * w)?)?.mean_all()
+}
+
+/// Smooth L1 (Huber with slope 1): 0.5 d²/β where |d| < β, |d| − β/2 beyond, summed over the
+/// last dimension and averaged over the rest. `pred`, `target`: (B, C).
+pub fn smooth_l1_loss(pred: &Tensor, target: &Tensor, beta: f64) -> Result<Tensor> {
+    let d = (pred - target)?.abs()?;
+    let m = d.minimum(beta)?;
+    ((m.sqr()? * (0.5 / beta))? + (&d - &m)?)?
+        .sum(D::Minus1)?
+        .mean_all()
+}
+
+/// The RGB model's rotation loss: per crop, min over the symmetry transforms k of
+/// (1/M) Σ_j ‖R̂ x_j − y_kj‖, averaged over crops. PoseCNN's point-matching loss, with the
+/// minimum over the object's symmetries (as Full's) for symmetric objects instead of its
+/// nearest-point ShapeMatch loss. `quats`: (B, 4) unit (w, x, y, z); `points`: (B, M, 3) model
+/// points; `targets`: (B, K, M, 3) the points under the GT rotation composed with each
+/// symmetry, without translation (see [`symmetric_targets`] with a zero GT translation).
+pub fn rotation_points_loss(quats: &Tensor, points: &Tensor, targets: &Tensor) -> Result<Tensor> {
+    let b = quats.dim(0)?;
+    let r = crate::models::rnet::quaternion_to_matrix(quats)?.unsqueeze(1)?;
+    let t = Tensor::zeros((b, 1, 3), quats.dtype(), quats.device())?;
+    symmetric_add_per_pixel(&r, &t, points, targets)?.mean_all()
 }
 
 /// The symmetry transforms of an object (object frame, metres), the identity first:
@@ -181,6 +205,75 @@ mod tests {
         grad_check(&t, &|x| {
             symmetric_add_loss(&r_t, x, &pts, &targets).unwrap()
         });
+    }
+
+    #[test]
+    fn smooth_l1_values_and_gradients() {
+        let dev = Device::Cpu;
+        let p = Tensor::from_vec(vec![0.05f64, -0.3, 2.0, 0.0], (2, 2), &dev).unwrap();
+        let y = Tensor::zeros((2, 2), DType::F64, &dev).unwrap();
+        let l = smooth_l1_loss(&p, &y, 0.1)
+            .unwrap()
+            .to_scalar::<f64>()
+            .unwrap();
+        // 0.5·0.05²/0.1 + (0.3 − 0.05) and (2 − 0.05) + 0, averaged over the two rows.
+        let want = (0.0125 + 0.25 + 1.95 + 0.0) / 2.0;
+        assert!((l - want).abs() < 1e-12, "{l} vs {want}");
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
+        let v = Var::from_tensor(&rand_tensor(&mut rng, &[3, 3], -0.5, 0.5)).unwrap();
+        let target = rand_tensor(&mut rng, &[3, 3], -0.5, 0.5);
+        grad_check(&v, &|x| smooth_l1_loss(x, &target, 0.1).unwrap());
+    }
+
+    #[test]
+    fn rotation_loss_gradients_match_finite_differences_through_the_head() {
+        // From the head's raw outputs: normalization, quaternion → matrix, point loss.
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let raw = Var::from_tensor(&rand_tensor(&mut rng, &[2, 4], -0.8, 0.8)).unwrap();
+        let pts = rand_tensor(&mut rng, &[2, 5, 3], -0.5, 0.5);
+        let targets = rand_tensor(&mut rng, &[2, 3, 5, 3], -0.5, 0.5);
+        grad_check(&raw, &|x| {
+            let q = crate::models::rgb::normalize_quaternions(x).unwrap();
+            rotation_points_loss(&q, &pts, &targets).unwrap()
+        });
+    }
+
+    #[test]
+    fn rotation_loss_is_zero_at_the_gt_and_the_same_for_minus_q() {
+        let dev = Device::Cpu;
+        let r = DMat3::from_axis_angle(DVec3::new(0.3, -1.0, 0.4).normalize(), 0.9);
+        let pts = [
+            DVec3::new(0.4, 0.1, -0.2),
+            DVec3::new(-0.3, 0.5, 0.1),
+            DVec3::new(0.0, -0.2, 0.6),
+        ];
+        let targets = Tensor::from_vec(
+            symmetric_targets(&pts, &Pose::new(r, DVec3::ZERO), &[Pose::IDENTITY]),
+            (1, 1, 3, 3),
+            &dev,
+        )
+        .unwrap();
+        let pts_t = Tensor::from_vec(
+            pts.iter()
+                .flat_map(|p| p.to_array().map(|v| v as f32))
+                .collect::<Vec<_>>(),
+            (1, 3, 3),
+            &dev,
+        )
+        .unwrap();
+        let q = crate::pose_model::quaternion_wxyz(&r).map(|v| v as f32);
+        let loss = |q: [f32; 4]| {
+            let t = Tensor::from_vec(q.to_vec(), (1, 4), &dev).unwrap();
+            rotation_points_loss(&t, &pts_t, &targets)
+                .unwrap()
+                .to_scalar::<f32>()
+                .unwrap()
+        };
+        assert!(loss(q) < 1e-3, "{}", loss(q));
+        let off = crate::pose_model::quaternion_wxyz(&(r * DMat3::from_rotation_z(0.2)))
+            .map(|v| v as f32);
+        assert!(loss(off) > 0.02);
+        assert!((loss(off) - loss(off.map(|v| -v))).abs() < 1e-6);
     }
 
     fn pred_tensors(poses: &[Pose]) -> (Tensor, Tensor) {

@@ -1,4 +1,4 @@
-//! One trained pose model of any kind (TNet, RNet, Full) with its variables: batching of
+//! One trained pose model of any kind (TNet, RNet, Full, RGB) with its variables: batching of
 //! instances into tensors, loss, and per-instance predictions; checkpoints (strict load,
 //! and partial initialization from another kind's checkpoint).
 
@@ -16,12 +16,26 @@ use crate::data::Instance;
 use crate::error::{Error, Result};
 use crate::eval::{eval_object, load_each_object};
 use crate::init::seeded_var_builder;
-use crate::losses::{quaternion_confidence_loss, symmetric_targets, symmetry_poses};
+use crate::losses::{
+    quaternion_confidence_loss, rotation_points_loss, smooth_l1_loss, symmetric_targets,
+    symmetry_poses,
+};
 use crate::metrics::{subsample_vertices, EvalObject};
 use crate::models::full::{full_loss, Full};
+use crate::models::rgb::{
+    box_geometry, canonical_sign, class_indices, crops_nhwc, quaternion_rotation, ray_rotation,
+    RgbNet, Translation, TARGET_SCALE,
+};
 use crate::models::rnet::{crops_tensor, pixel_indices, RNet, RotationOut, CONFIDENCE_WEIGHT};
 use crate::models::tnet::{centres_from_offsets, make_batch, offset_l1_loss, TNet};
 use crate::models::ModelKind;
+use crate::rgb_input;
+
+/// The RGB model's smooth L1 β, in the translation targets' units (decimetres, tenths of the
+/// box side): quadratic below 1 cm (1% of the box), linear beyond.
+pub const RGB_SMOOTH_L1_BETA: f64 = 0.1;
+/// The RGB model's rotation loss weight against the translation's.
+pub const RGB_ROTATION_WEIGHT: f64 = 4.0;
 
 /// Continuous symmetries are discretized into this many rotations for Full's loss.
 pub const CONTINUOUS_SYMMETRY_STEPS: usize = 36;
@@ -38,11 +52,12 @@ pub struct TrainObject {
 
 pub type Objects = BTreeMap<u32, TrainObject>;
 
-/// Loads the objects `obj_ids` from models_info and the model files (millimetres).
+/// Loads the objects `obj_ids` from models_info and the model files (in `units`).
 pub fn load_objects(
     models_info: Option<&BTreeMap<u32, ModelInfo>>,
     info_path: &Path,
     model_path: &dyn Fn(u32) -> std::path::PathBuf,
+    units: synthgen_assets::Units,
     obj_ids: impl IntoIterator<Item = u32>,
     loss_points: usize,
 ) -> Result<Objects> {
@@ -50,6 +65,7 @@ pub fn load_objects(
         models_info,
         info_path,
         model_path,
+        units,
         obj_ids,
         |model, info| TrainObject {
             loss_points_m: subsample_vertices(model, loss_points),
@@ -69,6 +85,7 @@ pub fn load_dataset_objects(
         ds.models_info(),
         &ds.models_info_path(),
         &|id| ds.model_file(id),
+        ds.model_units(),
         obj_ids,
         loss_points,
     )
@@ -78,6 +95,7 @@ enum Net {
     T(TNet),
     R(RNet),
     F(Full),
+    G(RgbNet),
 }
 
 /// A model with its variables.
@@ -87,17 +105,22 @@ pub struct PoseModel {
     net: Net,
     /// Point normalization scale (1/m).
     pub scale: f32,
-    /// RGB crop side (RNet, Full).
+    /// RGB crop side (RNet, Full, RGB).
     pub crop_size: u32,
+    /// The RGB model's translation parametrization.
+    pub translation: Option<Translation>,
+    /// The RGB model's classes (object ids, sorted): one head each.
+    pub classes: Vec<u32>,
     pub device: Device,
 }
 
 /// One instance's prediction.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Prediction {
-    /// Centre (metres): TNet and Full.
+    /// Centre (metres): TNet and Full; the translation: RGB.
     pub centre_m: Option<[f32; 3]>,
-    /// Rotation of the most confident pixel and its confidence: RNet and Full.
+    /// Rotation of the most confident pixel and its confidence: RNet and Full; RGB's
+    /// rotation with confidence 1.
     pub rotation: Option<(DMat3, f32)>,
 }
 
@@ -151,6 +174,11 @@ impl PoseModel {
         seed: u64,
         device: &Device,
     ) -> Result<PoseModel> {
+        if kind == ModelKind::Rgb {
+            return Err(Error::InvalidOption(
+                "the rgb model is made by PoseModel::rgb (it needs its classes)".into(),
+            ));
+        }
         if kind.needs_rgb() && (crop_size < 2 || !crop_size.is_multiple_of(2)) {
             return Err(Error::InvalidOption(format!(
                 "the crop size must be even and at least 2 (got {crop_size})"
@@ -162,6 +190,7 @@ impl PoseModel {
             ModelKind::Tnet => Net::T(TNet::new(width, vb)?),
             ModelKind::Rnet => Net::R(RNet::new(width, vb)?),
             ModelKind::Full => Net::F(Full::new(width, vb)?),
+            ModelKind::Rgb => unreachable!("returned above"),
         };
         Ok(PoseModel {
             kind,
@@ -169,6 +198,46 @@ impl PoseModel {
             net,
             scale,
             crop_size,
+            translation: None,
+            classes: Vec::new(),
+            device: device.clone(),
+        })
+    }
+
+    /// The RGB model: `crop`-pixel inputs, fully connected `width`, one head per class
+    /// (object ids; sorted and deduplicated here).
+    pub fn rgb(
+        translation: Translation,
+        classes: &[u32],
+        width: usize,
+        crop: u32,
+        seed: u64,
+        device: &Device,
+    ) -> Result<PoseModel> {
+        if crop < 16 {
+            return Err(Error::InvalidOption(format!(
+                "the rgb model's crop size must be at least 16 (got {crop})"
+            )));
+        }
+        let mut classes = classes.to_vec();
+        classes.sort_unstable();
+        classes.dedup();
+        if classes.is_empty() {
+            return Err(Error::InvalidOption(
+                "the rgb model needs at least one object class".into(),
+            ));
+        }
+        let varmap = VarMap::new();
+        let vb = seeded_var_builder(&varmap, seed, device);
+        let net = Net::G(RgbNet::new(crop, width, classes.len(), vb)?);
+        Ok(PoseModel {
+            kind: ModelKind::Rgb,
+            varmap,
+            net,
+            scale: TARGET_SCALE as f32,
+            crop_size: crop,
+            translation: Some(translation),
+            classes,
             device: device.clone(),
         })
     }
@@ -214,13 +283,38 @@ impl PoseModel {
         Ok(set)
     }
 
-    /// Loss and (with `predict`) per-instance predictions of a batch. Full needs `objects`.
+    /// Loss and (with `predict`) per-instance predictions of a batch. Full and RGB need
+    /// `objects`.
     pub fn run(
         &self,
         batch: &[&Instance],
         objects: Option<&Objects>,
         predict: bool,
     ) -> Result<(Tensor, Vec<Prediction>)> {
+        self.forward(batch, objects, predict, None)
+    }
+
+    /// The loss of a training step: as [`PoseModel::run`], and the RGB model sees its boxes
+    /// and colours jittered, drawn from (`jitter_seed`, instance).
+    pub fn run_training(
+        &self,
+        batch: &[&Instance],
+        objects: Option<&Objects>,
+        jitter_seed: u64,
+    ) -> Result<Tensor> {
+        Ok(self.forward(batch, objects, false, Some(jitter_seed))?.0)
+    }
+
+    fn forward(
+        &self,
+        batch: &[&Instance],
+        objects: Option<&Objects>,
+        predict: bool,
+        jitter_seed: Option<u64>,
+    ) -> Result<(Tensor, Vec<Prediction>)> {
+        if let Net::G(net) = &self.net {
+            return self.forward_rgb(net, batch, objects, predict, jitter_seed);
+        }
         let clouds: Vec<&[[f32; 3]]> = batch.iter().map(|i| i.points_m.as_slice()).collect();
         let centres: Vec<[f32; 3]> = batch
             .iter()
@@ -295,7 +389,17 @@ impl PoseModel {
                 })?;
                 let (crops, pix) = rgb(())?;
                 let out = net.forward(&b.points, &crops, &pix)?;
-                let (model_pts, targets) = self.full_targets(batch, &b.means_m, objects)?;
+                // The GT poses in the normalized frame: centred on the cloud's mean, scaled.
+                let s = f64::from(self.scale);
+                let poses: Vec<Pose> = batch
+                    .iter()
+                    .zip(&b.means_m)
+                    .map(|(i, m)| {
+                        let mean = DVec3::new(m[0].into(), m[1].into(), m[2].into());
+                        Pose::new(i.pose.rotation, (i.pose.translation_m - mean) * s)
+                    })
+                    .collect();
+                let (model_pts, targets) = self.posed_targets(batch, &poses, s, objects)?;
                 let loss = full_loss(
                     &out,
                     &b.points,
@@ -319,15 +423,101 @@ impl PoseModel {
                 };
                 Ok((loss, preds))
             }
+            Net::G(_) => unreachable!("handled above"),
         }
     }
 
-    /// Full's model points (B, M, 3) and targets (B, K, M, 3) in the normalized frame. Objects
-    /// with fewer symmetries repeat their identity target (that leaves the minimum unchanged).
-    fn full_targets(
+    /// The RGB model on a batch: crops (jittered with `jitter_seed`), box geometry and class
+    /// heads in; smooth L1 on the translation targets plus the rotation's point loss out.
+    fn forward_rgb(
+        &self,
+        net: &RgbNet,
+        batch: &[&Instance],
+        objects: Option<&Objects>,
+        predict: bool,
+        jitter_seed: Option<u64>,
+    ) -> Result<(Tensor, Vec<Prediction>)> {
+        let objects = objects.ok_or_else(|| {
+            Error::InvalidOption("the rgb model needs the objects' models".into())
+        })?;
+        let translation = self.translation.unwrap_or(Translation::CentreTz);
+        let samples: Vec<rgb_input::RgbSample> = batch
+            .iter()
+            .map(|i| {
+                rgb_input::sample(i, self.crop_size, jitter_seed).ok_or_else(|| {
+                    Error::InvalidOption(format!(
+                        "instance (scene {}, image {}, gt {}) has no box region; load the data with an rgb box size",
+                        i.scene_id, i.im_id, i.gt_id
+                    ))
+                })
+            })
+            .collect::<Result<_>>()?;
+        let crops: Vec<&[u8]> = samples.iter().map(|s| s.crop.as_slice()).collect();
+        let crops = crops_nhwc(&crops, self.crop_size, &self.device)?;
+        let geometry: Vec<f32> = samples
+            .iter()
+            .flat_map(|s| box_geometry(&s.bbox, &s.camera))
+            .collect();
+        let geometry = Tensor::from_vec(geometry, (batch.len(), 3), &self.device)?;
+        let obj_ids: Vec<u32> = batch.iter().map(|i| i.obj_id).collect();
+        let class = class_indices(&obj_ids, &self.classes, &self.device)?;
+        let out = net.forward(&crops, &geometry, &class)?;
+        let t_target: Vec<f32> = batch
+            .iter()
+            .zip(&samples)
+            .flat_map(|(i, s)| {
+                translation
+                    .target(i.pose.translation_m, &s.bbox, &s.camera)
+                    .map(|v| v as f32)
+            })
+            .collect();
+        let t_target = Tensor::from_vec(t_target, (batch.len(), 3), &self.device)?;
+        // Rotation targets without translation: the GT's allocentric rotation (as seen along
+        // the ray through the crop's centre) about the model's origin.
+        let rays: Vec<DMat3> = samples
+            .iter()
+            .map(|s| ray_rotation(&s.bbox, &s.camera))
+            .collect();
+        let poses: Vec<Pose> = batch
+            .iter()
+            .zip(&rays)
+            .map(|(i, ray)| Pose::new(ray.transpose() * i.pose.rotation, DVec3::ZERO))
+            .collect();
+        let (model_pts, r_target) = self.posed_targets(batch, &poses, TARGET_SCALE, objects)?;
+        let loss = (smooth_l1_loss(&out.translation, &t_target, RGB_SMOOTH_L1_BETA)?
+            + (rotation_points_loss(&out.quats, &model_pts, &r_target)? * RGB_ROTATION_WEIGHT)?)?;
+        if !predict {
+            return Ok((loss, Vec::new()));
+        }
+        let t: Vec<Vec<f32>> = out.translation.to_dtype(DType::F32)?.to_vec2()?;
+        let q: Vec<Vec<f32>> = out.quats.to_dtype(DType::F32)?.to_vec2()?;
+        let preds = t
+            .iter()
+            .zip(&q)
+            .zip(samples.iter().zip(&rays))
+            .map(|((t, q), (s, ray))| {
+                let t =
+                    translation.translation([t[0], t[1], t[2]].map(f64::from), &s.bbox, &s.camera);
+                let q = canonical_sign([q[0], q[1], q[2], q[3]]);
+                Prediction {
+                    centre_m: Some(t.as_vec3().to_array()),
+                    rotation: Some((*ray * quaternion_rotation(q), 1.0)),
+                }
+            })
+            .collect();
+        Ok((loss, preds))
+    }
+
+    /// Model points scaled by `scale` (B, M, 3) and their targets (B, K, M, 3) under `poses`
+    /// (one per instance, already in the frame the loss works in: Full's normalized frame,
+    /// the RGB model's rotation-only one), composed with each of the object's symmetries.
+    /// Objects with fewer symmetries repeat their identity target (that leaves the minimum
+    /// unchanged).
+    fn posed_targets(
         &self,
         batch: &[&Instance],
-        means_m: &[[f32; 3]],
+        poses: &[Pose],
+        scale: f64,
         objects: &Objects,
     ) -> Result<(Tensor, Tensor)> {
         let objs: Vec<&TrainObject> = batch
@@ -347,14 +537,12 @@ impl PoseModel {
             return Err(Error::InvalidOption("an object model has no points".into()));
         }
         let k = objs.iter().map(|o| o.symmetries.len()).max().unwrap_or(1);
-        let s = f64::from(self.scale);
+        let s = scale;
         let mut pts = Vec::with_capacity(batch.len() * m * 3);
         let mut tgt = Vec::with_capacity(batch.len() * k * m * 3);
-        for ((inst, obj), mean) in batch.iter().zip(&objs).zip(means_m) {
+        for (obj, pose) in objs.iter().zip(poses) {
             let p = &obj.loss_points_m[..m];
             pts.extend(p.iter().flat_map(|v| (*v * s).to_array().map(|x| x as f32)));
-            let mean = DVec3::new(mean[0].into(), mean[1].into(), mean[2].into());
-            let shifted = Pose::new(inst.pose.rotation, (inst.pose.translation_m - mean) * s);
             // Scale the object too: y = s·(R S x + t − mean) = R S (s x) + s (t − mean) for
             // the rotation part of S; S's translation scales with the points.
             let scaled_syms: Vec<Pose> = obj
@@ -363,7 +551,7 @@ impl PoseModel {
                 .map(|sym| Pose::new(sym.rotation, sym.translation_m * s))
                 .collect();
             let scaled_pts: Vec<DVec3> = p.iter().map(|v| *v * s).collect();
-            let mut t = symmetric_targets(&scaled_pts, &shifted, &scaled_syms);
+            let mut t = symmetric_targets(&scaled_pts, pose, &scaled_syms);
             let one = m * 3;
             while t.len() < k * one {
                 t.extend_from_within(0..one);
@@ -441,6 +629,7 @@ mod tests {
             points_m,
             crop_xy,
             crop_rgb,
+            region: None,
             pose,
         }
     }
@@ -461,6 +650,26 @@ mod tests {
         )])
     }
 
+    fn adamw(model: &PoseModel, lr: f64) -> AdamW {
+        AdamW::new(
+            model.varmap.all_vars(),
+            ParamsAdamW {
+                lr,
+                ..Default::default()
+            },
+        )
+        .unwrap()
+    }
+
+    /// The loss without jitter (the evaluation pass), as a number.
+    fn eval_loss(m: &PoseModel, refs: &[&Instance], objs: &Objects) -> f32 {
+        m.run(refs, Some(objs), false)
+            .unwrap()
+            .0
+            .to_scalar::<f32>()
+            .unwrap()
+    }
+
     fn loss_after(kind: ModelKind, steps: usize) -> (f32, f32, PoseModel, Vec<Instance>) {
         let dev = Device::Cpu;
         let model = PoseModel::new(kind, 32, 10.0, 8, 0, &dev).unwrap();
@@ -468,21 +677,8 @@ mod tests {
         let insts: Vec<Instance> = (0..6).map(|i| instance(&mut rng, i, 8, 40)).collect();
         let refs: Vec<&Instance> = insts.iter().collect();
         let objs = objects();
-        let mut opt = AdamW::new(
-            model.varmap.all_vars(),
-            ParamsAdamW {
-                lr: 3e-3,
-                ..Default::default()
-            },
-        )
-        .unwrap();
-        let loss = |m: &PoseModel| {
-            m.run(&refs, Some(&objs), false)
-                .unwrap()
-                .0
-                .to_scalar::<f32>()
-                .unwrap()
-        };
+        let mut opt = adamw(&model, 3e-3);
+        let loss = |m: &PoseModel| eval_loss(m, &refs, &objs);
         let first = loss(&model);
         for _ in 0..steps {
             let (l, _) = model.run(&refs, Some(&objs), false).unwrap();
@@ -511,6 +707,102 @@ mod tests {
     fn rnet_loss_falls() {
         let (first, last, _, _) = loss_after(ModelKind::Rnet, 60);
         assert!(last < 0.8 * first, "rnet loss {first} -> {last}");
+    }
+
+    /// An RGB instance: the object's points projected into a 160x120 image as dots coloured
+    /// by their model coordinates, the box their bounding box.
+    fn rgb_instance(rng: &mut rand_chacha::ChaCha8Rng, im_id: u32) -> Instance {
+        use crate::models::rgb::Pinhole;
+        let r = DMat3::from_rotation_z(rng.gen_range(-0.8..0.8))
+            * DMat3::from_rotation_x(rng.gen_range(-0.5..0.5));
+        let t = DVec3::new(
+            rng.gen_range(-0.08..0.08),
+            rng.gen_range(-0.06..0.06),
+            rng.gen_range(0.6..1.0),
+        );
+        let pose = Pose::new(r, t);
+        let cam = Pinhole {
+            fx: 200.0,
+            fy: 190.0,
+            cx: 80.0,
+            cy: 60.0,
+        };
+        let (w, h) = (160u32, 120u32);
+        let mut img = vec![20u8; (w * h * 3) as usize];
+        let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+        for x in object() {
+            let c = pose.transform_point(x);
+            let (u, v) = (cam.fx * c.x / c.z + cam.cx, cam.fy * c.y / c.z + cam.cy);
+            (x0, y0, x1, y1) = (x0.min(u), y0.min(v), x1.max(u), y1.max(v));
+            for (du, dv) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                let (pu, pv) = (u as i64 + du, v as i64 + dv);
+                if (0..i64::from(w)).contains(&pu) && (0..i64::from(h)).contains(&pv) {
+                    let i = ((pv as u32 * w + pu as u32) * 3) as usize;
+                    img[i] = ((x.x + 0.05) * 2500.0) as u8;
+                    img[i + 1] = ((x.y + 0.03) * 3000.0) as u8;
+                    img[i + 2] = ((x.z + 0.01) * 5000.0) as u8;
+                }
+            }
+        }
+        let region = crate::rgb_input::BoxRegion::from_image(
+            &img,
+            w,
+            h,
+            [x0, y0, x1 - x0, y1 - y0],
+            16,
+            cam,
+        );
+        Instance {
+            scene_id: 0,
+            im_id,
+            gt_id: 0,
+            obj_id: 1,
+            points_m: vec![],
+            crop_xy: vec![],
+            crop_rgb: vec![],
+            region: Some(region),
+            pose,
+        }
+    }
+
+    #[test]
+    fn rgb_loss_falls_predicts_poses_and_round_trips() {
+        let dev = Device::Cpu;
+        let objs = objects();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let insts: Vec<Instance> = (0..6).map(|i| rgb_instance(&mut rng, i)).collect();
+        let refs: Vec<&Instance> = insts.iter().collect();
+        for translation in [Translation::CentreTz, Translation::Xyz] {
+            let model = PoseModel::rgb(translation, &[1], 32, 16, 0, &dev).unwrap();
+            let mut opt = adamw(&model, 2e-3);
+            let loss = |m: &PoseModel| eval_loss(m, &refs, &objs);
+            let first = loss(&model);
+            for step in 0..80 {
+                let l = model.run_training(&refs, Some(&objs), step).unwrap();
+                opt.backward_step(&l).unwrap();
+            }
+            let last = loss(&model);
+            assert!(last < 0.5 * first, "{translation:?}: {first} -> {last}");
+            let preds = model.predict(&refs, Some(&objs), 4).unwrap();
+            for p in &preds {
+                let (r, c) = p.rotation.unwrap();
+                assert!((r.determinant() - 1.0).abs() < 1e-6);
+                assert_eq!(c, 1.0);
+                assert!(p.centre_m.unwrap().iter().all(|v| v.is_finite()));
+            }
+            // The jittered training input differs from the evaluation input.
+            let jittered = model.run_training(&refs, Some(&objs), 99).unwrap();
+            assert_ne!(jittered.to_scalar::<f32>().unwrap(), last);
+            let dir = tempfile::tempdir().unwrap();
+            let path = dir.path().join("rgb.safetensors");
+            model.varmap.save(&path).unwrap();
+            let mut again = PoseModel::rgb(translation, &[1], 32, 16, 5, &dev).unwrap();
+            again.load_strict(&path).unwrap();
+            assert_eq!(again.predict(&refs, Some(&objs), 4).unwrap(), preds);
+        }
+        // An object without a head is an error, not a silent wrong class.
+        let model = PoseModel::rgb(Translation::CentreTz, &[2], 32, 16, 0, &dev).unwrap();
+        assert!(model.run(&refs, Some(&objs), false).is_err());
     }
 
     #[test]

@@ -5,6 +5,7 @@ use std::path::Path;
 
 use synthgen_core::Pose;
 
+use crate::bop::errors::RawPose;
 use crate::error::{Error, Result};
 
 /// One pose estimate of a results file, converted to metres.
@@ -14,9 +15,27 @@ pub struct Estimate {
     pub im_id: u32,
     pub obj_id: u32,
     pub score: f64,
-    /// `cam_from_obj`, metres.
+    /// `cam_from_obj`, metres, with the nearest proper rotation.
     pub pose: Pose,
+    /// The pose exactly as the file stores it (rotation as given, mm): what BOP's metrics
+    /// use, as bop_toolkit does.
+    pub stored: RawPose,
     pub time_s: f64,
+}
+
+impl Estimate {
+    /// An estimate of a pose in metres (a model's prediction): stored as it is.
+    pub fn new(scene_id: u32, im_id: u32, obj_id: u32, score: f64, pose: Pose) -> Estimate {
+        Estimate {
+            scene_id,
+            im_id,
+            obj_id,
+            score,
+            pose,
+            stored: RawPose::from_pose(&pose),
+            time_s: -1.0,
+        }
+    }
 }
 
 pub const HEADER: &str = "scene_id,im_id,obj_id,score,R,t,time";
@@ -117,6 +136,7 @@ fn parse_line(line: &str, c: &Columns) -> std::result::Result<Estimate, String> 
     };
     // Estimates, like annotations, may store rotations with a few digits: accepted within the
     // reading tolerance, scored with the nearest proper rotation.
+    let stored = RawPose::from_bop(&r, &t);
     let pose = Pose::from_bop(&r, &t);
     pose.validate(synthgen_core::pose::rotation_tolerance())
         .map_err(|e| format!("R: {e}"))?;
@@ -127,6 +147,7 @@ fn parse_line(line: &str, c: &Columns) -> std::result::Result<Estimate, String> 
         obj_id: id(f[c.obj_id], "obj_id")?,
         score,
         pose,
+        stored,
         time_s,
     })
 }
@@ -223,6 +244,17 @@ pub fn format_estimate(e: &Estimate) -> String {
     )
 }
 
+/// Writes `estimates` as a BOP results CSV (with bop_toolkit's header), atomically.
+pub fn write_results_csv(path: &Path, estimates: &[Estimate]) -> Result<()> {
+    let mut text = String::from("scene_id,im_id,obj_id,score,R,t,time\n");
+    for e in estimates {
+        text += &format_estimate(e);
+        text.push('\n');
+    }
+    synthgen_core::atomic::write_atomic(path, text.as_bytes(), false)
+        .map_err(|(_, e)| Error::io("write", path, e))
+}
+
 #[cfg(test)]
 #[allow(clippy::unwrap_used, clippy::expect_used)]
 mod tests {
@@ -231,14 +263,20 @@ mod tests {
 
     #[test]
     fn round_trip_in_millimetres() {
-        let e = Estimate {
-            scene_id: 2,
-            im_id: 17,
-            obj_id: 8,
-            score: 0.5,
-            pose: Pose::new(DMat3::from_rotation_z(0.3), DVec3::new(0.01, -0.02, 0.9)),
-            time_s: -1.0,
-        };
+        let e = Estimate::new(
+            2,
+            17,
+            8,
+            0.5,
+            Pose::new(DMat3::from_rotation_z(0.3), DVec3::new(0.01, -0.02, 0.9)),
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("r.csv");
+        write_results_csv(&path, &[e, e]).unwrap();
+        let back = read_results_csv(&path).unwrap();
+        assert_eq!(back.estimates.len(), 2);
+        assert!(back.skipped.is_empty());
+        assert!((back.estimates[1].pose.translation_m - e.pose.translation_m).length() < 1e-12);
         let line = format_estimate(&e);
         assert!(line.contains(",10 -20 900,"), "{line}");
         let back = parse_results_csv(&format!("{HEADER}\n{line}\n"), Path::new("r.csv"))

@@ -14,8 +14,10 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use synthgen_core::rng::splitmix64;
 
-use crate::data::{Instance, InstanceSet};
+use crate::data::{DataOptions, Instance, InstanceSet};
 use crate::error::{Error, Result};
+use crate::metrics::is_5cm5deg;
+use crate::models::rgb::Translation;
 use crate::models::ModelKind;
 use crate::pose_model::{Objects, PoseModel, Prediction};
 use rayon::prelude::*;
@@ -69,6 +71,13 @@ pub struct TrainConfig {
     /// minimum over their symmetries (`--no-symmetric-loss`, for ablations).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub plain_add_loss: bool,
+    /// The RGB model's translation parametrization (`--translation`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub translation: Option<Translation>,
+    /// The RGB model's object classes (ids, sorted), one head each: the training set's
+    /// objects.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub classes: Vec<u32>,
 }
 
 fn default_loss_points() -> usize {
@@ -100,8 +109,15 @@ impl TrainConfig {
                 self.min_visib_fract
             ));
         }
-        if self.batch == 0 || self.epochs == 0 || self.width == 0 || self.n_points == 0 {
+        let points_ok = self.n_points > 0 || !self.model.needs_depth();
+        if self.batch == 0 || self.epochs == 0 || self.width == 0 || !points_ok {
             return bad("--batch, --epochs, --width and --points must be positive".into());
+        }
+        if self.model == ModelKind::Rgb && self.crop_size < 16 {
+            return bad(format!(
+                "--crop-size {} is too small for the rgb model (at least 16)",
+                self.crop_size
+            ));
         }
         if !(self.normalization_scale.is_finite() && self.normalization_scale > 0.0) {
             return bad(format!(
@@ -110,6 +126,22 @@ impl TrainConfig {
             ));
         }
         Ok(())
+    }
+
+    /// How the run's model loads a dataset's instances (points and RNet crops, or the RGB
+    /// model's box regions without depth), with its seed, split and visibility threshold.
+    pub fn data_options(&self) -> DataOptions {
+        let rgb = self.model == ModelKind::Rgb;
+        DataOptions {
+            n_points: self.n_points,
+            min_visib_fract: self.min_visib_fract,
+            seed: self.seed,
+            split: (!self.split.is_empty()).then(|| self.split.clone()),
+            crop_size: if rgb { 0 } else { self.crop_size },
+            rgb_box: if rgb { self.crop_size } else { 0 },
+            depth_points: self.model.needs_depth(),
+            ..DataOptions::default()
+        }
     }
 
     pub fn lr_at(&self, step: usize, total_steps: usize, epoch: usize) -> f64 {
@@ -144,9 +176,12 @@ pub struct EpochMetrics {
     /// RNet's poses use the GT translation).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub val_add_s_acc: Option<f64>,
-    /// Mean rotation error over the validation instances, degrees (RNet, Full).
+    /// Mean rotation error over the validation instances, degrees (RNet, Full, RGB).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub val_mean_re_deg: Option<f64>,
+    /// Fraction of validation instances within 5 cm and 5° (RGB).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub val_acc_5cm5deg: Option<f64>,
     /// Learning rate at the epoch's last step.
     pub lr: f64,
     pub seconds: f64,
@@ -203,6 +238,16 @@ pub fn device(cuda: bool) -> Result<Device> {
 
 /// A fresh model for `cfg`.
 pub fn new_model(cfg: &TrainConfig, device: &Device) -> Result<PoseModel> {
+    if cfg.model == ModelKind::Rgb {
+        return PoseModel::rgb(
+            cfg.translation.unwrap_or(Translation::CentreTz),
+            &cfg.classes,
+            cfg.width,
+            cfg.crop_size,
+            cfg.seed,
+            device,
+        );
+    }
     PoseModel::new(
         cfg.model,
         cfg.width,
@@ -297,6 +342,18 @@ pub fn train(
         )));
     }
     cfg.validate()?;
+    if cfg.model == ModelKind::Rgb {
+        if let Some(id) = data
+            .obj_ids()
+            .into_iter()
+            .find(|id| !cfg.classes.contains(id))
+        {
+            return Err(Error::InvalidOption(format!(
+                "object {id} of the training data is not one of the rgb model's classes {:?}",
+                cfg.classes
+            )));
+        }
+    }
     let plain: Option<Objects>;
     let objects = if cfg.plain_add_loss {
         // Symmetry transforms start with the identity: keep only it.
@@ -378,7 +435,8 @@ pub fn train(
         for batch in order.chunks(cfg.batch) {
             lr = cfg.lr_at(step, total_steps, epoch);
             opt.set_learning_rate(lr);
-            let (loss, _) = model.run(batch, objects, false)?;
+            let jitter = splitmix64(cfg.seed ^ 0x6a17_7e25 ^ (step as u64).wrapping_mul(0x9e37));
+            let loss = model.run_training(batch, objects, jitter)?;
             // A non-finite loss would poison the weights: stop, keeping the last epoch's
             // checkpoint (written only after a finite validation).
             let value = f64::from(loss.to_scalar::<f32>()?);
@@ -402,6 +460,7 @@ pub fn train(
             val_centre_error_m: v.centre_error_m,
             val_add_s_acc: v.add_s_acc,
             val_mean_re_deg: v.mean_re_deg,
+            val_acc_5cm5deg: v.acc_5cm5deg,
             lr,
             seconds: started.elapsed().as_secs_f64(),
         };
@@ -436,10 +495,12 @@ pub struct Validation {
     pub centre_error_m: Option<f64>,
     pub add_s_acc: Option<f64>,
     pub mean_re_deg: Option<f64>,
+    pub acc_5cm5deg: Option<f64>,
 }
 
-/// Mean loss, mean centre error (metres; TNet, Full), ADD(-S) accuracy and mean rotation
-/// error (RNet with the GT translation, Full) over `set`; NaN when it is empty.
+/// Mean loss, mean centre error (metres; TNet, Full; RGB's translation error), ADD(-S)
+/// accuracy and mean rotation error (RNet with the GT translation, Full, RGB) and 5cm5°
+/// accuracy (RGB) over `set`; NaN when it is empty.
 pub fn validate(
     model: &PoseModel,
     set: &[&Instance],
@@ -462,25 +523,31 @@ pub fn validate(
             .sum::<f64>()
             / n
     });
-    let (mut add_s_acc, mut mean_re_deg) = (None, None);
-    if let (ModelKind::Rnet | ModelKind::Full, Some(objs)) = (model.kind, objects) {
-        let scored: Vec<(bool, f64)> = preds
+    let (mut add_s_acc, mut mean_re_deg, mut acc_5cm5deg) = (None, None, None);
+    if let (ModelKind::Rnet | ModelKind::Full | ModelKind::Rgb, Some(objs)) = (model.kind, objects)
+    {
+        let scored: Vec<(bool, f64, bool)> = preds
             .par_iter()
             .zip(set)
             .filter_map(|(p, i)| {
                 let obj = &objs.get(&i.obj_id)?.eval;
-                let e = obj.errors(&i.pose, &p.pose(i.pose.translation_m));
-                Some((obj.add_s_correct(&e), e.re_deg))
+                let est = p.pose(i.pose.translation_m);
+                let e = obj.scoring_errors(&i.pose, &est);
+                Some((obj.add_s_correct(&e), e.re_deg, is_5cm5deg(&i.pose, &est)))
             })
             .collect();
         add_s_acc = Some(scored.iter().filter(|s| s.0).count() as f64 / n);
         mean_re_deg = Some(scored.iter().map(|s| s.1).sum::<f64>() / n);
+        if model.kind == ModelKind::Rgb {
+            acc_5cm5deg = Some(scored.iter().filter(|s| s.2).count() as f64 / n);
+        }
     }
     Ok(Validation {
         loss: loss_sum / n,
         centre_error_m,
         add_s_acc,
         mean_re_deg,
+        acc_5cm5deg,
     })
 }
 
@@ -539,6 +606,7 @@ mod tests {
             points_m: vec![],
             crop_xy: vec![],
             crop_rgb: vec![],
+            region: None,
             pose: Pose::new(DMat3::IDENTITY, DVec3::ZERO),
         }
     }
@@ -573,6 +641,8 @@ mod tests {
             loss_points: 100,
             init: Vec::new(),
             plain_add_loss: false,
+            translation: None,
+            classes: Vec::new(),
         };
         assert!((cfg.lr_at(0, 100, 0) - 1e-3).abs() < 1e-12);
         assert!((cfg.lr_at(100, 100, 9) - 1e-5).abs() < 1e-12);

@@ -166,20 +166,32 @@ def evaluate(
     *,
     split: Optional[str] = None,
     min_visib_fract: float = 0.1,
+    bop: bool = False,
+    targets: Optional[PathLike] = None,
+    visib_gt_min: float = -1.0,
 ) -> Dict[str, Any]:
     """Scores a BOP results CSV (``scene_id,im_id,obj_id,score,R,t,time``) against
     ``data``'s ground truth, as ``synthgen eval --results`` does.
 
+    With ``bop=True`` also BOP's Average Recall (VSD, MSSD, MSPD), as ``synthgen eval --bop``
+    computes it (docs/metrics.md): ``targets`` is a ``test_targets_bop19.json`` (default: the
+    one in ``data``, else every GT instance), ``visib_gt_min`` bop_toolkit's setting.
+
     Returns:
         ``scores``: per object id (as a string) and ``"all"``: ``n_gt``, ``n_est``,
         ``add_s_acc``, ``mean_add_mm``, ``acc_5cm5deg``, ``mean_te_cm``, ``mean_re_deg`` (the
-        JSON ``synthgen eval --json`` writes); ``markdown`` (the table the CLI prints);
-        ``split``; ``estimates``; ``unmatched_estimates``; ``skipped_rows`` (``(line,
-        message)`` of rows that could not be read).
+        JSON ``synthgen eval --json`` writes); ``bop``: the ``"bop"`` object of
+        ``eval --bop --json`` (``vsd``, ``mssd``, ``mspd``, ``ar``, ``counts``), or None;
+        ``markdown`` (the table the CLI prints); ``split``; ``estimates``;
+        ``unmatched_estimates``; ``skipped_rows`` (``(line, message)`` of rows that could
+        not be read).
     """
     return _native.evaluate(
         os.fspath(data),
         os.fspath(results),
         split=split,
         min_visib_fract=float(min_visib_fract),
+        bop=bool(bop),
+        targets=None if targets is None else os.fspath(targets),
+        visib_gt_min=float(visib_gt_min),
     )

@@ -121,6 +121,9 @@ def evaluate(
     *,
     split: Optional[str] = None,
     min_visib_fract: float = 0.1,
+    bop: bool = False,
+    targets: Optional[_Path] = None,
+    visib_gt_min: float = -1.0,
 ) -> Dict[str, Any]: ...
 
 ADD_THRESHOLD_FRACTION: float

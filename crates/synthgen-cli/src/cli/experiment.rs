@@ -74,6 +74,10 @@ pub enum ExperimentCommand {
     /// render, train on synthetic only, and test on real frames, against baselines.
     #[command(after_long_help = super::sim2real::SIM2REAL_EXAMPLES)]
     Sim2real(super::sim2real::ExperimentSim2realArgs),
+    /// Seed 001's Table 1: the RGB model with centre + Tz against direct XYZ, trained on the
+    /// same set and scored with 5cm5°, E_te and E_re per object on held-out frames.
+    #[command(after_long_help = super::rgb::RGB_EXAMPLES)]
+    Rgb(super::rgb::ExperimentRgbArgs),
 }
 
 pub const EXPERIMENT_MIX_EXAMPLES: &str = "Examples:

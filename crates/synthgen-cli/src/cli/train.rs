@@ -14,6 +14,29 @@ pub enum ModelArg {
     Full,
 }
 
+/// `synthgen train --model`: the RGB-D models of the experiments, and the RGB model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum TrainModelArg {
+    /// Object centre from the masked depth points (PointNet offsets).
+    Tnet,
+    /// Rotation from colour + points (DenseFusion style), quaternion loss.
+    Rnet,
+    /// Both heads, per-pixel ADD loss (min over the object's symmetries).
+    Full,
+    /// A whole pose from the colour crop of a box, no depth (seed 001): Tz and the centre
+    /// inside the box, or XYZ directly (--translation), and a quaternion.
+    Rgb,
+}
+
+/// How the RGB model regresses the translation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum TranslationArg {
+    /// The centre's offset inside the box and the depth Tz; Tx, Ty through the intrinsics.
+    CentreTz,
+    /// (Tx, Ty, Tz) directly.
+    Xyz,
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum ScheduleArg {
     /// Cosine decay from --lr to --lr/100 over all steps.
@@ -41,13 +64,17 @@ pub const TRAIN_EXAMPLES: &str = "Examples:
   # The full model (translation + rotation), starting from the TNet run:
   synthgen train --data data/drill --model full --init runs/tnet/model.safetensors --out runs/full
 
+  # The RGB model (no depth): a pose from the crop of each object's box (the GT
+  # bbox_visib, jittered while training; no detector), centre + Tz or direct XYZ:
+  synthgen train --data data/lm --model rgb --translation centre-tz --epochs 20 --out runs/rgb
+
 Output (in --out):
   model.safetensors   the weights after the last finished epoch
   config.json         model, width, points, normalization, data, seed, ...
   state.json          epochs and steps done (for --resume)
   metrics.jsonl       one JSON line per epoch: epoch, train_loss, val_loss,
                       val_centre_error_m, val_add_s_acc and val_mean_re_deg
-                      (rnet, full), lr, seconds
+                      (rnet, full, rgb), val_acc_5cm5deg (rgb), lr, seconds
   curve.png           losses (top) and validation centre error or ADD(-S) error
                       rate (bottom), log scales";
 
@@ -61,8 +88,12 @@ pub struct TrainArgs {
     #[arg(long)]
     pub split: Option<String>,
 
-    #[arg(long, value_enum, default_value_t = ModelArg::Tnet)]
-    pub model: ModelArg,
+    #[arg(long, value_enum, default_value_t = TrainModelArg::Tnet)]
+    pub model: TrainModelArg,
+
+    /// The rgb model's translation: centre + Tz (the seed's) or direct XYZ.
+    #[arg(long, value_enum, default_value_t = TranslationArg::CentreTz)]
+    pub translation: TranslationArg,
 
     #[arg(long, default_value_t = 30)]
     pub epochs: usize,
@@ -93,9 +124,10 @@ pub struct TrainArgs {
     #[arg(long, default_value_t = 128)]
     pub width: usize,
 
-    /// Side of the RGB crop around the object (rnet, full), pixels, even.
-    #[arg(long, default_value_t = 48)]
-    pub crop_size: u32,
+    /// Side of the RGB crop around the object, pixels: rnet and full (even; default 48),
+    /// rgb (at least 16; default 64).
+    #[arg(long)]
+    pub crop_size: Option<u32>,
 
     /// Model points per object in the full model's ADD loss.
     #[arg(long, default_value_t = 100)]
@@ -143,10 +175,14 @@ pub const EVAL_EXAMPLES: &str = "Examples:
   # Score a BOP results CSV against a dataset's ground truth:
   synthgen eval --results results.csv --data data/lmo --split test --json scores.json
 
+  # The BOP challenge's Average Recall (VSD, MSSD, MSPD) as bop_toolkit computes it,
+  # next to ADD(-S); test_targets_bop19.json in --data is used when present:
+  synthgen eval --results results.csv --data data/lmo --bop --json scores.json
+
   # Centre error of a trained TNet on a dataset:
   synthgen eval --checkpoint runs/tnet/model.safetensors --data data/drill_test
 
-  # ADD(-S), 5cm5°, E_te, E_re of a full (or rnet) model, as a table and JSON:
+  # ADD(-S), 5cm5°, E_te, E_re of a full (or rnet, or rgb) model, as a table and JSON:
   synthgen eval --checkpoint runs/full/model.safetensors --data data/drill_test --json s.json
 
   # Spread of the estimates over repeated frames of a static object:
@@ -157,7 +193,11 @@ row-major and t in millimetres, space-separated. Accuracy is over all GT instanc
 (an instance without an estimate counts as wrong); the highest-scoring estimate
 per (image, object) counts; ADD-S is used for objects with symmetries in
 models_info.json. An rnet checkpoint predicts rotation only: its poses take the
-GT translation (E_te = 0). See docs/metrics.md.
+GT translation (E_te = 0). An rgb checkpoint reads no depth: it sees the crop of
+each instance's GT visible box (no detector). See docs/metrics.md.
+
+The RGB model's Table 1 (seed 001: centre + Tz against direct XYZ, 5cm5°):
+  synthgen experiment rgb --train data/synth --test data/test --out runs/rgb
 
 A Linemod --data is read with the scene and image ids that `synthgen convert --to bop`
 gives its frames (docs/training.md); a results CSV for it uses those ids.";
@@ -196,6 +236,32 @@ pub struct EvalArgs {
     /// Seed for point sampling with --checkpoint.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+
+    /// With --checkpoint of a full or rgb model, also write its estimates as a BOP results CSV
+    /// (for bop_toolkit, `synthgen view --results`, or a later `eval --results`).
+    #[arg(long, value_name = "CSV", requires = "checkpoint")]
+    pub save_results: Option<PathBuf>,
+
+    /// Also score with BOP's Average Recall (AR = mean of AR_VSD, AR_MSSD, AR_MSPD), computed
+    /// as bop_toolkit's eval_bop19_pose.py does; VSD renders each estimate and needs the test
+    /// depth images (without them: MSSD and MSPD only). See docs/metrics.md.
+    #[arg(long)]
+    pub bop: bool,
+
+    /// BOP targets (a test_targets_bop19.json: scene_id, im_id, obj_id, inst_count). Default:
+    /// test_targets_bop19.json in --data when present, else every GT instance of the split.
+    #[arg(long, value_name = "FILE", requires = "bop")]
+    pub targets: Option<PathBuf>,
+
+    /// With --bop, also write every scored estimate's MSSD (mm), MSPD (px) and VSD (per tau)
+    /// against each GT instance of its object, as JSON (bop_toolkit's errors_*.json).
+    #[arg(long, value_name = "PATH", requires = "bop")]
+    pub bop_errors: Option<PathBuf>,
+
+    /// bop_toolkit's visib_gt_min for --bop: GT instances less visible do not count. The
+    /// default, -1, counts the inst_count most visible instances of each target, as BOP 2019.
+    #[arg(long, requires = "bop", allow_negative_numbers = true, default_value_t = -1.0)]
+    pub visib_gt_min: f64,
 
     /// Report the mean and covariance of the estimated translation and quaternion over
     /// groups of frames with the same GT pose (a static object seen repeatedly), per object.

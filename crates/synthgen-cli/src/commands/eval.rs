@@ -5,15 +5,19 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 use synthgen_dataset::source::{open_source, FrameSource};
+use synthgen_train::bop::{load_render_models, prepare_bop, BopOptions, BopReport, TargetsFrom};
 use synthgen_train::data::{load_source_instances, DataOptions, Instance};
 use synthgen_train::eval::{
-    eval_objects, evaluate, load_eval_objects, pick_split, read_gt, score_predictions,
+    eval_objects, evaluate, load_eval_objects, pick_split, prediction_estimates, read_gt,
+    score_predictions,
 };
 use synthgen_train::models::ModelKind;
 use synthgen_train::pose_model::{load_dataset_objects, Prediction};
-use synthgen_train::results::read_results_csv;
+use synthgen_train::results::{read_results_csv, write_results_csv, Estimate};
 use synthgen_train::stability::{stability, to_markdown as stability_markdown, Sample};
 use synthgen_train::train::{self, centre_error_m, load_model, read_config, CONFIG_FILE};
+
+use synthgen_render::ObjectRenderer;
 
 use crate::cli::{DeviceArg, EvalArgs};
 use crate::commands::user_error;
@@ -63,8 +67,13 @@ fn run_results(args: &EvalArgs, csv: &Path, printer: &Printer) -> Result<ExitSta
         ));
     }
     print!("{}", report.to_markdown(&objects));
+    let mut json = report.to_json();
+    if args.bop {
+        let bop = bop_scores(args, ds.as_ref(), &split, &estimates, printer)?;
+        json["bop"] = serde_json::to_value(&bop)?;
+    }
     if let Some(path) = &args.json {
-        write_json(path, &report.to_json())?;
+        write_json(path, &json)?;
         printer.info(format!("wrote {}", path.display()));
     }
     // Bad rows were skipped, not fatal (ripgrep-style): the scores are of the good rows, and
@@ -132,26 +141,54 @@ fn run_checkpoint(args: &EvalArgs, ckpt: &Path, printer: &Printer) -> Result<Exi
         ));
     }
     let cfg = read_config(&config_path)?;
+    if args.save_results.is_some() && !matches!(cfg.model, ModelKind::Full | ModelKind::Rgb) {
+        return Err(user_error(
+            format!(
+                "--save-results needs whole poses, and a {} checkpoint predicts {} only",
+                cfg.model.name(),
+                if cfg.model == ModelKind::Tnet {
+                    "the object centre"
+                } else {
+                    "the rotation"
+                }
+            ),
+            "save the results of a full or rgb checkpoint",
+        ));
+    }
     let device = train::device(args.device == DeviceArg::Cuda)?;
     let model = load_model(ckpt, &cfg, &device)?;
     let opts = DataOptions {
-        n_points: cfg.n_points,
         min_visib_fract: args.min_visib_fract,
         seed: args.seed,
         split: args.split.clone(),
-        crop_size: cfg.crop_size,
-        ..DataOptions::default()
+        ..cfg.data_options()
     };
     let ds = open_dataset(&args.data)?;
-    let set = load_source_instances(ds.as_ref(), &opts, printer)
+    let mut set = load_source_instances(ds.as_ref(), &opts, printer)
         .with_context(|| format!("cannot load {}", args.data.display()))?;
+    if cfg.model == ModelKind::Rgb {
+        // One head per trained object: others get no estimate (and so count as misses).
+        let before = set.instances.len();
+        set.instances.retain(|i| cfg.classes.contains(&i.obj_id));
+        if set.instances.len() < before {
+            printer.warning(format!(
+                "{} instances of objects the rgb model was not trained on (its classes: {:?}) get no estimate",
+                before - set.instances.len(),
+                cfg.classes
+            ));
+        }
+    }
     if set.instances.is_empty() {
         return Err(user_error(
             format!("no usable object instances in {}", args.data.display()),
-            "check that the dataset has depth/ and mask_visib/ images",
+            if cfg.model == ModelKind::Rgb {
+                "check that the dataset has rgb/ and mask_visib/ images of the model's objects"
+            } else {
+                "check that the dataset has depth/ and mask_visib/ images"
+            },
         ));
     }
-    let objects = if cfg.model == ModelKind::Tnet {
+    let objects = if !cfg.model.predicts_rotation() {
         None
     } else {
         Some(
@@ -162,6 +199,14 @@ fn run_checkpoint(args: &EvalArgs, ckpt: &Path, printer: &Printer) -> Result<Exi
     };
     let refs: Vec<_> = set.instances.iter().collect();
     let preds = model.predict(&refs, objects.as_ref(), 64)?;
+    if let Some(path) = &args.save_results {
+        write_results_csv(path, &prediction_estimates(&preds, &set.instances))?;
+        printer.info(format!(
+            "wrote {} estimates to {}",
+            preds.len(),
+            path.display()
+        ));
+    }
     printer.info(format!(
         "{} on {} instances of {}/{} ({} skipped: too few valid pixels)",
         cfg.model.name(),
@@ -170,6 +215,11 @@ fn run_checkpoint(args: &EvalArgs, ckpt: &Path, printer: &Printer) -> Result<Exi
         set.split,
         set.skipped_few_pixels
     ));
+    if cfg.model == ModelKind::Rgb {
+        printer.info(
+            "rgb: each instance's crop is cut around its GT visible box (bbox_visib; no detector)",
+        );
+    }
     if cfg.model == ModelKind::Rnet {
         printer.warning(
             "rnet predicts rotation only: its poses take the GT translation (E_te = 0, ADD(-S) measures rotation alone)",
@@ -207,6 +257,12 @@ fn run_checkpoint(args: &EvalArgs, ckpt: &Path, printer: &Printer) -> Result<Exi
         return Ok(ExitStatus::Success);
     }
     if cfg.model == ModelKind::Tnet {
+        if args.bop {
+            return Err(user_error(
+                "--bop needs whole poses, and a tnet checkpoint predicts the object centre only",
+                "evaluate a full (or rnet) checkpoint with --bop, or drop --bop for the centre error",
+            ));
+        }
         return centre_table(args, &set.instances, &preds, printer);
     }
     // Rotation models: score the estimates like a results CSV against the split's GT.
@@ -216,8 +272,14 @@ fn run_checkpoint(args: &EvalArgs, ckpt: &Path, printer: &Printer) -> Result<Exi
     let gts = read_gt(ds.as_ref(), &set.split, args.min_visib_fract)?;
     let report = score_predictions(&preds, &set.instances, &gts, &objects)?;
     print!("{}", report.to_markdown(&eval_objects(&objects)));
+    let mut json = report.to_json();
+    if args.bop {
+        let estimates = prediction_estimates(&preds, &set.instances);
+        let bop = bop_scores(args, ds.as_ref(), &set.split, &estimates, printer)?;
+        json["bop"] = serde_json::to_value(&bop)?;
+    }
     if let Some(path) = &args.json {
-        write_json(path, &report.to_json())?;
+        write_json(path, &json)?;
         printer.info(format!("wrote {}", path.display()));
     }
     Ok(ExitStatus::Success)
@@ -264,4 +326,59 @@ fn centre_table(
         printer.info(format!("wrote {}", path.display()));
     }
     Ok(ExitStatus::Success)
+}
+
+/// BOP's Average Recall of `estimates` on `split` of `ds` (`--bop`), printed as a table.
+fn bop_scores(
+    args: &EvalArgs,
+    ds: &dyn FrameSource,
+    split: &str,
+    estimates: &[Estimate],
+    printer: &Printer,
+) -> Result<BopReport> {
+    let opts = BopOptions {
+        visib_gt_min: args.visib_gt_min,
+        ..BopOptions::default()
+    };
+    let setup = prepare_bop(ds, split, args.targets.as_deref(), &opts)
+        .with_context(|| format!("cannot prepare BOP scoring of {}", args.data.display()))?;
+    if let TargetsFrom::DatasetFile(p) = &setup.targets_from {
+        printer.info(format!("BOP targets from {}", p.display()));
+    }
+    let renderer = ObjectRenderer::new(load_render_models(ds, setup.obj_ids())?)?;
+    let report = setup.evaluate(estimates, Some(&renderer), &opts, printer)?;
+    let c = &report.counts;
+    printer.info(format!(
+        "BOP 2019: {} targets ({} instances), {} estimates scored",
+        c.targets, c.target_instances, c.estimates_scored
+    ));
+    for (n, what) in [
+        (
+            c.estimates_beyond_top_n,
+            "beyond the inst_count best of their target (dropped, as bop_toolkit does)",
+        ),
+        (
+            c.estimates_not_target,
+            "for an (image, object) that is not a target",
+        ),
+        (
+            c.estimates_unknown_image,
+            "for an image the dataset does not have",
+        ),
+        (c.estimates_unknown_object, "for an object without a model"),
+    ] {
+        if n > 0 {
+            printer.warning(format!("{n} estimates not scored: {what}"));
+        }
+    }
+    if let Some(note) = &report.note {
+        printer.warning(note.clone());
+    }
+    if let Some(path) = &args.bop_errors {
+        write_json(path, &serde_json::to_value(&report.errors)?)?;
+        printer.info(format!("wrote {}", path.display()));
+    }
+    println!();
+    print!("{}", report.to_markdown());
+    Ok(report)
 }

@@ -19,6 +19,7 @@ pub mod sensor;
 pub mod stats;
 pub mod train;
 pub mod validate;
+pub mod view;
 
 use crate::ExitStatus;
 
@@ -29,6 +30,7 @@ pub fn exit_status_for(err: &anyhow::Error) -> ExitStatus {
         c.is::<synthgen_core::Error>()
             || c.is::<synthgen_assets::Error>()
             || c.is::<synthgen_dataset::Error>()
+            || c.is::<synthgen_view::Error>()
             || is_train_user_error(c)
             || c.is::<std::io::Error>()
             || c.is::<UserError>()

@@ -6,7 +6,9 @@ use synthgen_dataset::output::{check_apart, OutputLock};
 use anyhow::{Context, Result};
 use synthgen_core::Progress;
 use synthgen_dataset::source::open_source;
-use synthgen_train::data::{load_source_instances, DataOptions};
+use synthgen_train::data::load_source_instances;
+use synthgen_train::models::rgb::{Translation, DEFAULT_RGB_CROP};
+use synthgen_train::models::rnet::DEFAULT_CROP;
 use synthgen_train::models::tnet::DEFAULT_SCALE;
 use synthgen_train::models::ModelKind;
 use synthgen_train::pose_model::load_dataset_objects;
@@ -15,14 +17,14 @@ use synthgen_train::train::{
     METRICS_FILE, MODEL_FILE,
 };
 
-use crate::cli::{DeviceArg, ModelArg, ScheduleArg, TrainArgs};
+use crate::cli::{DeviceArg, ScheduleArg, TrainArgs, TrainModelArg, TranslationArg};
 use crate::commands::user_error;
 use crate::{ExitStatus, Printer};
 
 /// Shows each epoch as a progress bar labelled with the running loss.
-struct BarObserver<'a> {
-    printer: &'a Printer,
-    epoch: std::cell::Cell<(usize, usize)>,
+pub(crate) struct BarObserver<'a> {
+    pub printer: &'a Printer,
+    pub epoch: std::cell::Cell<(usize, usize)>,
 }
 
 impl TrainObserver for BarObserver<'_> {
@@ -72,15 +74,19 @@ fn val_summary(m: &EpochMetrics) -> String {
     if let Some(r) = m.val_mean_re_deg {
         s += &format!(", val E_re {r:.1}°");
     }
+    if let Some(a) = m.val_acc_5cm5deg {
+        s += &format!(", val 5cm5° {:.1}%", a * 100.0);
+    }
     s
 }
 
 pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
     let started = Instant::now();
     let model = match args.model {
-        ModelArg::Tnet => ModelKind::Tnet,
-        ModelArg::Rnet => ModelKind::Rnet,
-        ModelArg::Full => ModelKind::Full,
+        TrainModelArg::Tnet => ModelKind::Tnet,
+        TrainModelArg::Rnet => ModelKind::Rnet,
+        TrainModelArg::Full => ModelKind::Full,
+        TrainModelArg::Rgb => ModelKind::Rgb,
     };
     for ckpt in &args.init {
         if !ckpt.is_file() {
@@ -144,21 +150,34 @@ pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
             min_visib_fract: args.min_visib_fract,
             data: args.data.clone(),
             split: args.split.clone().unwrap_or_default(),
-            crop_size: if model.needs_rgb() { args.crop_size } else { 0 },
+            crop_size: match model {
+                ModelKind::Tnet => 0,
+                ModelKind::Rgb => args.crop_size.unwrap_or(DEFAULT_RGB_CROP),
+                _ => args.crop_size.unwrap_or(DEFAULT_CROP),
+            },
             loss_points: args.loss_points,
             init: args.init.clone(),
             plain_add_loss: args.no_symmetric_loss,
+            translation: (model == ModelKind::Rgb).then_some(match args.translation {
+                TranslationArg::CentreTz => Translation::CentreTz,
+                TranslationArg::Xyz => Translation::Xyz,
+            }),
+            // The training set's objects, once it is loaded.
+            classes: Vec::new(),
         }
     };
     // Before any data is read: a bad --lr must not cost a dataset load.
     cfg.validate()?;
-    if cfg.model.needs_rgb() && (cfg.crop_size < 2 || cfg.crop_size % 2 != 0) {
+    if cfg.model.needs_rgb()
+        && cfg.model != ModelKind::Rgb
+        && (cfg.crop_size < 2 || cfg.crop_size % 2 != 0)
+    {
         return Err(user_error(
             format!("--crop-size {} must be even and at least 2", cfg.crop_size),
             "e.g. --crop-size 48",
         ));
     }
-    if cfg.model == ModelKind::Full && cfg.loss_points == 0 {
+    if matches!(cfg.model, ModelKind::Full | ModelKind::Rgb) && cfg.loss_points == 0 {
         return Err(user_error(
             "--loss-points must be positive",
             "e.g. --loss-points 100",
@@ -178,14 +197,7 @@ pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
     }
     let device = train::device(args.device == DeviceArg::Cuda)?;
 
-    let opts = DataOptions {
-        n_points: cfg.n_points,
-        min_visib_fract: cfg.min_visib_fract,
-        seed: cfg.seed,
-        split: (!cfg.split.is_empty()).then(|| cfg.split.clone()),
-        crop_size: cfg.crop_size,
-        ..DataOptions::default()
-    };
+    let opts = cfg.data_options();
     let t_load = Instant::now();
     let source = open_source(&args.data)
         .with_context(|| format!("cannot open the dataset {}", args.data.display()))?;
@@ -207,15 +219,21 @@ pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
             "check that the dataset has depth/ and mask_visib/ images, or lower --min-visib-fract",
         ));
     }
+    let classes = if cfg.model == ModelKind::Rgb && cfg.classes.is_empty() {
+        set.obj_ids().into_iter().collect()
+    } else {
+        cfg.classes.clone()
+    };
     let cfg = TrainConfig {
         split: set.split.clone(),
+        classes,
         ..cfg
     };
     let observer = BarObserver {
         printer,
         epoch: std::cell::Cell::new((0, cfg.epochs)),
     };
-    let objects = if cfg.model == ModelKind::Tnet {
+    let objects = if !cfg.model.predicts_rotation() {
         None
     } else {
         Some(

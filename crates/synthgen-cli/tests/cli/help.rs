@@ -100,3 +100,13 @@ fn experiment_sim2real_help() {
         &["experiment", "sim2real", "--help"],
     );
 }
+
+#[test]
+fn view_help() {
+    check_snapshot("view_help.txt", &["view", "--help"]);
+}
+
+#[test]
+fn experiment_rgb_help() {
+    check_snapshot("experiment_rgb_help.txt", &["experiment", "rgb", "--help"]);
+}

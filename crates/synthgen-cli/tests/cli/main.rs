@@ -4,6 +4,7 @@
 mod annotate;
 #[cfg(feature = "blender")]
 mod blender;
+mod bop_eval;
 mod careless;
 mod coco;
 mod common;
@@ -17,6 +18,7 @@ mod mix;
 mod real_rotations;
 mod render;
 mod replay;
+mod rgb;
 mod scale;
 mod scene_extras;
 mod scene_fit;
@@ -26,4 +28,6 @@ mod sim2real;
 mod surfaces;
 mod train;
 mod train_linemod;
+mod view;
+mod view_browser;
 mod ycbv;

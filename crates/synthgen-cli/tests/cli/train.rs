@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use synthgen_dataset::bop::BopDataset;
 
-use crate::common::{repo_root, run, stderr, synthgen};
+use crate::common::{refused, repo_root, run, stderr, synthgen};
 
 /// Renders 8 small frames of the sample driller into `dir/drill`.
 fn tiny_dataset(dir: &Path) -> PathBuf {
@@ -301,13 +301,18 @@ fn full_model_trains_from_tnet_and_evaluates_with_stability() {
     assert!(full.join("curve.png").is_file());
 
     let json = dir.path().join("full.json");
-    let o = run(synthgen()
-        .args(["eval", "-q", "--checkpoint"])
-        .arg(full.join("model.safetensors"))
-        .arg("--data")
-        .arg(&data)
-        .arg("--json")
-        .arg(&json));
+    let eval = |flags: &[&str], model: &Path| {
+        run(synthgen()
+            .args(["eval", "-q"])
+            .args(flags)
+            .arg("--checkpoint")
+            .arg(model.join("model.safetensors"))
+            .arg("--data")
+            .arg(&data)
+            .arg("--json")
+            .arg(&json))
+    };
+    let o = eval(&[], &full);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(String::from_utf8_lossy(&o.stdout).contains("| 8 | ADD |"));
     let j: serde_json::Value =
@@ -317,6 +322,24 @@ fn full_model_trains_from_tnet_and_evaluates_with_stability() {
     for key in ["add_s_acc", "acc_5cm5deg", "mean_re_deg", "mean_te_cm"] {
         assert!(j["all"][key].is_number(), "{key} in {j}");
     }
+    // The same predictions scored with BOP's AR.
+    let o = eval(&["--bop"], &full);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("| object | AR | AR_VSD |"));
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let ar = j["bop"]["ar"].as_f64().unwrap();
+    assert!((0.0..=1.0).contains(&ar), "{j}");
+    assert_eq!(
+        j["bop"]["mssd"]["recall_per_threshold"]
+            .as_array()
+            .unwrap()
+            .len(),
+        10
+    );
+    // A tnet checkpoint predicts no rotation: --bop is refused.
+    let o = eval(&["--bop"], &tnet);
+    refused(&o, &["--bop", "tnet"]);
 
     // No repeated GT pose yet: --stability is a user error; with frame 0 repeated it reports.
     let stab = |json: &Path| {

@@ -7,6 +7,7 @@ use std::process::Command;
 
 use serde_json::Value;
 use synthgen_dataset::bop::image::{read_depth_raw, read_label};
+use synthgen_dataset::bop::BopDataset;
 use synthgen_dataset::ycbv::read_meta;
 
 use crate::common::{run, stderr, synthgen, ycbv_real};
@@ -448,5 +449,84 @@ fn broken_ycbv_files_are_named_and_nothing_is_written() {
             stdout.contains(&bad.display().to_string()),
             "{what}: {stdout}"
         );
+    }
+}
+
+/// The GT of a BOP dataset's `split` as a results CSV, every rotation turned by `deg` about
+/// the model's x axis (R · Rx).
+fn turned_gt(data: &Path, split: &str, deg: f64) -> String {
+    let (s, c) = deg.to_radians().sin_cos();
+    let ds = BopDataset::open(data).unwrap();
+    let mut csv = String::from("scene_id,im_id,obj_id,score,R,t,time\n");
+    for scene_id in ds.scene_ids(split).unwrap() {
+        let scene = ds.read_scene(split, scene_id).unwrap();
+        for (im, gts) in &scene.gt {
+            for g in gts {
+                let r = g.cam_r_m2c;
+                let rx = [1.0, 0.0, 0.0, 0.0, c, -s, 0.0, s, c];
+                let m: Vec<String> = (0..9)
+                    .map(|k| {
+                        let (i, j) = (k / 3, k % 3);
+                        (0..3)
+                            .map(|l| r[i * 3 + l] * rx[l * 3 + j])
+                            .sum::<f64>()
+                            .to_string()
+                    })
+                    .collect();
+                let t = g.cam_t_m2c;
+                csv += &format!(
+                    "{scene_id},{im},{},1.0,{},{} {} {},-1\n",
+                    g.obj_id,
+                    m.join(" "),
+                    t[0],
+                    t[1],
+                    t[2]
+                );
+            }
+        }
+    }
+    csv
+}
+
+/// Regression: `eval` read YCB-Video's models (metres) as millimetres, so its ADD errors on a
+/// YCB-Video folder were 1000x too small and every estimate within 10% of the diameter.
+#[test]
+fn eval_reads_ycbv_models_in_metres() {
+    let Some(real) = ycbv_real() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let bop = dir.path().join("bop");
+    let o = run(synthgen()
+        .args(["convert", "-q", "--to", "bop"])
+        .arg(&real)
+        .arg(&bop));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let csv = dir.path().join("turned.csv");
+    std::fs::write(&csv, turned_gt(&bop, "train", 10.0)).unwrap();
+    let score = |data: &Path, name: &str| {
+        let json = dir.path().join(name);
+        let o = run(synthgen()
+            .args(["eval", "-q", "--results"])
+            .arg(&csv)
+            .arg("--data")
+            .arg(data)
+            .args(["--split", "train", "--min-visib-fract", "0", "--json"])
+            .arg(&json));
+        assert!(o.status.success(), "{}", stderr(&o));
+        serde_json::from_str::<Value>(&std::fs::read_to_string(&json).unwrap()).unwrap()
+    };
+    let (native, converted) = (score(&real, "native.json"), score(&bop, "bop.json"));
+    // 10° about x moves the mustard bottle's points by centimetres.
+    let mustard = native["5"]["mean_add_mm"].as_f64().unwrap();
+    assert!(mustard > 5.0, "mustard ADD {mustard} mm");
+    for (id, v) in native.as_object().unwrap() {
+        let (a, b) = (
+            v["mean_add_mm"].as_f64().unwrap(),
+            converted[id]["mean_add_mm"].as_f64().unwrap(),
+        );
+        assert!(
+            (a - b).abs() <= 1e-3 * b.max(1.0),
+            "object {id}: {a} vs {b} mm"
+        );
+        assert_eq!(v["add_s_acc"], converted[id]["add_s_acc"], "object {id}");
     }
 }

@@ -304,3 +304,51 @@ fn bad_inputs_are_errors() {
     let e = CpuRenderer::new(vec![m], vec![]).err().unwrap();
     assert!(e.to_string().contains("vertex 99"), "{e}");
 }
+
+/// `render_depth_mm`: a 10 cm cube facing the camera at 0.8 m reads 750 mm over its front face,
+/// exactly (f64 per pixel, not the rasterizer's snapped depth), over the pixels whose centres
+/// it covers; a tilted face's depth matches the plane through it.
+#[test]
+fn depth_only_render_is_exact_on_a_cube() {
+    use synthgen_core::glam::{DMat3, DVec3, Vec3};
+    use synthgen_core::{DepthWindowMm, Intrinsics, Model};
+    let r = synthgen_render::CpuRenderer::new(vec![Model::cuboid("c", Vec3::splat(0.1))], vec![])
+        .unwrap();
+    let k = Intrinsics {
+        width: 640,
+        height: 480,
+        fx: 600.0,
+        fy: 600.0,
+        cx: 320.0,
+        cy: 240.0,
+    };
+    let mut out = DepthWindowMm::default();
+    r.render_depth_mm(
+        0,
+        &DMat3::IDENTITY,
+        DVec3::new(0.0, 0.0, 800.0),
+        &k,
+        &mut out,
+    )
+    .unwrap();
+    // The face spans ±50 mm at 750 mm: ±40 px around the centre; centres exactly on its
+    // right and bottom edges are outside (top-left rule): 80 x 80 pixels.
+    assert_eq!((out.x0, out.width), (280, 81));
+    assert_eq!(out.at(320, 240), 750.0);
+    assert_eq!(out.at(280, 200), 750.0);
+    assert_eq!(out.at(279, 240), 0.0);
+    assert_eq!(out.at(360, 240), 0.0);
+    assert!(out.depth_mm.iter().all(|&d| d == 750.0 || d == 0.0));
+    assert_eq!(out.depth_mm.iter().filter(|&&d| d > 0.0).count(), 80 * 80);
+    // Rotated 30° about y: depth along each pixel's ray on the front face's plane.
+    let rot = DMat3::from_rotation_y(30f64.to_radians());
+    r.render_depth_mm(0, &rot, DVec3::new(0.0, 0.0, 800.0), &k, &mut out)
+        .unwrap();
+    let n = rot * DVec3::Z;
+    let p0 = rot * DVec3::new(0.0, 0.0, -50.0) + DVec3::new(0.0, 0.0, 800.0);
+    let (x, y) = (330, 241);
+    let ray = DVec3::new((x as f64 - 320.0) / 600.0, (y as f64 - 240.0) / 600.0, 1.0);
+    let want = (-n).dot(p0) / (-n).dot(ray);
+    let got = out.at(x, y) as f64;
+    assert!((got - want).abs() < 1e-4, "{got} vs {want}");
+}

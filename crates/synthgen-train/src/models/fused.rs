@@ -71,12 +71,12 @@ pub fn group_max(x: &Tensor, groups: usize) -> Result<Tensor> {
     }
 }
 
-fn fused_path(t: &Tensor) -> bool {
+pub(super) fn fused_path(t: &Tensor) -> bool {
     t.device().is_cpu() && t.dtype() == DType::F32
 }
 
 /// The f32 data of a contiguous CPU tensor.
-fn f32_slice<'a>(s: &'a CpuStorage, l: &Layout, op: &str) -> Result<&'a [f32]> {
+pub(super) fn f32_slice<'a>(s: &'a CpuStorage, l: &Layout, op: &str) -> Result<&'a [f32]> {
     let CpuStorage::F32(data) = s else {
         candle_core::bail!("{op}: f32 tensors only");
     };

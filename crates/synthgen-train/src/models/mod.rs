@@ -1,8 +1,11 @@
-//! The pose models: TNet (centre), RNet (rotation) and Full (both), see docs/training.md.
+//! The pose models: TNet (centre), RNet (rotation) and Full (both) on RGB-D, and the RGB model
+//! (a whole pose from a box's colour crop), see docs/training.md.
 
 pub mod dense;
 pub mod full;
 pub mod fused;
+pub mod im2col;
+pub mod rgb;
 pub mod rnet;
 pub mod tnet;
 
@@ -18,6 +21,8 @@ pub enum ModelKind {
     Rnet,
     /// Both heads on shared point features, per-pixel ADD loss (min over symmetries).
     Full,
+    /// A whole pose from the colour crop of a box, no depth (seed 001).
+    Rgb,
 }
 
 impl ModelKind {
@@ -26,11 +31,22 @@ impl ModelKind {
             ModelKind::Tnet => "tnet",
             ModelKind::Rnet => "rnet",
             ModelKind::Full => "full",
+            ModelKind::Rgb => "rgb",
         }
     }
 
     /// Whether the model reads RGB crops.
     pub fn needs_rgb(self) -> bool {
+        self != ModelKind::Tnet
+    }
+
+    /// Whether the model reads depth (the sampled points): all but the RGB model.
+    pub fn needs_depth(self) -> bool {
+        self != ModelKind::Rgb
+    }
+
+    /// Whether the model predicts a rotation (and so needs the objects' models to train).
+    pub fn predicts_rotation(self) -> bool {
         self != ModelKind::Tnet
     }
 }

@@ -8,6 +8,7 @@
 
 mod plot;
 mod real;
+pub mod rgb;
 mod row;
 pub mod sim2real;
 mod sources;

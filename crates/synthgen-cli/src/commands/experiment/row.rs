@@ -301,6 +301,8 @@ pub fn run(ctx: &RowContext, spec: &RowSpec) -> Result<RowRecord> {
         loss_points: LOSS_POINTS,
         init: Vec::new(),
         plain_add_loss: false,
+        translation: None,
+        classes: Vec::new(),
     };
     let observer = RowObserver {
         printer: ctx.printer,

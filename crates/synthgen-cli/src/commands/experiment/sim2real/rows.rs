@@ -227,6 +227,8 @@ pub fn train_row(
         loss_points: LOSS_POINTS,
         init: Vec::new(),
         plain_add_loss: false,
+        translation: None,
+        classes: Vec::new(),
     };
     let run_dir = dir.join("train");
     let device = train::device(false)?;

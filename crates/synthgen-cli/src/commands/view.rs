@@ -1,0 +1,35 @@
+//! `synthgen view`: serve the datasets to the web browser (synthgen-view), until Ctrl-C.
+
+use std::net::SocketAddr;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use synthgen_view::Viewer;
+
+use crate::cli::ViewArgs;
+use crate::{ExitStatus, Printer};
+
+pub fn run(args: ViewArgs, printer: &Printer) -> Result<ExitStatus> {
+    let t0 = Instant::now();
+    let viewer = Viewer::open(&args.dirs, args.results.as_deref())?;
+    for d in &viewer.datasets {
+        printer.info(format!(
+            "{}: {} frames ({})",
+            d.name,
+            d.frames.len(),
+            d.root.display()
+        ));
+    }
+    printer.info(format!(
+        "annotations indexed in {:.2} s; images are read when a page shows them",
+        t0.elapsed().as_secs_f64()
+    ));
+    let addr = SocketAddr::new(args.host, args.port);
+    synthgen_view::serve(viewer, addr, |bound| {
+        // The one line on stdout: scripts read the address from it.
+        println!("http://{bound}/");
+        printer.info("serving read-only; Ctrl-C stops");
+    })
+    .with_context(|| format!("cannot serve on {addr} (is the port taken? try --port 0)"))?;
+    Ok(ExitStatus::Success)
+}
