@@ -278,6 +278,11 @@ fn mix<'py>(
 /// Recall (VSD, MSSD, MSPD) as `eval --bop` computes it, under `"bop"`.
 #[pyfunction]
 #[pyo3(signature = (data, results, *, split=None, min_visib_fract=0.1, bop=false, targets=None, visib_gt_min=-1.0))]
+// pyo3 cannot write a negative default into the generated signature (it writes `...`,
+// which mypy.stubtest rejects against the stub's -1.0), so the signature is spelled out.
+#[pyo3(
+    text_signature = "(data, results, *, split=None, min_visib_fract=0.1, bop=False, targets=None, visib_gt_min=-1.0)"
+)]
 #[allow(clippy::too_many_arguments)]
 fn evaluate<'py>(
     py: Python<'py>,
