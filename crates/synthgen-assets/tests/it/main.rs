@@ -14,16 +14,16 @@ use std::sync::Mutex;
 
 use synthgen_core::Progress;
 
-/// `/work/shared/data`, or `None` (the caller prints why and skips) when absent.
-pub fn shared_data() -> Option<PathBuf> {
+/// `../shared/data` beside the checkout. The tests that use it are ignored where the build
+/// script found none (`cfg(has_shared_data)`, synthgen-probe), so here it must exist.
+pub fn shared_data() -> PathBuf {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
-    match dir.canonicalize() {
-        Ok(d) => Some(d),
-        Err(_) => {
-            eprintln!("skipped: shared data not found at {}", dir.display());
-            None
-        }
-    }
+    dir.canonicalize().unwrap_or_else(|e| {
+        panic!(
+            "shared data at {}: {e} (it was there when the tests were built, or SYNTHGEN_REQUIRE_SHARED=1)",
+            dir.display()
+        )
+    })
 }
 
 /// Collects warnings.

@@ -105,8 +105,12 @@ fn curve(v: &Value) -> Vec<Vec<f64>> {
 }
 
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn bop_scores_equal_bop_toolkit() {
-    let Some(shared) = shared_data() else { return };
+    let shared = shared_data();
     let tmp = tempfile::tempdir().unwrap();
     let base = tmp.path().join("base");
     render_base(&shared, &base);
@@ -170,22 +174,24 @@ fn bop_scores_equal_bop_toolkit() {
 }
 
 /// The "perturbed" case laid out in a temporary folder: (the folder, the case, the dataset).
-fn perturbed_case() -> Option<(tempfile::TempDir, PathBuf, PathBuf)> {
-    let shared = shared_data()?;
+fn perturbed_case() -> (tempfile::TempDir, PathBuf, PathBuf) {
+    let shared = shared_data();
     let tmp = tempfile::tempdir().unwrap();
     let base = tmp.path().join("base");
     render_base(&shared, &base);
     let case = fixtures().join("perturbed");
     let root = tmp.path().join("lmo");
     case_dataset(&shared, &base, &case, &root);
-    Some((tmp, case, root))
+    (tmp, case, root)
 }
 
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn bop_without_depth_reports_mssd_and_mspd_and_says_why_not_vsd() {
-    let Some((tmp, case, root)) = perturbed_case() else {
-        return;
-    };
+    let (tmp, case, root) = perturbed_case();
     fs::remove_dir_all(root.join("test/000002/depth")).unwrap();
     let json = tmp.path().join("s.json");
     let o = eval_bop(&root, &case.join("results.csv"), &json);
@@ -206,10 +212,12 @@ fn bop_without_depth_reports_mssd_and_mspd_and_says_why_not_vsd() {
 }
 
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn bop_bad_rows_are_counted_and_bad_targets_refused() {
-    let Some((tmp, case, root)) = perturbed_case() else {
-        return;
-    };
+    let (tmp, case, root) = perturbed_case();
     // A NaN pose and a rotation far from orthonormal: skipped, counted, not fatal.
     let mut csv = fs::read_to_string(case.join("results.csv")).unwrap();
     csv += "2,0,1,0.5,1 0 0 0 1 0 0 0 1,NaN 0 800,0.5\n";

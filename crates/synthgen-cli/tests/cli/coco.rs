@@ -1,5 +1,5 @@
-//! `synthgen export coco`: our RLE decoded (by us, and by pycocotools when installed) equals
-//! the mask_visib PNGs.
+//! `synthgen export coco`: our RLE decoded (by us, and by pycocotools) equals the mask_visib
+//! PNGs.
 
 use std::process::Command;
 
@@ -22,18 +22,6 @@ for a in coco["annotations"]:
     open("%s/%d.raw" % (sys.argv[2], a["id"]), "wb").write(d.astype("uint8").tobytes(order="C"))
 print("decoded", len(coco["annotations"]))
 "#;
-
-fn has_pycocotools() -> bool {
-    let ok = Command::new("python3")
-        .args(["-c", "import pycocotools"])
-        .output()
-        .map(|o| o.status.success())
-        .unwrap_or(false);
-    if !ok {
-        eprintln!("skipped pycocotools check: `python3 -c 'import pycocotools'` fails (pip install pycocotools)");
-    }
-    ok
-}
 
 #[test]
 fn coco_rle_round_trips_to_the_masks() {
@@ -75,23 +63,6 @@ fn coco_rle_round_trips_to_the_masks() {
                 assert_eq!(rle_decode(&counts, 80, 60), want);
             }
         }
-        if !has_pycocotools() {
-            continue;
-        }
-        let raw = d.join(format!("raw_{rle}"));
-        std::fs::create_dir_all(&raw).unwrap();
-        let o = run(Command::new("python3")
-            .args(["-c", PY_DECODE])
-            .arg(&path)
-            .arg(&raw));
-        assert!(o.status.success(), "{}", stderr(&o));
-        for a in anns {
-            let im = a["image_id"].as_u64().unwrap();
-            let mask = read_mask(&scene.join(format!("mask_visib/{im:06}_000000.png"))).unwrap();
-            let want: Vec<u8> = mask.data.iter().map(|&v| u8::from(v != 0)).collect();
-            let got = std::fs::read(raw.join(format!("{}.raw", a["id"]))).unwrap();
-            assert_eq!(got, want, "annotation {} ({rle})", a["id"]);
-        }
     }
 
     // One merged file, and a split that does not exist.
@@ -110,4 +81,40 @@ fn coco_rle_round_trips_to_the_masks() {
         .args(["export", "coco", "ds", "--split", "test"]));
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("no split \"test\""), "{}", stderr(&o));
+}
+
+#[test]
+#[cfg_attr(
+    not(has_pycocotools),
+    ignore = "needs python3 with pycocotools: pip install pycocotools (probed when the crate was built)"
+)]
+fn coco_rle_decodes_in_pycocotools_to_the_masks() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    render_tiny(d, "ds", 6, 9);
+    for rle in ["uncompressed", "compressed"] {
+        let o = run(synthgen()
+            .current_dir(d)
+            .args(["export", "coco", "ds", "--rle", rle]));
+        assert!(o.status.success(), "{}", stderr(&o));
+        let scene = d.join("ds/train_pbr/000000");
+        let path = scene.join("scene_gt_coco.json");
+        let coco: Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+        let anns = coco["annotations"].as_array().unwrap();
+        assert!(!anns.is_empty());
+        let raw = d.join(format!("raw_{rle}"));
+        std::fs::create_dir_all(&raw).unwrap();
+        let o = run(Command::new("python3")
+            .args(["-c", PY_DECODE])
+            .arg(&path)
+            .arg(&raw));
+        assert!(o.status.success(), "{}", stderr(&o));
+        for a in anns {
+            let im = a["image_id"].as_u64().unwrap();
+            let mask = read_mask(&scene.join(format!("mask_visib/{im:06}_000000.png"))).unwrap();
+            let want: Vec<u8> = mask.data.iter().map(|&v| u8::from(v != 0)).collect();
+            let got = std::fs::read(raw.join(format!("{}.raw", a["id"]))).unwrap();
+            assert_eq!(got, want, "annotation {} ({rle})", a["id"]);
+        }
+    }
 }

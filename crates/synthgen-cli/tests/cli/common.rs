@@ -21,20 +21,21 @@ pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
-/// `../shared/data` beside the checkout, when present.
-pub fn shared_data() -> Option<PathBuf> {
+/// `../shared/data` beside the checkout. The tests that use it are ignored where the build
+/// script found none (`cfg(has_shared_data)`, synthgen-probe), so here it must exist.
+pub fn shared_data() -> PathBuf {
     let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
-    if p.is_dir() {
-        Some(p.canonicalize().expect("canonical path"))
-    } else {
-        eprintln!("skipped: shared data not found at {}", p.display());
-        None
-    }
+    p.canonicalize().unwrap_or_else(|e| {
+        panic!(
+            "shared data at {}: {e} (it was there when the tests were built, or SYNTHGEN_REQUIRE_SHARED=1)",
+            p.display()
+        )
+    })
 }
 
-/// `../shared/data/ycbv_real` (the real YCB-Video frames), when the shared data is there.
-pub fn ycbv_real() -> Option<PathBuf> {
-    shared_data().map(|d| d.join("ycbv_real"))
+/// `../shared/data/ycbv_real` (the real YCB-Video frames).
+pub fn ycbv_real() -> PathBuf {
+    shared_data().join("ycbv_real")
 }
 
 /// A successful run's stdout, parsed as JSON.

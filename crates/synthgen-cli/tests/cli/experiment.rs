@@ -183,8 +183,12 @@ fn read_json(path: &Path) -> serde_json::Value {
 }
 
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn real_ycbv_experiment_tests_on_a_held_out_scene_and_resumes() {
-    let Some(real) = ycbv_real() else { return };
+    let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("mix");
     let extra = [
@@ -342,8 +346,12 @@ fn ycbv_without_model(real: &Path, dir: &Path, missing: &str) -> PathBuf {
 }
 
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn real_experiment_rejects_unknown_scenes_too_many_frames_and_scored_objects_without_models() {
-    let Some(real) = ycbv_real() else { return };
+    let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out");
 

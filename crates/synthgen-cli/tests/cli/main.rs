@@ -4,6 +4,10 @@
 mod annotate;
 #[cfg(feature = "blender")]
 mod blender;
+#[cfg(not(feature = "blender"))]
+#[test]
+#[ignore = "needs `--features blender` (render --backend blender through bpy; docs/blender.md)"]
+fn blender_backend() {}
 mod bop_eval;
 mod careless;
 mod coco;

@@ -118,8 +118,12 @@ fn check_geometry(root: &Path, max_points_per_instance: usize) -> usize {
 }
 
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn linemod_driller_depth_lies_on_the_model() {
-    let Some(data) = shared_data() else { return };
+    let data = shared_data();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("lm");
     let o = run(synthgen()
@@ -137,8 +141,12 @@ fn linemod_driller_depth_lies_on_the_model() {
 }
 
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn user_form_obj_in_metres_warns_about_missing_texture() {
-    let Some(data) = shared_data() else { return };
+    let data = shared_data();
     let dir = tempfile::tempdir().unwrap();
     let drill = data.join("ycb/YcbPowerDrill");
     std::fs::copy(
@@ -175,8 +183,12 @@ fn user_form_obj_in_metres_warns_about_missing_texture() {
 }
 
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn ply_in_millimetres() {
-    let Some(data) = shared_data() else { return };
+    let data = shared_data();
     let dir = tempfile::tempdir().unwrap();
     let o = run(synthgen()
         .current_dir(dir.path())

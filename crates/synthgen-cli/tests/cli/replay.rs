@@ -98,8 +98,12 @@ fn check_twin(real: &Path, out: &Path, scenes: &[u32], split: &str) {
 }
 
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn replay_of_ycbv_as_bop_keeps_ids_poses_and_masks_and_clean_depth() {
-    let Some(real) = ycbv_real() else { return };
+    let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("twin");
     let o = run(synthgen()
@@ -142,8 +146,12 @@ fn replay_of_ycbv_as_bop_keeps_ids_poses_and_masks_and_clean_depth() {
 }
 
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn replay_of_ycbv_as_ycbv_keeps_ids_poses_and_masks() {
-    let Some(real) = ycbv_real() else { return };
+    let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("twin");
     let o = replay(&real, &out, &["--scenes", "1", "--format", "ycbv"]);
@@ -161,8 +169,12 @@ fn replay_of_ycbv_as_ycbv_keeps_ids_poses_and_masks() {
 }
 
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn replay_sensor_d455_makes_holes_and_the_same_seed_the_same_bytes() {
-    let Some(real) = ycbv_real() else { return };
+    let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let args = ["--scenes", "2", "--sensor", "d455", "--seed", "3"];
@@ -260,6 +272,10 @@ fn replay_skips_frames_without_gt_and_refuses_a_dataset_without_any() {
 }
 
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn replay_bad_input_is_refused_with_the_reason() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
@@ -275,7 +291,7 @@ fn replay_bad_input_is_refused_with_the_reason() {
         &["no such dataset folder", "nowhere"],
     );
 
-    let Some(real) = ycbv_real() else { return };
+    let real = ycbv_real();
     let o = replay(&real, &d.join("o2"), &["--objects", "box.ply"]);
     refused(&o, &["--replay", "--objects"]);
     let o = replay(&real, &d.join("o2"), &["--frames", "5"]);

@@ -295,8 +295,12 @@ fn experiment_rgb_writes_table_1_resumes_and_refuses_other_settings() {
 /// The RGB model reads YCB-Video as it ships: RGB, the label image's visible masks (no
 /// scene_gt_info: the box is the mask's), its models in metres.
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn rgb_trains_and_evaluates_on_the_real_ycbv_frames() {
-    let Some(real) = ycbv_real() else { return };
+    let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("run");
     let o = train_rgb(&real, &out, &["--epochs", "1"]);

@@ -87,8 +87,12 @@ fn render_known(real: &Path, dir: &Path, name: &str, frames: u32, extra: &str) -
 /// up axes and tilts come back, objects stand on the table, the spec's ranges hold the
 /// observed ones.
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn fit_recovers_a_known_scene() {
-    let Some(real) = ycbv_real() else { return };
+    let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let syn = render_known(&real, d, "syn", 12, "");
@@ -233,8 +237,12 @@ fn render_fitted(scene: &Path, out: &Path, per_frame: [usize; 2]) {
 /// The real YCB-Video frames: the scene reads back, holds the measured camera, elevation,
 /// objects per frame and rest poses, and renders with them; one scene alone likewise.
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn fits_the_real_frames_and_the_scene_renders() {
-    let Some(real) = ycbv_real() else { return };
+    let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let out = d.join("scenes/fitted.toml");
@@ -310,8 +318,12 @@ fn fits_the_real_frames_and_the_scene_renders() {
 /// `--sensor` puts `[sensor] file` relative to the scene; --out is not overwritten without
 /// --force; the text report names the objects.
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn sensor_file_force_and_text_report() {
-    let Some(real) = ycbv_real() else { return };
+    let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let sensor = crate::common::repo_root().join("sensors/asus_xtion.toml");
@@ -358,8 +370,12 @@ fn sensor_file_force_and_text_report() {
 /// Frames without a visible table: skipped with a warning when others have one; an error
 /// naming the reason when none has; no depth, not a dataset and an unknown scene refused.
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn frames_without_a_table_and_bad_input() {
-    let Some(real) = ycbv_real() else { return };
+    let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let syn = render_known(&real, d, "syn", 4, "");
@@ -407,8 +423,12 @@ fn frames_without_a_table_and_bad_input() {
 /// `placement.objects_per_frame` with `up` and `tilt_deg`: every writer takes frames with a
 /// subset of the objects, and each dataset validates.
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn frames_with_a_subset_of_the_objects_write_and_validate_in_every_format() {
-    let Some(real) = ycbv_real() else { return };
+    let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let spec = d.join("known.toml");

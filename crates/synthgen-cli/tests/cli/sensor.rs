@@ -52,8 +52,12 @@ fn close(name: &str, got: f64, want: f64, tol: f64) {
 /// Frames rendered through a known sensor (a table, five YCB-Video objects, exact GT), then
 /// fitted: the parameters come back within the tolerances docs/sensors.md states.
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn fit_recovers_known_parameters() {
-    let Some(real) = ycbv_real() else { return };
+    let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     std::fs::write(d.join("known.toml"), KNOWN).unwrap();
@@ -167,8 +171,12 @@ fn compare(real: &Path, synth: &Path, scenes: &str) -> Value {
 /// sensor and through the D455 model: on every scored aspect the fit is the closest to the
 /// real readings. (scripts/sensor_loso.sh runs all three ways round.)
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn fit_on_two_real_scenes_is_closest_on_the_third() {
-    let Some(real) = ycbv_real() else { return };
+    let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let o = run(synthgen()
@@ -226,8 +234,12 @@ fn fit_on_two_real_scenes_is_closest_on_the_third() {
 /// A copy of scene 0 of the real frames as BOP with one frame's GT pushed 6 cm back: the fit
 /// lists it and leaves it out.
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn fit_leaves_out_frames_whose_gt_is_obviously_off() {
-    let Some(real) = ycbv_real() else { return };
+    let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let bop = dir.path().join("bop");
     let o = run(synthgen()
@@ -269,8 +281,12 @@ fn fit_leaves_out_frames_whose_gt_is_obviously_off() {
 }
 
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn fit_and_compare_refuse_data_without_depth_or_gt() {
-    let Some(real) = ycbv_real() else { return };
+    let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     // A BOP replay of scene 0 without its depth images.
@@ -336,10 +352,14 @@ fn fit_and_compare_refuse_data_without_depth_or_gt() {
 /// (bop19 against the real depth, whose holes count as visible and whose readings of a closer
 /// surface hide a pixel): they agree (median IoU ≥ 0.98 on scene 2, the most cluttered).
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn replay_masks_agree_with_annotate_on_the_real_depth() {
     use synthgen_dataset::annotate::{annotate_frame, mask_iou, percentile};
     use synthgen_dataset::source::open_source;
-    let Some(real) = ycbv_real() else { return };
+    let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("clean");
     replay(&real, &out, "2", Path::new("none"));

@@ -20,8 +20,12 @@ fn sim2real(fit: &Path, test: &Path, out: &Path, extra: &[&str]) -> Output {
 }
 
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn quick_sim2real_on_real_frames_reports_every_row_and_resumes() {
-    let Some(real) = ycbv_real() else { return };
+    let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("s2r");
     let o = sim2real(
@@ -118,8 +122,12 @@ fn quick_sim2real_on_real_frames_reports_every_row_and_resumes() {
 }
 
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn quick_full_model_reports_the_pose_metrics() {
-    let Some(real) = ycbv_real() else { return };
+    let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("s2r_full");
     let o = sim2real(
@@ -156,8 +164,12 @@ fn quick_full_model_reports_the_pose_metrics() {
 }
 
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn sim2real_refuses_what_cannot_be_measured() {
-    let Some(real) = ycbv_real() else { return };
+    let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     // --test is --fit without held-out scenes.

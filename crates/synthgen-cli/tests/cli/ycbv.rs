@@ -33,8 +33,12 @@ fn metas(root: &Path) -> Vec<PathBuf> {
 
 /// YCB-Video → BOP (validates) → YCB-Video keeps poses to 1e-6 m, labels, depth and colour.
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn real_ycbv_converts_to_bop_validates_and_comes_back_unchanged() {
-    let Some(real) = ycbv_real() else { return };
+    let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let (bop, back) = (dir.path().join("bop"), dir.path().join("back"));
     let out = ok(synthgen()
@@ -105,8 +109,12 @@ fn real_ycbv_converts_to_bop_validates_and_comes_back_unchanged() {
 /// against YCB-Video's own label.png, per scene and per object (the figures in
 /// docs/real_data.md).
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn computed_masks_agree_with_the_ycbv_labels() {
-    let Some(real) = ycbv_real() else { return };
+    let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let report = dir.path().join("iou.json");
     let out = ok(synthgen()
@@ -141,8 +149,12 @@ fn computed_masks_agree_with_the_ycbv_labels() {
 }
 
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn reading_commands_take_the_ycbv_layout() {
-    let Some(real) = ycbv_real() else { return };
+    let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let out = ok(synthgen().arg("validate").arg(&real));
@@ -252,13 +264,8 @@ fn reading_commands_take_the_ycbv_layout() {
     assert!(out.contains("centre"), "{out}");
 }
 
-/// `render --format ycbv` writes -meta.mat files that scipy.io.loadmat reads with the keys,
-/// shapes and dtypes of YCB-Video's own; the YCB models (MTL `Tr 1.000000`) are opaque.
-#[test]
-fn rendered_ycbv_meta_loads_in_scipy_like_the_real_files() {
-    let Some(real) = ycbv_real() else { return };
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("ycbv");
+/// `render --format ycbv` of the mug and the banana (3 frames) into `out`.
+fn render_ycbv_mug_and_banana(real: &Path, out: &Path) {
     let models = real.join("models");
     ok(synthgen()
         .args([
@@ -275,7 +282,21 @@ fn rendered_ycbv_meta_loads_in_scipy_like_the_real_files() {
         .arg(models.join("025_mug/textured_simple.obj"))
         .arg(models.join("011_banana/textured_simple.obj"))
         .arg("--out")
-        .arg(&out));
+        .arg(out));
+}
+
+/// `render --format ycbv` validates, names its classes as YCB-Video does, and the YCB models
+/// (MTL `Tr 1.000000`) are opaque.
+#[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
+fn rendered_ycbv_has_the_real_layout_and_opaque_models() {
+    let real = ycbv_real();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("ycbv");
+    render_ycbv_mug_and_banana(&real, &out);
     ok(synthgen().arg("validate").arg(&out));
     let classes = std::fs::read_to_string(out.join("classes.txt")).unwrap();
     assert_eq!(classes.lines().nth(13), Some("025_mug"));
@@ -294,6 +315,25 @@ fn rendered_ycbv_meta_loads_in_scipy_like_the_real_files() {
             m.display()
         );
     }
+}
+
+/// `render --format ycbv` writes -meta.mat files that scipy.io.loadmat reads with the keys,
+/// shapes and dtypes of YCB-Video's own.
+#[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
+#[cfg_attr(
+    not(has_scipy),
+    ignore = "needs python3 with scipy: pip install scipy (probed when the crate was built)"
+)]
+fn rendered_ycbv_meta_loads_in_scipy_like_the_real_files() {
+    let real = ycbv_real();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("ycbv");
+    render_ycbv_mug_and_banana(&real, &out);
+    let meta = metas(&out);
     let script = r#"
 import sys, scipy.io as sio
 a = sio.loadmat(sys.argv[1]); b = sio.loadmat(sys.argv[2])
@@ -308,17 +348,6 @@ for k in ka:
 assert b['poses'].shape[2] == b['cls_indexes'].shape[0] == 2 and b['factor_depth'][0, 0] == 10000
 print('scipy ok', ka)
 "#;
-    let python = Command::new("python3")
-        .args(["-c", "import scipy.io"])
-        .output();
-    if !python.is_ok_and(|o| o.status.success()) {
-        assert!(
-            std::env::var("SYNTHGEN_REQUIRE_SCIPY").as_deref() != Ok("1"),
-            "SYNTHGEN_REQUIRE_SCIPY=1 but scipy is missing"
-        );
-        eprintln!("skipped the scipy check: python3 with scipy is not installed");
-        return;
-    }
     let o = Command::new("python3")
         .args(["-c", script])
         .arg(real.join("data/0000/000001-meta.mat"))
@@ -363,8 +392,12 @@ fn small_copy(real: &Path, to: &Path) {
 /// Each kind of broken YCB-Video file: `convert` exits 1 naming the file and writes nothing;
 /// `validate` names it too.
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn broken_ycbv_files_are_named_and_nothing_is_written() {
-    let Some(real) = ycbv_real() else { return };
+    let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     type Break = fn(&Path) -> PathBuf;
     let cases: [(&str, Break, &str); 4] = [
@@ -491,8 +524,12 @@ fn turned_gt(data: &Path, split: &str, deg: f64) -> String {
 /// Regression: `eval` read YCB-Video's models (metres) as millimetres, so its ADD errors on a
 /// YCB-Video folder were 1000x too small and every estimate within 10% of the diameter.
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn eval_reads_ycbv_models_in_metres() {
-    let Some(real) = ycbv_real() else { return };
+    let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let bop = dir.path().join("bop");
     let o = run(synthgen()

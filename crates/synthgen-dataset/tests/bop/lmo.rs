@@ -8,14 +8,15 @@ use synthgen_dataset::bop::{BopDataset, BopWriter, BopWriterOptions};
 
 use crate::common::{options, write_frames};
 
-fn lmo_dir() -> Option<PathBuf> {
+/// `../shared/data/lmo` (the tests that use it are ignored without the shared data).
+fn lmo_dir() -> PathBuf {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/lmo");
-    if dir.join("camera.json").exists() && dir.join("models/models_info.json").exists() {
-        Some(dir)
-    } else {
-        eprintln!("skipped: no lmo reference data at {}", dir.display());
-        None
-    }
+    assert!(
+        dir.join("camera.json").exists() && dir.join("models/models_info.json").exists(),
+        "no lmo reference data at {}",
+        dir.display()
+    );
+    dir
 }
 
 /// The reference files have CRLF line ends (from the download); ours have LF.
@@ -24,8 +25,12 @@ fn read_lf(p: &std::path::Path) -> String {
 }
 
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn reads_lmo_camera_and_models_info() {
-    let Some(lmo) = lmo_dir() else { return };
+    let lmo = lmo_dir();
     let cam = read_camera_info(&lmo.join("camera.json")).unwrap();
     assert_eq!(cam.intrinsics(), Intrinsics::LINEMOD);
     assert_eq!(cam.depth_scale, 1.0);
@@ -52,8 +57,12 @@ fn reads_lmo_camera_and_models_info() {
 }
 
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn writes_lmo_files_byte_for_byte() {
-    let Some(lmo) = lmo_dir() else { return };
+    let lmo = lmo_dir();
     let dir = tempfile::tempdir().unwrap();
     let mut opts = BopWriterOptions::new(Intrinsics::LINEMOD);
     opts.depth_scale = 1.0;
@@ -72,8 +81,12 @@ fn writes_lmo_files_byte_for_byte() {
 }
 
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn opens_copy_of_lmo_with_generated_scene() {
-    let Some(lmo) = lmo_dir() else { return };
+    let lmo = lmo_dir();
     let dir = tempfile::tempdir().unwrap();
     std::fs::create_dir_all(dir.path().join("models")).unwrap();
     for f in ["camera.json", "models/models_info.json"] {

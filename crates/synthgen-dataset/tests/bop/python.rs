@@ -1,5 +1,5 @@
 //! Python's own json module reads what we write and writes it back byte for byte, in
-//! bop_toolkit's `save_json` layout. Skipped when python3 is missing.
+//! bop_toolkit's `save_json` layout. Ignored where the build script found no python3.
 
 use std::process::Command;
 
@@ -40,11 +40,11 @@ print(n)
 "#;
 
 #[test]
+#[cfg_attr(
+    not(has_python3),
+    ignore = "needs python3 on PATH (probed when the crate was built)"
+)]
 fn python_json_reads_and_rewrites_identically() {
-    if Command::new("python3").arg("--version").output().is_err() {
-        eprintln!("skipped: python3 not found");
-        return;
-    }
     let dir = tempfile::tempdir().unwrap();
     let writer = BopWriter::create(dir.path(), options(2)).unwrap();
     writer.write_camera_json().unwrap();

@@ -166,18 +166,18 @@ pub fn median(mut v: Vec<f64>) -> f64 {
 }
 
 /// The Linemod-Occluded models folder: `$SYNTHGEN_LMO_DIR/models` or `../shared/data/lmo`
-/// next to the workspace. `None` (and a printed reason) when absent.
-pub fn lmo_models_dir() -> Option<PathBuf> {
+/// next to the workspace (the tests that use it are ignored without the shared data).
+pub fn lmo_models_dir() -> PathBuf {
     let root = std::env::var_os("SYNTHGEN_LMO_DIR")
         .map(PathBuf::from)
         .unwrap_or_else(|| {
             PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/lmo")
         });
     let dir = root.join("models");
-    if dir.join("obj_000001.ply").exists() {
-        Some(dir)
-    } else {
-        eprintln!("skipping: Linemod models not found in {}", dir.display());
-        None
-    }
+    assert!(
+        dir.join("obj_000001.ply").exists(),
+        "Linemod models not found in {}",
+        dir.display()
+    );
+    dir
 }

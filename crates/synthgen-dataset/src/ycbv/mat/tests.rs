@@ -52,31 +52,14 @@ fn samples(n: usize) -> Vec<MatData> {
     all
 }
 
-fn shared_meta(rel: &str) -> Option<PathBuf> {
+/// A file or folder of `../shared/data/ycbv_real/data` (the tests that use it are ignored
+/// without the shared data).
+fn shared_meta(rel: &str) -> PathBuf {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("../../../shared/data/ycbv_real/data")
         .join(rel);
-    if path.is_file() {
-        Some(path)
-    } else {
-        println!("skipping: {} is absent", path.display());
-        None
-    }
-}
-
-fn scipy_available() -> bool {
-    let ok = Command::new("python3")
-        .args(["-c", "import scipy.io, numpy"])
-        .output()
-        .is_ok_and(|o| o.status.success());
-    if !ok {
-        assert!(
-            std::env::var("SYNTHGEN_REQUIRE_SCIPY").as_deref() != Ok("1"),
-            "SYNTHGEN_REQUIRE_SCIPY=1 but python3 cannot import scipy"
-        );
-        eprintln!("skipping: python3 with scipy is not available");
-    }
-    ok
+    assert!(path.exists(), "{} is absent", path.display());
+    path
 }
 
 fn python(script: &str, args: &[&std::path::Path]) {
@@ -318,10 +301,12 @@ fn last_duplicate_wins_and_non_numeric_shadows() {
 }
 
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn real_ycbv_meta_file() {
-    let Some(path) = shared_meta("0000/000001-meta.mat") else {
-        return;
-    };
+    let path = shared_meta("0000/000001-meta.mat");
     let t = Instant::now();
     let m = read_mat(std::fs::File::open(&path).unwrap(), None).unwrap();
     let all = t.elapsed();
@@ -368,9 +353,7 @@ fn real_ycbv_meta_file() {
 
     // Every shipped meta file parses with the same variables.
     for dir in ["0000", "0001", "0002"] {
-        let Some(dir) = shared_meta(dir) else {
-            continue;
-        };
+        let dir = shared_meta(dir);
         for entry in std::fs::read_dir(dir).unwrap() {
             let p = entry.unwrap().path();
             if p.to_string_lossy().ends_with("-meta.mat") {
@@ -407,13 +390,16 @@ for k, dtype, values in [('x', np.int16, [[1, 300], [-2, -400]]), ('tiny', np.ui
 "#;
 
 #[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
+#[cfg_attr(
+    not(has_scipy),
+    ignore = "needs python3 with scipy: pip install scipy (probed when the crate was built)"
+)]
 fn scipy_loads_what_we_write() {
-    let Some(real) = shared_meta("0000/000001-meta.mat") else {
-        return;
-    };
-    if !scipy_available() {
-        return;
-    }
+    let real = shared_meta("0000/000001-meta.mat");
     let f64s = |n: usize, scale: f64| MatData::F64((0..n).map(|i| i as f64 * scale).collect());
     let cls = MatArray::double(vec![3, 1], MatData::U8(vec![8, 14, 21])).unwrap();
     let depth = MatArray::double(vec![1, 1], MatData::U16(vec![10000])).unwrap();
@@ -467,10 +453,11 @@ sio.savemat(sys.argv[2], d, do_compression=False)
 "#;
 
 #[test]
+#[cfg_attr(
+    not(has_scipy),
+    ignore = "needs python3 with scipy: pip install scipy (probed when the crate was built)"
+)]
 fn we_load_what_scipy_writes() {
-    if !scipy_available() {
-        return;
-    }
     let dir = tempfile::tempdir().unwrap();
     let (zipped, plain) = (dir.path().join("z.mat"), dir.path().join("p.mat"));
     python(WRITE_SCIPY, &[&zipped, &plain]);

@@ -1,0 +1,21 @@
+//! Probes the optional dependencies of this crate's tests (synthgen-probe): the tests whose
+//! dependency is absent are ignored, with the reason, instead of passing without running.
+use synthgen_probe::Check;
+
+fn main() {
+    synthgen_probe::emit(&[
+        Check::SharedData,
+        Check::PythonModules("scipy", &["scipy.io", "numpy"]),
+        Check::PythonModules("pycocotools", &["pycocotools.mask"]),
+        Check::PythonModules("pyyaml", &["yaml"]),
+        Check::Programs(
+            "chromium",
+            &[
+                &["chromium", "chromium-browser", "google-chrome"],
+                &["chromedriver"],
+            ],
+        ),
+        Check::Bpy,
+        Check::Tmpfs,
+    ]);
+}
