@@ -14,6 +14,7 @@ use synthgen_pipeline::{error_chain, Format, ImageFormat, SinkOptions, WriteOpti
 use synthgen_render::ObjectRenderer;
 use synthgen_train::bop::{load_render_models, prepare_bop, BopOptions};
 use synthgen_train::eval::{evaluate as score, load_eval_objects, pick_split, read_gt};
+use synthgen_train::metrics::Rotations;
 use synthgen_train::results::read_results_csv;
 
 use crate::errors::input_error;
@@ -277,11 +278,11 @@ fn mix<'py>(
 /// table, and the rows of the CSV that could not be read. With `bop`, also BOP's Average
 /// Recall (VSD, MSSD, MSPD) as `eval --bop` computes it, under `"bop"`.
 #[pyfunction]
-#[pyo3(signature = (data, results, *, split=None, min_visib_fract=0.1, bop=false, targets=None, visib_gt_min=-1.0))]
+#[pyo3(signature = (data, results, *, split=None, min_visib_fract=0.1, bop=false, targets=None, visib_gt_min=-1.0, rotations="as_stored"))]
 // pyo3 cannot write a negative default into the generated signature (it writes `...`,
 // which mypy.stubtest rejects against the stub's -1.0), so the signature is spelled out.
 #[pyo3(
-    text_signature = "(data, results, *, split=None, min_visib_fract=0.1, bop=False, targets=None, visib_gt_min=-1.0)"
+    text_signature = "(data, results, *, split=None, min_visib_fract=0.1, bop=False, targets=None, visib_gt_min=-1.0, rotations='as_stored')"
 )]
 #[allow(clippy::too_many_arguments)]
 fn evaluate<'py>(
@@ -293,14 +294,25 @@ fn evaluate<'py>(
     bop: bool,
     targets: Option<PathBuf>,
     visib_gt_min: f64,
+    rotations: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let rotations = match rotations {
+        "as_stored" => Rotations::AsStored,
+        "nearest" => Rotations::Nearest,
+        other => {
+            return Err(crate::errors::input_error(
+                format!("rotations must be \"as_stored\" or \"nearest\", not {other:?}"),
+                None,
+            ))
+        }
+    };
     let (report, bop_json, markdown, skipped, n_estimates, split) = detached(py, || {
         let ds = open_source(&data)?;
         let split = pick_split(ds.as_ref(), split.as_deref())?;
         let gts = read_gt(ds.as_ref(), &split, min_visib_fract)?;
         let file = read_results_csv(&results)?;
         let objects = load_eval_objects(ds.as_ref(), gts.iter().map(|g| g.obj_id))?;
-        let report = score(&gts, &file.estimates, &objects)?;
+        let report = score(&gts, &file.estimates, &objects, rotations)?;
         let markdown = report.to_markdown(&objects);
         let bop_json = if bop {
             let opts = BopOptions {

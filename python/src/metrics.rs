@@ -129,7 +129,7 @@ fn add_s(
     )
 }
 
-/// Rotation error arccos((tr(R_est R_gt^T) - 1) / 2) in degrees.
+/// Rotation error arccos((tr(R_est R_gt^-1) - 1) / 2) in degrees, as bop_toolkit's `re`.
 #[pyfunction]
 #[allow(non_snake_case)]
 fn re(R_gt: PyReadonlyArray2<'_, f64>, R_est: PyReadonlyArray2<'_, f64>) -> PyResult<f64> {

@@ -1,6 +1,10 @@
 //! The `synthgen` command-line tool. `main.rs` only calls [`main`]; argument structs live in
 //! `cli.rs`, each command's body in `commands/<verb>.rs`.
 
+// Data goes through `Printer::data` (a closed stdout ends quietly), messages through the
+// printer or `printer::stderr_line`: `println!` and `eprintln!` panic on a closed pipe.
+#![deny(clippy::print_stdout, clippy::print_stderr)]
+
 use std::process::ExitCode;
 
 use clap::Parser;
@@ -50,7 +54,7 @@ pub fn main() -> ExitCode {
     };
     let printer = Printer::new(cli.quiet);
     if let Err(e) = synthgen_core::pose::set_rotation_tolerance(cli.rotation_tolerance) {
-        eprintln!("error: --rotation-tolerance: {e}");
+        printer::stderr_line(format!("error: --rotation-tolerance: {e}"));
         return ExitStatus::Failure.into();
     }
     let result = match cli.command {
@@ -91,12 +95,12 @@ pub fn main() -> ExitCode {
         Ok(status) => status.into(),
         Err(err) => {
             printer.finish();
-            eprintln!("error: {err}");
+            printer::stderr_line(format!("error: {err}"));
             for cause in err.chain().skip(1) {
-                eprintln!("  caused by: {cause}");
+                printer::stderr_line(format!("  caused by: {cause}"));
             }
             if let Some(hint) = commands::hint_for(&err) {
-                eprintln!("hint: {hint}");
+                printer::stderr_line(format!("hint: {hint}"));
             }
             commands::exit_status_for(&err).into()
         }

@@ -1,7 +1,8 @@
 //! Logs, warnings and progress bars on stderr; data on stdout. Bars are hidden when stderr is
 //! not a terminal or with `--quiet`.
 
-use std::io::IsTerminal;
+use std::io::{IsTerminal, Write};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Mutex;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -11,15 +12,58 @@ pub struct Printer {
     quiet: bool,
     bar: Mutex<Option<ProgressBar>>,
     warnings: Mutex<Vec<String>>,
+    stdout_closed: AtomicBool,
+}
+
+/// A line on stderr that a closed or full stderr loses instead of panicking (`eprintln!`
+/// panics: `synthgen ... 2>&1 | head` must not end in a crash).
+pub fn stderr_line(line: impl AsRef<str>) {
+    let _ = writeln!(std::io::stderr().lock(), "{}", line.as_ref());
 }
 
 impl Printer {
+    /// An `error:` line on stderr (a command's summary of what failed; always shown).
+    pub fn error(&self, msg: impl AsRef<str>) {
+        self.println(&format!("error: {}", msg.as_ref()));
+    }
+
     pub fn new(quiet: bool) -> Self {
         Self {
             quiet,
             bar: Mutex::new(None),
             warnings: Mutex::new(Vec::new()),
+            stdout_closed: AtomicBool::new(false),
         }
+    }
+
+    /// Data on stdout (tables, JSON, the viewer's address), written as given. A reader that
+    /// went away (`synthgen stats D | head`) is no error: the rest of the data is dropped and
+    /// the command still writes its files and returns its own status, as `ls` and `rg` end
+    /// quietly. Any other write error (a full disk behind `> file`) is an error naming stdout.
+    pub fn data(&self, text: impl AsRef<str>) -> std::io::Result<()> {
+        if self.stdout_closed.load(Ordering::Relaxed) {
+            return Ok(());
+        }
+        let mut out = std::io::stdout().lock();
+        match out
+            .write_all(text.as_ref().as_bytes())
+            .and_then(|()| out.flush())
+        {
+            Ok(()) => Ok(()),
+            Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {
+                self.stdout_closed.store(true, Ordering::Relaxed);
+                Ok(())
+            }
+            Err(e) => Err(std::io::Error::new(
+                e.kind(),
+                format!("cannot write to standard output: {e}"),
+            )),
+        }
+    }
+
+    /// [`Printer::data`] with a line end.
+    pub fn data_line(&self, text: impl AsRef<str>) -> std::io::Result<()> {
+        self.data(format!("{}\n", text.as_ref()))
     }
 
     /// An informational line on stderr (suppressed by `--quiet`).
@@ -61,7 +105,8 @@ impl Printer {
     fn println(&self, line: &str) {
         match self.bar.lock().ok().and_then(|b| b.clone()) {
             Some(bar) if !bar.is_hidden() => bar.println(line),
-            _ => eprintln!("{line}"),
+            // A closed or full stderr loses the message; it must not panic the command.
+            _ => stderr_line(line),
         }
     }
 

@@ -121,6 +121,15 @@ pub trait FrameSource: Send + Sync {
     }
     /// Every frame, sorted by location. `splits` limits the splits read (all when empty).
     fn frames(&self, splits: &[String]) -> Result<Vec<SourceFrame>>;
+
+    /// The frames for readers of the annotations only (the metrics: GT, cameras, depth, models;
+    /// no colour). A BOP image without its `rgb/` file is kept, `rgb` the path it would have;
+    /// layouts that need a colour image to know a frame (YCB-Video, Linemod) give [`frames`].
+    ///
+    /// [`frames`]: FrameSource::frames
+    fn annotation_frames(&self, splits: &[String]) -> Result<Vec<SourceFrame>> {
+        self.frames(splits)
+    }
 }
 
 impl FrameSource for BopDataset {
@@ -149,18 +158,31 @@ impl FrameSource for BopDataset {
     }
 
     fn frames(&self, splits: &[String]) -> Result<Vec<SourceFrame>> {
+        self.bop_frames(splits, true)
+    }
+
+    fn annotation_frames(&self, splits: &[String]) -> Result<Vec<SourceFrame>> {
+        self.bop_frames(splits, false)
+    }
+}
+
+impl BopDataset {
+    fn bop_frames(&self, splits: &[String], need_rgb: bool) -> Result<Vec<SourceFrame>> {
         let mut out = Vec::new();
         for split in &self.splits {
             if !splits.is_empty() && !splits.contains(split) {
                 continue;
             }
             for scene_id in self.scene_ids(split)? {
-                let scene = self.read_scene(split, scene_id)?;
+                let scene = self.read_scene_with(split, scene_id, need_rgb)?;
                 for im_id in scene.im_ids() {
-                    let (Some(camera), Some(rgb)) =
-                        (scene.camera.get(&im_id), scene.rgb_path(im_id))
-                    else {
+                    let Some(camera) = scene.camera.get(&im_id) else {
                         continue;
+                    };
+                    let rgb = match scene.rgb_path(im_id) {
+                        Some(p) => p.to_path_buf(),
+                        None if !need_rgb => scene.dir.join("rgb").join(format!("{im_id:06}.png")),
+                        None => continue,
                     };
                     let gt = scene.gt.get(&im_id).cloned().unwrap_or_default();
                     let gt_info = scene.gt_info.as_ref().and_then(|m| m.get(&im_id).cloned());
@@ -181,7 +203,7 @@ impl FrameSource for BopDataset {
                         camera: *camera,
                         gt,
                         gt_info,
-                        rgb: rgb.to_path_buf(),
+                        rgb,
                         depth,
                         masks,
                         masks_visib,

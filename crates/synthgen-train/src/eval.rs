@@ -13,7 +13,7 @@ use synthgen_dataset::source::{FrameLocation, FrameSource};
 
 use crate::data::Instance;
 use crate::error::{Error, Result};
-use crate::metrics::{is_5cm5deg, subsample_vertices, EvalObject, PoseErrors};
+use crate::metrics::{subsample_vertices, EvalObject, PoseErrors, Rotations};
 use crate::pose_model::{Objects, Prediction};
 use crate::results::Estimate;
 
@@ -27,8 +27,21 @@ pub struct GtInstance {
     pub im_id: u32,
     pub gt_id: usize,
     pub obj_id: u32,
+    /// `cam_from_obj` with the nearest proper rotation.
     pub pose: Pose,
+    /// `cam_from_obj` as the file stores it (metres): what bop_toolkit scores.
+    pub stored: Pose,
     pub visib_fract: f64,
+}
+
+impl GtInstance {
+    /// The pose the metrics use with `rotations`.
+    pub fn pose_for(&self, rotations: Rotations) -> Pose {
+        match rotations {
+            Rotations::AsStored => self.stored,
+            Rotations::Nearest => self.pose,
+        }
+    }
 }
 
 /// The split to evaluate: `wanted`, else `test` when present, else the only split.
@@ -64,7 +77,7 @@ pub fn pick_split(ds: &dyn FrameSource, wanted: Option<&str>) -> Result<String> 
 /// scene has no `scene_gt_info.json`).
 pub fn read_gt(ds: &dyn FrameSource, split: &str, min_visib_fract: f64) -> Result<Vec<GtInstance>> {
     let mut out = Vec::new();
-    for frame in ds.frames(&[split.to_string()])? {
+    for frame in ds.annotation_frames(&[split.to_string()])? {
         let FrameLocation {
             scene_id, im_id, ..
         } = frame.location;
@@ -83,6 +96,7 @@ pub fn read_gt(ds: &dyn FrameSource, split: &str, min_visib_fract: f64) -> Resul
                 gt_id,
                 obj_id: g.obj_id,
                 pose: g.cam_from_obj(),
+                stored: g.cam_from_obj_as_stored(),
                 visib_fract,
             });
         }
@@ -220,11 +234,13 @@ pub fn score_predictions<'a>(
     instances: impl IntoIterator<Item = &'a Instance>,
     gts: &[GtInstance],
     objects: &Objects,
+    rotations: Rotations,
 ) -> Result<EvalReport> {
     evaluate(
         gts,
         &prediction_estimates(preds, instances),
         &eval_objects(objects),
+        rotations,
     )
 }
 
@@ -260,11 +276,13 @@ pub fn eval_objects(objects: &Objects) -> BTreeMap<u32, EvalObject> {
 /// Matches estimates to GT per (scene, image, object) and scores them. For an (image,
 /// object) with k GT instances the k highest-scoring estimates are used; in descending
 /// score order each takes the free GT instance it fits best (lowest ADD(-S)). GT instances
-/// left without an estimate count as wrong.
+/// left without an estimate count as wrong. `rotations` says which matrices the metrics use:
+/// the files' as stored (bop_toolkit's way, the default) or the nearest proper rotations.
 pub fn evaluate(
     gts: &[GtInstance],
     estimates: &[Estimate],
     objects: &BTreeMap<u32, EvalObject>,
+    rotations: Rotations,
 ) -> Result<EvalReport> {
     type Key = (u32, u32, u32);
     let mut groups: BTreeMap<Key, (Vec<GtInstance>, Vec<Estimate>)> = BTreeMap::new();
@@ -303,7 +321,11 @@ pub fn evaluate(
                     .iter()
                     .enumerate()
                     .filter(|(_, m)| m.estimate.is_none())
-                    .map(|(i, m)| (i, obj.scoring_errors(&m.gt.pose, &e.pose)))
+                    .map(|(i, m)| {
+                        let err =
+                            obj.scoring_errors(&m.gt.pose_for(rotations), &e.pose_for(rotations));
+                        (i, err)
+                    })
                     .min_by(|a, b| a.1.add_s_m.total_cmp(&b.1.add_s_m));
                 if let Some((i, err)) = best {
                     matches[i].estimate = Some((e, err));
@@ -323,13 +345,13 @@ pub fn evaluate(
             let a = acc.entry(m.gt.obj_id).or_default();
             for a in [a, &mut all] {
                 a.n_gt += 1;
-                if let Some((e, err)) = &m.estimate {
+                if let Some((_, err)) = &m.estimate {
                     a.n_est += 1;
                     a.sum_add_m += err.add_s_m;
                     a.sum_te_m += err.te_m;
                     a.sum_re_deg += err.re_deg;
                     a.n_add_ok += usize::from(obj.add_s_correct(err));
-                    a.n_5cm5deg += usize::from(is_5cm5deg(&m.gt.pose, &e.pose));
+                    a.n_5cm5deg += usize::from(err.within_5cm5deg());
                 }
             }
             matches.push(m);
@@ -402,6 +424,7 @@ mod tests {
             gt_id: 0,
             obj_id,
             pose: Pose::new(DMat3::IDENTITY, DVec3::from_array(t)),
+            stored: Pose::new(DMat3::IDENTITY, DVec3::from_array(t)),
             visib_fract: 1.0,
         }
     }
@@ -438,7 +461,7 @@ mod tests {
             // An estimate for an image without GT is ignored.
             est(5, 1, 1.0, [0.0, 0.0, 1.0]),
         ];
-        let r = evaluate(&gts, &ests, &objects()).unwrap();
+        let r = evaluate(&gts, &ests, &objects(), Rotations::AsStored).unwrap();
         let s = r.per_object[&1];
         assert_eq!((s.n_gt, s.n_est), (2, 1));
         // 2 cm > 10% of 10 cm: wrong; image 1 has no estimate: wrong.
@@ -468,7 +491,7 @@ mod tests {
             est(0, 1, 0.5, [0.301, 0.0, 1.0]),
             est(0, 1, 0.4, [0.001, 0.0, 1.0]),
         ];
-        let r = evaluate(&gts, &ests, &objects()).unwrap();
+        let r = evaluate(&gts, &ests, &objects(), Rotations::AsStored).unwrap();
         assert_eq!(r.all.add_s_acc, 1.0);
         assert!((r.all.mean_add_mm.unwrap() - 1.0).abs() < 1e-9);
     }

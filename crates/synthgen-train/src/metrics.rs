@@ -4,7 +4,6 @@
 
 use synthgen_core::glam::{DMat3, DVec3};
 use synthgen_core::mesh::Model;
-use synthgen_core::pose::rotation_angle_rad;
 use synthgen_core::Pose;
 
 /// An estimate is correct under ADD(-S) when its error is below this fraction of the
@@ -133,14 +132,32 @@ pub fn te_m(gt: &Pose, est: &Pose) -> f64 {
     (gt.translation_m - est.translation_m).length()
 }
 
-/// Rotation error arccos((tr(R̂ Rᵀ) − 1) / 2) in degrees (0..180).
+/// Rotation error arccos((tr(R̂ R⁻¹) − 1) / 2) in degrees (0..180), as bop_toolkit's `re`: the
+/// inverse, not the transpose, since rotations read from files are only nearly orthonormal
+/// (for a proper rotation the two are the same).
 pub fn re_deg(gt: &DMat3, est: &DMat3) -> f64 {
-    rotation_angle_rad(est, gt).to_degrees()
+    let m = *est * gt.inverse();
+    let tr = m.x_axis.x + m.y_axis.y + m.z_axis.z;
+    ((tr - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
 }
 
 /// 5cm5°: translation error < 5 cm and rotation error < 5°.
 pub fn is_5cm5deg(gt: &Pose, est: &Pose) -> bool {
     te_m(gt, est) < TE_THRESHOLD_M && re_deg(&gt.rotation, &est.rotation) < RE_THRESHOLD_DEG
+}
+
+/// Which rotation matrices ADD(-S), the rotation error and 5cm5° are computed on.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Rotations {
+    /// The matrices as the files store them, GT and estimates: what bop_toolkit's
+    /// `pose_error` (and PoseCNN's and DenseFusion's evaluations) score, so published numbers
+    /// are comparable.
+    #[default]
+    AsStored,
+    /// The nearest proper rotation of each (real annotations are hand-made and stored with ~6
+    /// digits: |det R − 1| up to ~1e-2).
+    Nearest,
 }
 
 /// The errors of one estimate against its GT.
@@ -194,6 +211,13 @@ impl EvalObject {
 
     pub fn add_s_correct(&self, e: &PoseErrors) -> bool {
         e.add_s_m < ADD_THRESHOLD_FRACTION * self.diameter_m
+    }
+}
+
+impl PoseErrors {
+    /// 5cm5° from these errors (what [`is_5cm5deg`] decides from the poses).
+    pub fn within_5cm5deg(&self) -> bool {
+        self.te_m < TE_THRESHOLD_M && self.re_deg < RE_THRESHOLD_DEG
     }
 }
 

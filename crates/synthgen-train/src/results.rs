@@ -7,6 +7,7 @@ use synthgen_core::Pose;
 
 use crate::bop::errors::RawPose;
 use crate::error::{Error, Result};
+use crate::metrics::Rotations;
 
 /// One pose estimate of a results file, converted to metres.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -24,6 +25,14 @@ pub struct Estimate {
 }
 
 impl Estimate {
+    /// The pose the metrics use with `rotations` (metres).
+    pub fn pose_for(&self, rotations: Rotations) -> Pose {
+        match rotations {
+            Rotations::AsStored => Pose::new(self.stored.r, self.stored.t_mm / 1000.0),
+            Rotations::Nearest => self.pose,
+        }
+    }
+
     /// An estimate of a pose in metres (a model's prediction): stored as it is.
     pub fn new(scene_id: u32, im_id: u32, obj_id: u32, score: f64, pose: Pose) -> Estimate {
         Estimate {

@@ -344,14 +344,14 @@ async fn file(
 pub fn serve(
     viewer: Viewer,
     addr: SocketAddr,
-    ready: impl FnOnce(SocketAddr),
+    ready: impl FnOnce(SocketAddr) -> std::io::Result<()>,
 ) -> std::io::Result<()> {
     let rt = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()?;
     rt.block_on(async move {
         let listener = tokio::net::TcpListener::bind(addr).await?;
-        ready(listener.local_addr()?);
+        ready(listener.local_addr()?)?;
         axum::serve(listener, router(Arc::new(viewer))).await
     })
 }

@@ -10,7 +10,7 @@ use serde::Serialize;
 use synthgen_dataset::bop::ModelInfo;
 use synthgen_dataset::source::{open_source, FrameSource, SourceFrame};
 use synthgen_train::eval::{evaluate, load_eval_objects, GtInstance};
-use synthgen_train::metrics::PoseErrors;
+use synthgen_train::metrics::{PoseErrors, Rotations};
 use synthgen_train::results::{read_results_csv, Estimate};
 
 use crate::Error;
@@ -211,6 +211,7 @@ impl Dataset {
                     gt_id,
                     obj_id: g.obj_id,
                     pose: g.cam_from_obj(),
+                    stored: g.cam_from_obj_as_stored(),
                     visib_fract: 1.0,
                 });
             }
@@ -220,10 +221,13 @@ impl Dataset {
                 path: self.root.clone(),
                 message: e.to_string(),
             })?;
-        let report = evaluate(&gts, &results.estimates, &objects).map_err(|e| Error::Open {
-            path: csv.to_path_buf(),
-            message: e.to_string(),
-        })?;
+        let report =
+            evaluate(&gts, &results.estimates, &objects, Rotations::default()).map_err(|e| {
+                Error::Open {
+                    path: csv.to_path_buf(),
+                    message: e.to_string(),
+                }
+            })?;
         for m in report.matches {
             if let (Some(e), Some(&idx)) = (m.estimate, at.get(&(m.gt.scene_id, m.gt.im_id))) {
                 self.estimates.insert((idx, m.gt.gt_id), e);

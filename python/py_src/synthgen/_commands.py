@@ -169,6 +169,7 @@ def evaluate(
     bop: bool = False,
     targets: Optional[PathLike] = None,
     visib_gt_min: float = -1.0,
+    rotations: str = "as_stored",
 ) -> Dict[str, Any]:
     """Scores a BOP results CSV (``scene_id,im_id,obj_id,score,R,t,time``) against
     ``data``'s ground truth, as ``synthgen eval --results`` does.
@@ -176,6 +177,9 @@ def evaluate(
     With ``bop=True`` also BOP's Average Recall (VSD, MSSD, MSPD), as ``synthgen eval --bop``
     computes it (docs/metrics.md): ``targets`` is a ``test_targets_bop19.json`` (default: the
     one in ``data``, else every GT instance), ``visib_gt_min`` bop_toolkit's setting.
+    ``rotations`` says which matrices ADD(-S), the rotation error and 5cm5° use:
+    ``"as_stored"`` (the files' numbers, as bop_toolkit's ``pose_error``) or ``"nearest"``
+    (the nearest proper rotation of each), as ``eval --rotations``.
 
     Returns:
         ``scores``: per object id (as a string) and ``"all"``: ``n_gt``, ``n_est``,
@@ -194,4 +198,5 @@ def evaluate(
         bop=bool(bop),
         targets=None if targets is None else os.fspath(targets),
         visib_gt_min=float(visib_gt_min),
+        rotations=str(rotations),
     )

@@ -124,6 +124,7 @@ def evaluate(
     bop: bool = False,
     targets: Optional[_Path] = None,
     visib_gt_min: float = -1.0,
+    rotations: str = "as_stored",
 ) -> Dict[str, Any]: ...
 
 ADD_THRESHOLD_FRACTION: float

@@ -72,7 +72,8 @@ def add_s(
 
 
 def re(R_gt: ArrayLike, R_est: ArrayLike) -> float:
-    """Rotation error ``arccos((tr(R_est R_gt^T) - 1) / 2)`` in degrees (0..180)."""
+    """Rotation error ``arccos((tr(R_est R_gt^-1) - 1) / 2)`` in degrees (0..180), as
+    bop_toolkit's ``re``."""
     return _m.re(_r(R_gt), _r(R_est))
 
 

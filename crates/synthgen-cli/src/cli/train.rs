@@ -53,6 +53,25 @@ pub enum DeviceArg {
     Cuda,
 }
 
+/// Which rotation matrices `eval` scores (synthgen_train::metrics::Rotations).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum RotationsArg {
+    /// The matrices as the files store them, GT and estimates: bop_toolkit's pose_error,
+    /// PoseCNN's and DenseFusion's evaluations (published numbers).
+    AsStored,
+    /// The nearest proper rotation of each (real annotations are only nearly orthonormal).
+    Nearest,
+}
+
+impl From<RotationsArg> for synthgen_train::metrics::Rotations {
+    fn from(r: RotationsArg) -> Self {
+        match r {
+            RotationsArg::AsStored => Self::AsStored,
+            RotationsArg::Nearest => Self::Nearest,
+        }
+    }
+}
+
 pub const TRAIN_EXAMPLES: &str = "Examples:
   # Render 2000 driller frames, train TNet on them (10% of the frames held out):
   synthgen render --objects obj_000008.ply --frames 2000 --seed 1 --out data/drill
@@ -268,6 +287,12 @@ pub struct EvalArgs {
     /// Needs --checkpoint of an rnet or full model (tnet: translation only).
     #[arg(long, requires = "checkpoint")]
     pub stability: bool,
+
+    /// Which rotation matrices ADD(-S), the rotation error and 5cm5° use: the files' as stored
+    /// (GT and estimates, as bop_toolkit's pose_error scores them) or the nearest proper
+    /// rotation of each. --bop always scores the stored numbers, as bop_toolkit does.
+    #[arg(long, value_enum, default_value_t = RotationsArg::AsStored)]
+    pub rotations: RotationsArg,
 
     #[arg(long, value_enum, default_value_t = DeviceArg::Cpu)]
     pub device: DeviceArg,

@@ -199,7 +199,7 @@ pub fn run(args: AnnotateArgs, printer: &Printer) -> Result<ExitStatus> {
     // The comparison is what --compare asks for (stdout); otherwise a side note (stderr).
     let table = format_report(&report, source.as_ref());
     if args.compare {
-        print!("{table}");
+        printer.data(&table)?;
     } else if !table.is_empty() {
         printer.info(table.trim_end());
     }
@@ -217,9 +217,9 @@ pub fn run(args: AnnotateArgs, printer: &Printer) -> Result<ExitStatus> {
     if failures.is_empty() {
         Ok(ExitStatus::Success)
     } else {
-        eprintln!("error: {} frames failed:", failures.len());
+        printer.error(format!("{} frames failed:", failures.len()));
         for f in &failures {
-            eprintln!("  {f}");
+            crate::printer::stderr_line(format!("  {f}"));
         }
         Ok(ExitStatus::Failure)
     }

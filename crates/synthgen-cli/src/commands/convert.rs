@@ -189,13 +189,14 @@ fn convert(
             (r?, Some(classes))
         }
         (Layout::Bop | Layout::Linemod, Layout::Ycbv) => {
-            let source = open_source(src)?;
-            let frames = source.frames(&[])?;
-            let renderer = object_renderer(source.as_ref(), &frame_obj_ids(&frames), printer)?;
+            // The class list first: a bad one is refused before any model is loaded.
             let classes = match &args.classes {
                 Some(path) => Some(read_classes(path)?),
                 None => manifest_classes(src),
             };
+            let source = open_source(src)?;
+            let frames = source.frames(&[])?;
+            let renderer = object_renderer(source.as_ref(), &frame_obj_ids(&frames), printer)?;
             let factor_depth = 1000.0 / args.depth_scale.unwrap_or(0.1);
             let yopts = YcbvConvertOptions {
                 classes,
@@ -243,6 +244,12 @@ fn read_classes(path: &Path) -> Result<Vec<String>> {
     while classes.last().is_some_and(String::is_empty) {
         classes.pop();
     }
+    synthgen_dataset::ycbv::check_class_names(&classes).map_err(|m| {
+        user_error(
+            format!("{m}: {}", path.display()),
+            "give each object a class name of its own",
+        )
+    })?;
     Ok(classes)
 }
 

@@ -51,7 +51,7 @@ fn run_results(args: &EvalArgs, csv: &Path, printer: &Printer) -> Result<ExitSta
     let results = read_results_csv(csv)?;
     let estimates = results.estimates;
     let objects = load_eval_objects(ds.as_ref(), gts.iter().map(|g| g.obj_id))?;
-    let report = evaluate(&gts, &estimates, &objects)?;
+    let report = evaluate(&gts, &estimates, &objects, args.rotations.into())?;
     printer.info(format!(
         "{} estimates from {} against {} GT instances of {}/{}",
         estimates.len(),
@@ -66,7 +66,7 @@ fn run_results(args: &EvalArgs, csv: &Path, printer: &Printer) -> Result<ExitSta
             report.unmatched_estimates
         ));
     }
-    print!("{}", report.to_markdown(&objects));
+    printer.data(report.to_markdown(&objects))?;
     let mut json = report.to_json();
     if args.bop {
         let bop = bop_scores(args, ds.as_ref(), &split, &estimates, printer)?;
@@ -95,12 +95,12 @@ fn run_results(args: &EvalArgs, csv: &Path, printer: &Printer) -> Result<ExitSta
             results.skipped.len() - 10
         ));
     }
-    eprintln!(
-        "error: {} of {} rows of {} could not be read and were skipped; the scores above are of the others",
+    printer.error(format!(
+        "{} of {} rows of {} could not be read and were skipped; the scores above are of the others",
         results.skipped.len(),
         results.skipped.len() + estimates.len(),
         csv.display()
-    );
+    ));
     Ok(ExitStatus::Failure)
 }
 
@@ -249,7 +249,7 @@ fn run_checkpoint(args: &EvalArgs, ckpt: &Path, printer: &Printer) -> Result<Exi
             "{} groups of frames with the same GT pose",
             groups.len()
         ));
-        print!("{}", stability_markdown(&groups));
+        printer.data(stability_markdown(&groups))?;
         if let Some(path) = &args.json {
             write_json(path, &serde_json::json!({ "stability": groups }))?;
             printer.info(format!("wrote {}", path.display()));
@@ -270,8 +270,14 @@ fn run_checkpoint(args: &EvalArgs, ckpt: &Path, printer: &Printer) -> Result<Exi
         return Err(anyhow::anyhow!("internal: objects not loaded"));
     };
     let gts = read_gt(ds.as_ref(), &set.split, args.min_visib_fract)?;
-    let report = score_predictions(&preds, &set.instances, &gts, &objects)?;
-    print!("{}", report.to_markdown(&eval_objects(&objects)));
+    let report = score_predictions(
+        &preds,
+        &set.instances,
+        &gts,
+        &objects,
+        args.rotations.into(),
+    )?;
+    printer.data(report.to_markdown(&eval_objects(&objects)))?;
     let mut json = report.to_json();
     if args.bop {
         let estimates = prediction_estimates(&preds, &set.instances);
@@ -320,7 +326,7 @@ fn centre_table(
         );
         json.insert(name, j);
     }
-    print!("{md}");
+    printer.data(&md)?;
     if let Some(path) = &args.json {
         write_json(path, &serde_json::Value::Object(json))?;
         printer.info(format!("wrote {}", path.display()));
@@ -365,11 +371,20 @@ fn bop_scores(
             c.estimates_unknown_image,
             "for an image the dataset does not have",
         ),
-        (c.estimates_unknown_object, "for an object without a model"),
+        (
+            c.estimates_unknown_object,
+            "for an object the dataset has no model of",
+        ),
     ] {
         if n > 0 {
             printer.warning(format!("{n} estimates not scored: {what}"));
         }
+    }
+    if c.targets_repeated > 0 {
+        printer.warning(format!(
+            "{} entries of the targets file repeat an (image, object) listed before: the last one's inst_count counts, as bop_toolkit reads them",
+            c.targets_repeated
+        ));
     }
     if let Some(note) = &report.note {
         printer.warning(note.clone());
@@ -378,7 +393,6 @@ fn bop_scores(
         write_json(path, &serde_json::to_value(&report.errors)?)?;
         printer.info(format!("wrote {}", path.display()));
     }
-    println!();
-    print!("{}", report.to_markdown());
+    printer.data(format!("\n{}", report.to_markdown()))?;
     Ok(report)
 }

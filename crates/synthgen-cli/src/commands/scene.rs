@@ -32,9 +32,9 @@ pub fn run_fit(args: SceneFitArgs, printer: &Printer) -> Result<ExitStatus> {
         printer,
     )?;
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&fit)?);
+        printer.data_line(serde_json::to_string_pretty(&fit)?)?;
     } else {
-        print!("{}", format_fit(&fit, args.sensor.as_deref()));
+        printer.data(format_fit(&fit, args.sensor.as_deref()))?;
     }
     printer.info(format!("wrote {}", args.out.display()));
     printer.hint(format!(

@@ -92,9 +92,9 @@ pub fn run_fit(args: SensorFitArgs, printer: &Printer) -> Result<ExitStatus> {
         printer.info(format!("wrote {}", p.display()));
     }
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        printer.data_line(serde_json::to_string_pretty(&report)?)?;
     } else {
-        print!("{}", format_fit(&report, &args.data));
+        printer.data(format_fit(&report, &args.data))?;
     }
     printer.info(format!("wrote {}", args.out.display()));
     printer.hint(format!(
@@ -284,9 +284,9 @@ pub fn run_compare(args: SensorCompareArgs, printer: &Printer) -> Result<ExitSta
         printer.info(format!("wrote {}", p.display()));
     }
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&cmp)?);
+        printer.data_line(serde_json::to_string_pretty(&cmp)?)?;
     } else {
-        print!("{}", format_compare(&cmp, &args.real, &args.synth));
+        printer.data(format_compare(&cmp, &args.real, &args.synth))?;
     }
     Ok(ExitStatus::Success)
 }

@@ -20,9 +20,9 @@ pub fn run(args: StatsArgs, printer: &Printer) -> Result<ExitStatus> {
     if let [source] = sources.as_slice() {
         let stats = compute_stats(source.as_ref())?;
         if args.json {
-            println!("{}", serde_json::to_string_pretty(&stats)?);
+            printer.data_line(serde_json::to_string_pretty(&stats)?)?;
         } else {
-            print!("{}", format_stats(&stats));
+            printer.data(format_stats(&stats))?;
         }
         if let Some(dir) = &args.plot {
             for p in write_plots(&stats, dir)? {
@@ -34,9 +34,9 @@ pub fn run(args: StatsArgs, printer: &Printer) -> Result<ExitStatus> {
     let refs: Vec<&dyn FrameSource> = sources.iter().map(|s| s.as_ref()).collect();
     let stats = compare_stats(&refs)?;
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&stats)?);
+        printer.data_line(serde_json::to_string_pretty(&stats)?)?;
     } else {
-        print!("{}", format_comparison(&stats));
+        printer.data(format_comparison(&stats))?;
     }
     if let Some(dir) = &args.plot {
         for p in write_comparison_plots(&stats, dir)? {

@@ -18,7 +18,7 @@ pub fn run(args: ValidateArgs, printer: &Printer) -> Result<ExitStatus> {
     }
     if args.json {
         let text = serde_json::to_string_pretty(&report).context("cannot write the report")?;
-        println!("{text}");
+        printer.data_line(text)?;
     } else {
         let cap = if args.max_problems == 0 {
             usize::MAX
@@ -26,13 +26,13 @@ pub fn run(args: ValidateArgs, printer: &Printer) -> Result<ExitStatus> {
             args.max_problems
         };
         for p in report.problems.iter().take(cap) {
-            println!("{}: {}", p.path.display(), p.message);
+            printer.data_line(format!("{}: {}", p.path.display(), p.message))?;
         }
         if report.problems.len() > cap {
-            println!(
+            printer.data_line(format!(
                 "... and {} more (--max-problems 0 prints all)",
                 report.problems.len() - cap
-            );
+            ))?;
         }
     }
     let what = format!(
@@ -47,10 +47,10 @@ pub fn run(args: ValidateArgs, printer: &Printer) -> Result<ExitStatus> {
         Ok(ExitStatus::Success)
     } else {
         let n = report.problems.len();
-        eprintln!(
-            "error: {n} problem{} in {what}",
+        printer.error(format!(
+            "{n} problem{} in {what}",
             if n == 1 { "" } else { "s" }
-        );
+        ));
         Ok(ExitStatus::Failure)
     }
 }

@@ -27,8 +27,9 @@ pub fn run(args: ViewArgs, printer: &Printer) -> Result<ExitStatus> {
     let addr = SocketAddr::new(args.host, args.port);
     synthgen_view::serve(viewer, addr, |bound| {
         // The one line on stdout: scripts read the address from it.
-        println!("http://{bound}/");
+        printer.data_line(format!("http://{bound}/"))?;
         printer.info("serving read-only; Ctrl-C stops");
+        Ok(())
     })
     .with_context(|| format!("cannot serve on {addr} (is the port taken? try --port 0)"))?;
     Ok(ExitStatus::Success)

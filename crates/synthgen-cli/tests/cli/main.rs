@@ -29,6 +29,7 @@ mod scene_fit;
 mod scenes;
 mod sensor;
 mod sim2real;
+mod stdout;
 mod surfaces;
 mod train;
 mod train_linemod;

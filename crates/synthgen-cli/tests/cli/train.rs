@@ -391,3 +391,37 @@ fn no_symmetric_loss_is_recorded_and_kept_on_resume() {
     assert!(train(&data, &sym, "1", &full).status.success());
     assert!(cfg(&sym).get("plain_add_loss").is_none());
 }
+
+/// Issue 26: `eval --results` (and `--bop`) refused a BOP set without rgb/ although no metric
+/// reads colour (bop_toolkit needs only the GT, the cameras, the models and, for VSD, depth).
+#[test]
+fn eval_results_needs_no_colour_images() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = tiny_dataset(dir.path());
+    let csv = dir.path().join("results.csv");
+    std::fs::write(&csv, gt_as_results(&data, 0.0)).unwrap();
+    for scene in std::fs::read_dir(data.join("train_pbr")).unwrap().flatten() {
+        std::fs::remove_dir_all(scene.path().join("rgb")).unwrap();
+    }
+    let json = dir.path().join("s.json");
+    let o = run(synthgen()
+        .args(["eval", "--bop", "--results"])
+        .arg(&csv)
+        .arg("--data")
+        .arg(&data)
+        .arg("--json")
+        .arg(&json));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(j["all"]["add_s_acc"], 1.0, "{j}");
+    assert_eq!(j["bop"]["mssd"]["mean_recall"], 1.0, "{j}");
+    // What needs the images still says so.
+    let o = run(synthgen()
+        .arg("preview")
+        .arg(&data)
+        .arg("--out")
+        .arg(dir.path().join("p.png")));
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("rgb"), "{}", stderr(&o));
+}

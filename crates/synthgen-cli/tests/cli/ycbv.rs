@@ -567,3 +567,65 @@ fn eval_reads_ycbv_models_in_metres() {
         assert_eq!(v["add_s_acc"], converted[id]["add_s_acc"], "object {id}");
     }
 }
+
+/// Issue 26: `convert --to ycbv --classes F` with one name on two lines wrote both meshes into
+/// one models/<name>/ (the second overwrote the first) and `validate` said OK.
+#[test]
+fn duplicate_class_names_are_refused_before_anything_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    crate::render::write_box_ply(&d.join("a.ply"));
+    std::fs::copy(d.join("a.ply"), d.join("b.ply")).unwrap();
+    let o = run(synthgen()
+        .current_dir(d)
+        .args([
+            "render",
+            "-q",
+            "--objects",
+            "a.ply",
+            "b.ply",
+            "--units",
+            "m",
+        ])
+        .args(["--image-size", "80,60", "--camera-k", "80,80,40,30"])
+        .args(["--frames", "2", "--out", "bop"]));
+    assert!(o.status.success(), "{}", stderr(&o));
+    for (list, words) in [
+        (
+            "box\nbox\n",
+            &["dup.txt", "\"box\"", "line 2", "repeats line 1"][..],
+        ),
+        ("box\n..\n", &["dup.txt", "line 2", "bad class name"][..]),
+    ] {
+        std::fs::write(d.join("dup.txt"), list).unwrap();
+        let o = run(synthgen().current_dir(d).args([
+            "convert",
+            "--to",
+            "ycbv",
+            "bop",
+            "y",
+            "--classes",
+            "dup.txt",
+        ]));
+        crate::common::refused(&o, words);
+        assert!(!d.join("y").exists(), "nothing written");
+    }
+    // A YCB-Video folder whose classes.txt repeats a name is a problem for validate.
+    std::fs::write(d.join("ok.txt"), "box_a\nbox_b\n").unwrap();
+    let o = run(synthgen().current_dir(d).args([
+        "convert",
+        "--to",
+        "ycbv",
+        "bop",
+        "y",
+        "--classes",
+        "ok.txt",
+    ]));
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(d.join("y/models/box_a").is_dir() && d.join("y/models/box_b").is_dir());
+    std::fs::write(d.join("y/classes.txt"), "box_a\nbox_a\n").unwrap();
+    let o = run(synthgen().current_dir(d).args(["validate", "y"]));
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let all = format!("{}{}", String::from_utf8_lossy(&o.stdout), stderr(&o));
+    assert!(all.contains("repeats line 1"), "{all}");
+}

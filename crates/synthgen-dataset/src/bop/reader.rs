@@ -248,6 +248,12 @@ impl BopDataset {
 
     /// Reads a scene folder's JSON files and checks that every image has its files.
     pub fn read_scene(&self, split: &str, scene_id: u32) -> Result<BopScene> {
+        self.read_scene_with(split, scene_id, true)
+    }
+
+    /// [`read_scene`](Self::read_scene); with `need_rgb` false an image without its colour
+    /// file is no error (readers of the annotations alone: the metrics read no colour).
+    pub fn read_scene_with(&self, split: &str, scene_id: u32, need_rgb: bool) -> Result<BopScene> {
         crate::io::check_plain_name(split, "split", &self.root)?;
         let dir = self.root.join(split).join(format!("{scene_id:06}"));
         let camera_path = dir.join("scene_camera.json");
@@ -288,7 +294,7 @@ impl BopDataset {
         let depth_dir = dir.join("depth");
         let depth = images_by_id(&depth_dir, &["png"])?;
         for im in camera.keys() {
-            if !rgb.contains_key(im) {
+            if need_rgb && !rgb.contains_key(im) {
                 return Err(Error::MissingFile {
                     path: dir.join("rgb").join(format!("{im:06}.png")),
                 });

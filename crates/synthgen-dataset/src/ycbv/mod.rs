@@ -161,12 +161,7 @@ impl YcbvDataset {
         if classes.is_empty() {
             return Err(Error::malformed(&classes_path, "no class names"));
         }
-        if let Some(i) = classes.iter().position(|c| c.is_empty() || c.contains('/')) {
-            return Err(Error::malformed(
-                &classes_path,
-                format!("line {}: a class name must be non-empty without '/'", i + 1),
-            ));
-        }
+        check_class_names(&classes).map_err(|m| Error::malformed(&classes_path, m))?;
         let data = root.join("data");
         let scenes: BTreeMap<u32, PathBuf> = numbered_dirs(&data)?.into_iter().collect();
         let sets = root.join("image_sets");
@@ -309,6 +304,29 @@ fn meta_ids(dir: &Path) -> Result<Vec<u32>> {
 /// The class list a YCB-Video dataset written from BOP object ids needs: line i names
 /// obj_id i. Known ids keep YCB-Video's class names when `ycbv_names` (the objects are
 /// YCB-Video's), others are `obj_NNNNNN`; ids up to the largest one are listed.
+/// Checks a class list as `classes.txt` and `models/<class>/` need it: each name a plain folder
+/// name (non-empty, without '/', '\\' or a line break, not "." or "..") used once — two
+/// classes of one name would share one model folder. The message names 1-based lines.
+pub fn check_class_names(classes: &[String]) -> std::result::Result<(), String> {
+    let mut first: BTreeMap<&str, usize> = BTreeMap::new();
+    for (i, c) in classes.iter().enumerate() {
+        if c.is_empty() || c == "." || c == ".." || c.contains(['/', '\\', '\n']) {
+            return Err(format!(
+                "line {}: bad class name {c:?} (it names a folder under models/)",
+                i + 1
+            ));
+        }
+        if let Some(j) = first.insert(c, i) {
+            return Err(format!(
+                "line {}: class name {c:?} repeats line {} (each class has its own models/<class>/ folder)",
+                i + 1,
+                j + 1
+            ));
+        }
+    }
+    Ok(())
+}
+
 pub fn class_list(obj_ids: &[u32], ycbv_names: bool) -> Vec<String> {
     let max = obj_ids.iter().copied().max().unwrap_or(0);
     (1..=max)

@@ -98,12 +98,7 @@ impl YcbvWriter {
                 opts.factor_depth
             )));
         }
-        if let Some(c) = classes
-            .iter()
-            .find(|c| c.is_empty() || c.contains(['/', '\\', '\n']))
-        {
-            return Err(Error::InvalidOptions(format!("bad class name {c:?}")));
-        }
+        super::check_class_names(&classes).map_err(Error::InvalidOptions)?;
         create_dir_all(&root.join("data"))?;
         let mut text = classes.join("\n");
         text.push('\n');

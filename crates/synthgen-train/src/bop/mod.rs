@@ -137,7 +137,7 @@ pub struct BopImage {
 pub fn read_images(ds: &dyn FrameSource, split: &str) -> Result<Vec<BopImage>> {
     let cam = ds.camera();
     Ok(ds
-        .frames(&[split.to_string()])?
+        .annotation_frames(&[split.to_string()])?
         .into_iter()
         .map(|f| BopImage {
             scene_id: f.location.scene_id,
@@ -261,7 +261,11 @@ pub struct BopSetup {
     pub images: Vec<BopImage>,
     pub targets: Vec<Target>,
     pub targets_from: TargetsFrom,
+    /// The targets' objects.
     pub objects: BTreeMap<u32, BopObject>,
+    /// Every object the dataset has a model of (its evaluation `models_info.json`), so that
+    /// an estimate of a non-target object is told from one of an object without a model.
+    pub model_ids: BTreeSet<u32>,
 }
 
 /// Reads what scoring `split` of `ds` needs: images, targets (`targets`, else the dataset's
@@ -296,11 +300,22 @@ pub fn prepare_bop(
     obj_ids.sort_unstable();
     obj_ids.dedup();
     let objects = load_bop_objects(ds, obj_ids, opts.max_sym_disc_step)?;
+    let (info_path, _) = eval_model_paths(ds);
+    let model_ids = if info_path == ds.models_info_path() {
+        ds.models_info()
+            .map(|m| m.keys().copied().collect())
+            .unwrap_or_default()
+    } else {
+        synthgen_dataset::bop::reader::read_models_info(&info_path)?
+            .into_keys()
+            .collect()
+    };
     Ok(BopSetup {
         images,
         targets,
         targets_from,
         objects,
+        model_ids,
     })
 }
 
@@ -318,15 +333,7 @@ impl BopSetup {
         opts: &BopOptions,
         progress: &dyn Progress,
     ) -> Result<BopReport> {
-        evaluate_bop(
-            &self.images,
-            &self.targets,
-            estimates,
-            &self.objects,
-            renderer,
-            opts,
-            progress,
-        )
+        evaluate_bop(self, estimates, renderer, opts, progress)
     }
 }
 
@@ -366,6 +373,9 @@ pub struct BopCounts {
     pub estimates_unknown_image: usize,
     /// Estimates naming an object without a model.
     pub estimates_unknown_object: usize,
+    /// Entries of the targets file that repeat an (image, object) listed before; the last
+    /// one's `inst_count` counts, as bop_toolkit reads them.
+    pub targets_repeated: usize,
 }
 
 /// The BOP 2019 scores.
@@ -385,17 +395,16 @@ pub struct BopReport {
     pub note: Option<String>,
 }
 
-/// Scores `estimates` against `images` for `targets`. `renderer` renders VSD's depths; VSD is
-/// skipped (with a note) when it is None or a target image has no depth.
+/// Scores `estimates` against the setup's images for its targets. `renderer` renders VSD's
+/// depths; VSD is skipped (with a note) when it is None or a target image has no depth.
 pub fn evaluate_bop(
-    images: &[BopImage],
-    targets: &[Target],
+    setup: &BopSetup,
     estimates: &[Estimate],
-    objects: &BTreeMap<u32, BopObject>,
     renderer: Option<&dyn DepthRenderer>,
     opts: &BopOptions,
     progress: &dyn Progress,
 ) -> Result<BopReport> {
+    let (images, targets, objects) = (&setup.images, &setup.targets, &setup.objects);
     let by_image: BTreeMap<(u32, u32), &BopImage> = images
         .iter()
         .map(|im| ((im.scene_id, im.im_id), im))
@@ -419,22 +428,26 @@ pub fn evaluate_bop(
             .entry((t.scene_id, t.im_id))
             .or_default()
             .insert(t.obj_id, t.inst_count);
-        counts.targets += 1;
-        counts.target_instances += t.inst_count;
     }
+    counts.targets = target_org.values().map(BTreeMap::len).sum();
+    counts.target_instances = target_org.values().flat_map(BTreeMap::values).sum();
+    counts.targets_repeated = targets.len() - counts.targets;
     // Estimates by image and object, in file order.
     let mut est_org: BTreeMap<(u32, u32, u32), Vec<&Estimate>> = BTreeMap::new();
     for e in estimates {
         let im = (e.scene_id, e.im_id);
         if !by_image.contains_key(&im) {
             counts.estimates_unknown_image += 1;
-        } else if !objects.contains_key(&e.obj_id) {
-            counts.estimates_unknown_object += 1;
         } else if !target_org
             .get(&im)
             .is_some_and(|t| t.contains_key(&e.obj_id))
         {
-            counts.estimates_not_target += 1;
+            // Targets all have models (checked above); others may or may not.
+            if objects.contains_key(&e.obj_id) || setup.model_ids.contains(&e.obj_id) {
+                counts.estimates_not_target += 1;
+            } else {
+                counts.estimates_unknown_object += 1;
+            }
         } else {
             est_org
                 .entry((e.scene_id, e.im_id, e.obj_id))
@@ -983,7 +996,14 @@ mod tests {
         ests: &[Estimate],
         opts: &BopOptions,
     ) -> Result<BopReport> {
-        evaluate_bop(images, targets, ests, &objects(), None, opts, &NoProgress)
+        let setup = BopSetup {
+            images: images.to_vec(),
+            targets: targets.to_vec(),
+            targets_from: TargetsFrom::AllGt,
+            objects: objects(),
+            model_ids: objects().keys().copied().collect(),
+        };
+        evaluate_bop(&setup, ests, None, opts, &NoProgress)
     }
 
     #[test]
@@ -1102,6 +1122,47 @@ mod tests {
         assert_eq!(r.counts.estimates_not_target, 1);
         assert_eq!(r.counts.estimates_unknown_image, 1);
         assert_eq!(r.counts.estimates_unknown_object, 1);
+        assert_eq!(r.mssd.mean_recall, 1.0);
+    }
+
+    /// Issue 26: an estimate of a non-target object with a model was counted "without a
+    /// model" (only the targets' models are loaded); a target listed twice was counted twice
+    /// (bop_toolkit keeps the last entry).
+    #[test]
+    fn non_target_objects_and_repeated_targets_are_counted_as_bop_toolkit_reads_them() {
+        let ims = vec![image(
+            0,
+            vec![gt(1, [0.0, 0.0, 800.0]), gt(2, [100.0, 0.0, 800.0])],
+            vec![1.0, 1.0],
+        )];
+        let t = Target {
+            scene_id: 0,
+            im_id: 0,
+            obj_id: 1,
+            inst_count: 1,
+        };
+        let mut objs = objects();
+        objs.remove(&2);
+        let setup = BopSetup {
+            images: ims,
+            targets: vec![t, t, t],
+            targets_from: TargetsFrom::AllGt,
+            objects: objs,
+            model_ids: BTreeSet::from([1, 2]),
+        };
+        let ests = [
+            est(0, 1, 1.0, [0.0, 0.0, 800.0]),
+            est(0, 2, 1.0, [100.0, 0.0, 800.0]),
+            est(0, 7, 1.0, [0.0, 0.0, 800.0]),
+        ];
+        let r = evaluate_bop(&setup, &ests, None, &BopOptions::default(), &NoProgress).unwrap();
+        let c = &r.counts;
+        assert_eq!(
+            (c.targets, c.target_instances, c.targets_repeated),
+            (1, 1, 2)
+        );
+        assert_eq!(c.estimates_not_target, 1, "object 2: a model, not a target");
+        assert_eq!(c.estimates_unknown_object, 1, "object 7: no model");
         assert_eq!(r.mssd.mean_recall, 1.0);
     }
 

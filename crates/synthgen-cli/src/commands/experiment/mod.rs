@@ -414,7 +414,7 @@ pub fn run_mix(args: ExperimentMixArgs, printer: &Printer) -> Result<ExitStatus>
     manifest.extra = serde_json::json!({ "experiment": settings });
     write_manifest(&out, &manifest)?;
 
-    print!("{md}");
+    printer.data(&md)?;
     printer.info(format!(
         "{} rows: {computed} computed, {skipped} skipped (finished earlier); {:.0} s",
         records.len(),

@@ -18,7 +18,7 @@ use synthgen_dataset::output::{check_apart, OutputLock};
 use synthgen_dataset::source::{open_source, FrameSource};
 use synthgen_train::data::{load_source_instances, Instance, InstanceSet};
 use synthgen_train::eval::{eval_objects, pick_split, read_gt, score_predictions, Match};
-use synthgen_train::metrics::{is_5cm5deg, EvalObject, TE_THRESHOLD_M};
+use synthgen_train::metrics::{EvalObject, Rotations, TE_THRESHOLD_M};
 use synthgen_train::models::rgb::Translation;
 use synthgen_train::models::ModelKind;
 use synthgen_train::pose_model::{load_dataset_objects, Objects};
@@ -112,10 +112,10 @@ fn cell<'a>(
     let (mut te, mut re) = (Vec::new(), Vec::new());
     for m in matches {
         n += 1;
-        if let Some((e, err)) = &m.estimate {
+        if let Some((_, err)) = &m.estimate {
             te.push(err.te_m * 100.0);
             re.push(err.re_deg);
-            ok += usize::from(is_5cm5deg(&m.gt.pose, &e.pose));
+            ok += usize::from(err.within_5cm5deg());
             ok_5cm += usize::from(err.te_m < TE_THRESHOLD_M);
             add_ok += usize::from(
                 objects
@@ -345,7 +345,7 @@ pub fn run(args: ExperimentRgbArgs, printer: &Printer) -> Result<ExitStatus> {
         &out.join("report.json"),
         (serde_json::to_string_pretty(&report)? + "\n").as_bytes(),
     )?;
-    print!("{md}");
+    printer.data(&md)?;
     if let Some(v) = &verdict {
         printer.info(v.clone());
     }
@@ -485,7 +485,13 @@ fn run_variant(
     let t = Instant::now();
     let preds = model.predict(&refs, Some(&test.objects), PREDICT_BATCH)?;
     let predict_ms_per_crop = t.elapsed().as_secs_f64() * 1000.0 / refs.len().max(1) as f64;
-    let report = score_predictions(&preds, &test.instances, &test.gts, &test.objects)?;
+    let report = score_predictions(
+        &preds,
+        &test.instances,
+        &test.gts,
+        &test.objects,
+        Rotations::default(),
+    )?;
     let objs = eval_objects(&test.objects);
     let mut by_obj: BTreeMap<u32, Vec<&Match>> = BTreeMap::new();
     let mut by_scene: BTreeMap<u32, Vec<&Match>> = BTreeMap::new();

@@ -15,6 +15,7 @@ use synthgen_dataset::mix::{
 use synthgen_dataset::source::FrameSource;
 use synthgen_train::data::{load_instances, DataOptions, Instance};
 use synthgen_train::eval::{read_gt, score_predictions, EvalReport, GtInstance};
+use synthgen_train::metrics::Rotations;
 use synthgen_train::models::tnet::DEFAULT_SCALE;
 use synthgen_train::models::ModelKind;
 use synthgen_train::pose_model::{load_dataset_objects, Objects, Prediction};
@@ -379,6 +380,8 @@ fn gt_of(i: &Instance) -> GtInstance {
         gt_id: i.gt_id,
         obj_id: i.obj_id,
         pose: i.pose,
+        // Training instances keep the nearest rotation only; it is what they were trained on.
+        stored: i.pose,
         visib_fract: 1.0,
     }
 }
@@ -413,7 +416,13 @@ fn errors(
         };
         return Ok((e, None));
     };
-    let report = score_predictions(preds, instances.iter().copied(), gts, objects)?;
+    let report = score_predictions(
+        preds,
+        instances.iter().copied(),
+        gts,
+        objects,
+        Rotations::default(),
+    )?;
     let e = Errors {
         n: report.all.n_gt,
         centre_error_cm,

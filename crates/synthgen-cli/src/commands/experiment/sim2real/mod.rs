@@ -369,7 +369,7 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
     write_timing(&out, &timing)?;
     let rep = report::Report::new(&settings, records, timing, notes);
     rep.write(&out)?;
-    print!("{}", rep.markdown());
+    printer.data(rep.markdown())?;
     printer.info(format!(
         "{} rows ({computed} computed now) in {elapsed:.0} s; wrote report.md, report.json, plot.png in {}",
         rep.rows.len(),

@@ -12,6 +12,7 @@ use synthgen_dataset::io::atomic_write;
 use synthgen_dataset::source::FrameSource;
 use synthgen_train::data::{load_source_instances, DataOptions, Instance};
 use synthgen_train::eval::{read_gt, score_predictions, GtInstance};
+use synthgen_train::metrics::Rotations;
 use synthgen_train::models::tnet::DEFAULT_SCALE;
 use synthgen_train::models::ModelKind;
 use synthgen_train::pose_model::{load_dataset_objects, Objects, Prediction};
@@ -361,7 +362,13 @@ fn score(
         .map(|(id, v)| (id.to_string(), centre_metrics(v.into_iter())))
         .collect();
     if let Some(objs) = &test.objects {
-        let report = score_predictions(preds, tested.iter().copied(), &test.gts, objs)?;
+        let report = score_predictions(
+            preds,
+            tested.iter().copied(),
+            &test.gts,
+            objs,
+            Rotations::default(),
+        )?;
         let fill = |m: &mut Metrics, s: &synthgen_train::eval::ObjectScores| {
             m.add_s_acc = Some(s.add_s_acc);
             m.acc_5cm5deg = Some(s.acc_5cm5deg);
