@@ -35,6 +35,12 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     render_resume::check_supported(&args)?;
     let frame_range = render_resume::frame_range(&args)?;
     let spec = build_spec(&args)?;
+    if spec.ground.visible && spec.camera_pose.elevation_deg[0] < 0.0 {
+        printer.warning(format!(
+            "camera_pose.elevation_deg starts at {}°, below the table: some cameras look at the objects from under the ground plane (a scene fitted to depth at the wrong scale looks like this)",
+            spec.camera_pose.elevation_deg[0]
+        ));
+    }
     let sources = collect_sources(&args, &spec)?;
     if !args.resume {
         check_out_dir(&args.out, args.force)?;

@@ -71,14 +71,9 @@ pub fn fit_to_file(
     let models: BTreeMap<_, _> = load_models(source.as_ref(), &frame_obj_ids(&frames), printer)?
         .into_iter()
         .collect();
-    // Only frames without `scene_gt_info` need the silhouettes rendered (their visib_fract).
-    let renderer = if frames.iter().any(|f| f.gt_info.is_none()) {
-        Some(ObjectRenderer::new(
-            models.iter().map(|(&id, m)| (id, m.clone())).collect(),
-        )?)
-    } else {
-        None
-    };
+    // The objects rendered at their GT poses: the check of the depth against them, and the
+    // silhouettes of frames without `scene_gt_info` (their visib_fract).
+    let renderer = ObjectRenderer::new(models.iter().map(|(&id, m)| (id, m.clone())).collect())?;
     let options = SceneFitOptions {
         scenes: scenes.to_vec(),
         ..SceneFitOptions::default()
@@ -88,7 +83,7 @@ pub fn fit_to_file(
         source.as_ref(),
         &frames,
         &models,
-        renderer.as_ref().map(|r| r as &dyn PoseRenderer),
+        Some(&renderer as &dyn PoseRenderer),
         &options,
         printer,
     );

@@ -129,6 +129,9 @@ pub(crate) fn fit_to_file(
             max_frame_residual_m * 1000.0
         ));
     }
+    for w in &report.warnings {
+        printer.warning(w);
+    }
     let text = sensor_file_text(&report, data, scenes)?;
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
@@ -183,6 +186,9 @@ fn sensor_file_text(report: &FitReport, data: &Path, scenes: &[u32]) -> Result<S
         report.pixels,
         report.frames_excluded.len()
     );
+    for w in &report.warnings {
+        let _ = writeln!(text, "# warning: {w}");
+    }
     let _ = writeln!(
         text,
         "# Use it with `synthgen render --sensor FILE` or `[sensor] file = \"FILE\"` in a scene.\n# Parameters: docs/sensors.md.\n"

@@ -60,3 +60,30 @@ pub fn repo_root() -> PathBuf {
         .canonicalize()
         .expect("repo root")
 }
+
+/// A small copy of the real dataset to break: scene 0000 (frames 1-2) with its models.
+pub fn ycbv_small_copy(real: &Path, to: &Path) {
+    std::fs::create_dir_all(to.join("data/0000")).unwrap();
+    std::fs::copy(real.join("classes.txt"), to.join("classes.txt")).unwrap();
+    for f in 1..=2 {
+        for s in ["color.png", "depth.png", "label.png", "meta.mat", "box.txt"] {
+            let name = format!("{f:06}-{s}");
+            std::fs::copy(
+                real.join("data/0000").join(&name),
+                to.join("data/0000").join(&name),
+            )
+            .unwrap();
+        }
+    }
+    for class in ["009_gelatin_box", "025_mug", "061_foam_brick"] {
+        let dir = to.join("models").join(class);
+        std::fs::create_dir_all(&dir).unwrap();
+        for f in [
+            "textured_simple.obj",
+            "textured_simple.obj.mtl",
+            "points.xyz",
+        ] {
+            std::fs::copy(real.join("models").join(class).join(f), dir.join(f)).unwrap();
+        }
+    }
+}

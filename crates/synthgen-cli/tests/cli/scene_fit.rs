@@ -455,3 +455,71 @@ fn frames_with_a_subset_of_the_objects_write_and_validate_in_every_format() {
         assert!((2..=3).contains(&n), "image {im}: {n} objects");
     }
 }
+
+/// Issue 26: depth read at a tenth of its scale (a factor_depth mistake) fitted a scene with
+/// elevation [-10, 0]° and a camera 7 mm above the table, which render accepted. The depth
+/// is now checked against the GT poses: every frame off is refused, one frame off is skipped
+/// with the ratio named; render warns about a camera range under the table.
+#[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
+fn depth_at_the_wrong_scale_is_refused() {
+    use synthgen_dataset::ycbv::{encode_meta, read_meta};
+    let real = ycbv_real();
+    let dir = tempfile::tempdir().unwrap();
+    let ds = dir.path().join("ycbv");
+    crate::common::ycbv_small_copy(&real, &ds);
+    let scale_depth = |f: u32| {
+        let p = ds.join(format!("data/0000/{f:06}-meta.mat"));
+        let mut m = read_meta(&p, None).unwrap();
+        m.factor_depth *= 10.0;
+        let vertmap = vec![0f32; 640 * 480 * 3];
+        std::fs::write(&p, encode_meta(&m, &vertmap, 640, 480, &p).unwrap()).unwrap();
+    };
+    scale_depth(2);
+    let out = dir.path().join("fit.toml");
+    let o = fit(&ds, &out, &[]);
+    let e = stderr(&o);
+    assert!(o.status.success(), "{e}");
+    assert!(
+        e.contains("image 2: the depth disagrees with the GT poses") && e.contains("0.100 times"),
+        "{e}"
+    );
+    scale_depth(1);
+    std::fs::remove_file(&out).unwrap();
+    refused(
+        &fit(&ds, &out, &[]),
+        &[
+            "depth disagrees with the GT poses in 2 of the 2 frames",
+            "0.100 times",
+            "factor_depth",
+        ],
+    );
+    assert!(!out.exists());
+
+    // A scene whose camera range reaches under the table renders with a warning.
+    let scene = dir.path().join("low.toml");
+    std::fs::write(&scene, "[camera_pose]\nelevation_deg = [-10.0, 0.0]\n").unwrap();
+    crate::render::write_box_ply(&dir.path().join("box.ply"));
+    let o = run(synthgen()
+        .current_dir(dir.path())
+        .args([
+            "render",
+            "-q",
+            "--objects",
+            "box.ply",
+            "--units",
+            "m",
+            "--scene",
+            "low.toml",
+        ])
+        .args(["--image-size", "80,60", "--frames", "1", "--out", "low"]));
+    let e = stderr(&o);
+    assert!(o.status.success(), "{e}");
+    assert!(
+        e.contains("warning:") && e.contains("below the table"),
+        "{e}"
+    );
+}

@@ -10,7 +10,7 @@ use synthgen_dataset::bop::image::{read_depth_raw, read_label};
 use synthgen_dataset::bop::BopDataset;
 use synthgen_dataset::ycbv::read_meta;
 
-use crate::common::{run, stderr, synthgen, ycbv_real};
+use crate::common::{run, stderr, synthgen, ycbv_real, ycbv_small_copy};
 
 fn ok(cmd: &mut Command) -> String {
     let o = run(cmd);
@@ -362,33 +362,6 @@ print('scipy ok', ka)
     );
 }
 
-/// A small copy of the real dataset to break: scene 0000 (frames 1-2) with its models.
-fn small_copy(real: &Path, to: &Path) {
-    std::fs::create_dir_all(to.join("data/0000")).unwrap();
-    std::fs::copy(real.join("classes.txt"), to.join("classes.txt")).unwrap();
-    for f in 1..=2 {
-        for s in ["color.png", "depth.png", "label.png", "meta.mat", "box.txt"] {
-            let name = format!("{f:06}-{s}");
-            std::fs::copy(
-                real.join("data/0000").join(&name),
-                to.join("data/0000").join(&name),
-            )
-            .unwrap();
-        }
-    }
-    for class in ["009_gelatin_box", "025_mug", "061_foam_brick"] {
-        let dir = to.join("models").join(class);
-        std::fs::create_dir_all(&dir).unwrap();
-        for f in [
-            "textured_simple.obj",
-            "textured_simple.obj.mtl",
-            "points.xyz",
-        ] {
-            std::fs::copy(real.join("models").join(class).join(f), dir.join(f)).unwrap();
-        }
-    }
-}
-
 /// Each kind of broken YCB-Video file: `convert` exits 1 naming the file and writes nothing;
 /// `validate` names it too.
 #[test]
@@ -457,7 +430,7 @@ fn broken_ycbv_files_are_named_and_nothing_is_written() {
     ];
     for (k, (what, breaks, message)) in cases.into_iter().enumerate() {
         let ds = dir.path().join(format!("case{k}"));
-        small_copy(&real, &ds);
+        ycbv_small_copy(&real, &ds);
         let bad = breaks(&ds);
         let out = dir.path().join(format!("out{k}"));
         let o = run(synthgen()
@@ -628,4 +601,122 @@ fn duplicate_class_names_are_refused_before_anything_is_written() {
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     let all = format!("{}{}", String::from_utf8_lossy(&o.stdout), stderr(&o));
     assert!(all.contains("repeats line 1"), "{all}");
+}
+
+/// Issue 26: two mugs in one frame both got the whole label of class 14 as their visible mask,
+/// silently. validate warns; readers give them no visible mask; `convert --to bop` splits the
+/// label along the render at the GT poses.
+#[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
+fn two_instances_of_one_class_are_warned_about_and_split_by_the_render() {
+    let real = ycbv_real();
+    let dir = tempfile::tempdir().unwrap();
+    let ds = dir.path().join("ycbv");
+    ycbv_small_copy(&real, &ds);
+    let p = ds.join("data/0000/000001-meta.mat");
+    let mut m = read_meta(&p, None).unwrap();
+    let i = m.cls_indexes.iter().position(|&c| c == 14).unwrap();
+    let mut twin = m.poses[i];
+    twin.t_m[0] += 0.15; // a second mug, 15 cm aside
+    m.cls_indexes.push(14);
+    m.poses.push(twin);
+    if let Some(c) = &mut m.center {
+        let ci = c[i];
+        c.push(ci);
+    }
+    let vertmap = vec![0f32; 640 * 480 * 3];
+    let bytes = synthgen_dataset::ycbv::encode_meta(&m, &vertmap, 640, 480, &p).unwrap();
+    std::fs::write(&p, bytes).unwrap();
+    let o = run(synthgen().arg("validate").arg(&ds));
+    let e = stderr(&o);
+    assert!(o.status.success(), "{e}");
+    assert!(
+        e.contains("two or more instances of one class")
+            && e.contains("data/0000/000001 (class 14 x2)"),
+        "{e}"
+    );
+    let bop = dir.path().join("bop");
+    let o = run(synthgen()
+        .args(["convert", "--to", "bop"])
+        .arg(&ds)
+        .arg(&bop));
+    let e = stderr(&o);
+    assert!(o.status.success(), "{e}");
+    assert!(e.contains("split along the render at the GT poses"), "{e}");
+    let px = |g: usize| {
+        synthgen_dataset::bop::read_mask(
+            &bop.join(format!("train/000000/mask_visib/000001_{g:06}.png")),
+        )
+        .unwrap()
+        .data
+        .iter()
+        .filter(|&&v| v > 0)
+        .count()
+    };
+    let (mug, twin) = (px(i), px(3));
+    assert!(mug > 500 && twin * 10 < mug, "mug {mug} px, twin {twin} px");
+}
+
+/// Issue 26: label values that are no class of the frame, images without a -meta.mat and
+/// frames in no image list were skipped without a word; validate named only the first stray
+/// value.
+#[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
+fn frames_and_label_values_left_out_are_counted_and_named() {
+    use synthgen_dataset::bop::image::encode_gray8_png;
+    use synthgen_dataset::bop::PngCompression;
+    let real = ycbv_real();
+    let dir = tempfile::tempdir().unwrap();
+    let ds = dir.path().join("ycbv");
+    ycbv_small_copy(&real, &ds);
+    let lp = ds.join("data/0000/000001-label.png");
+    let mut l = read_label(&lp).unwrap();
+    l.data[..200].fill(3);
+    l.data[640 * 479..].fill(7); // classes 3 and 7 are not in this frame (8, 14, 21)
+    let b: Vec<u8> = l.data.iter().map(|&v| v as u8).collect();
+    std::fs::write(
+        &lp,
+        encode_gray8_png(&b, 640, 480, PngCompression::Fast, &lp).unwrap(),
+    )
+    .unwrap();
+    for s in ["color.png", "depth.png", "label.png"] {
+        // Frame 3's images without its -meta.mat.
+        std::fs::copy(
+            real.join(format!("data/0000/000003-{s}")),
+            ds.join(format!("data/0000/000003-{s}")),
+        )
+        .unwrap();
+    }
+    let o = run(synthgen().arg("validate").arg(&ds));
+    let (out, err) = (String::from_utf8_lossy(&o.stdout).into_owned(), stderr(&o));
+    assert_eq!(o.status.code(), Some(1), "{out}{err}");
+    assert!(out.contains("label values 3 (200 px), 7 (640 px)"), "{out}");
+    assert!(
+        err.contains("1 frames have colour, depth or label images but no -meta.mat")
+            && err.contains("data/0000/000003"),
+        "{err}"
+    );
+    std::fs::create_dir_all(ds.join("image_sets")).unwrap();
+    std::fs::write(ds.join("image_sets/train.txt"), "0000/000001\n").unwrap();
+    let o = run(synthgen()
+        .args(["convert", "--to", "bop"])
+        .arg(&ds)
+        .arg(dir.path().join("bop")));
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    for w in [
+        "but no -meta.mat",
+        "data/0000/000003",
+        "in no image_sets/*.txt list",
+        "data/0000/000002",
+        "values 3 (200 px), 7 (640 px)",
+    ] {
+        assert!(err.contains(w), "{w:?} not in: {err}");
+    }
 }

@@ -10,7 +10,7 @@ use synthgen_core::glam::DVec3;
 use synthgen_core::{GtInfo, Intrinsics, PoseRenderer, Progress};
 
 use super::rescale_depth;
-use crate::annotate::{annotate_frame, write_completed_masks};
+use crate::annotate::{annotate_frame, frame_intrinsics, render_gt, write_completed_masks};
 use crate::bop::chunk::write_map;
 use crate::bop::image::{encode_gray8_png, read_depth_raw, read_label, read_rgb};
 use crate::bop::writer::write_camera_info;
@@ -18,7 +18,10 @@ use crate::bop::{GtEntry, ModelInfo, PngCompression, SceneCamera};
 use crate::error::{Error, Result};
 use crate::io::{self, atomic_write, create_dir_all};
 use crate::source::{FrameSource, SourceFrame};
-use crate::ycbv::{YcbvFrame, YcbvObject, YcbvPose, YcbvSource, YcbvWriter, YcbvWriterOptions};
+use crate::ycbv::{
+    format_label_values, stray_label_values, YcbvFrame, YcbvObject, YcbvPose, YcbvSource,
+    YcbvWriter, YcbvWriterOptions,
+};
 
 use super::ConvertSummary;
 
@@ -62,6 +65,12 @@ type SceneFiles = (
     BTreeMap<u32, Vec<GtInfo>>,
 );
 
+/// A YCB-Video frame's label image (present or not).
+fn label_path(f: &SourceFrame) -> std::path::PathBuf {
+    f.rgb
+        .with_file_name(format!("{:06}-label.png", f.location.im_id))
+}
+
 /// Converts a YCB-Video dataset into BOP at `dst`: splits `train`/`test` from the image
 /// sets, scene = video, image = frame, obj_id = class index; `rgb/` and `depth/` copied
 /// (depth_scale 1000 / factor_depth), `mask_visib/` from the labels, `models/obj_NNNNNN.ply`
@@ -76,16 +85,14 @@ pub fn ycbv_to_bop(
     progress: &dyn Progress,
 ) -> Result<ConvertSummary> {
     let source = YcbvSource::open(src)?;
+    for w in source.dataset.left_out.warnings() {
+        progress.warn(&w);
+    }
     let cam = source.camera();
     let size = (cam.width, cam.height);
     let frames = source.frames(&[])?;
     for f in &frames {
-        let label = f
-            .masks_visib
-            .iter()
-            .flatten()
-            .next()
-            .map(|m| m.path().to_path_buf());
+        let label = Some(label_path(f)).filter(|p| p.is_file());
         let Some(depth) = f.depth.as_deref() else {
             return Err(Error::MissingFile {
                 path: f
@@ -121,6 +128,9 @@ pub fn ycbv_to_bop(
 
     progress.start("converting", frames.len() as u64);
     let mut scenes: BTreeMap<(String, u32), SceneFiles> = BTreeMap::new();
+    // Frames with label values that are no class of theirs, and with two instances of a class.
+    let (mut stray, mut shared_frames): (Vec<String>, Vec<String>) = (Vec::new(), Vec::new());
+    let mut stray_values: BTreeMap<u16, u64> = BTreeMap::new();
     for f in &frames {
         let loc = &f.location;
         let scene_dir = dst.join(&loc.split).join(format!("{:06}", loc.scene_id));
@@ -144,18 +154,63 @@ pub fn ycbv_to_bop(
             &io::read(d)?,
         )?;
         // The label's instances as BOP masks.
-        let label = match f.masks_visib.iter().flatten().next() {
-            Some(m) => Some(read_label(m.path())?),
-            None => None,
+        let lp = label_path(f);
+        let label = if lp.is_file() {
+            Some(read_label(&lp)?)
+        } else {
+            None
         };
         let n = (cam.width * cam.height) as usize;
+        let cls: Vec<u32> = f.gt.iter().map(|g| g.obj_id).collect();
+        let shared: Vec<u32> = cls
+            .iter()
+            .copied()
+            .filter(|c| cls.iter().filter(|&d| d == c).count() > 1)
+            .collect();
+        if let Some(l) = &label {
+            let s = stray_label_values(&l.data, &cls);
+            if !s.is_empty() {
+                stray.push(format!("{}: {}", lp.display(), format_label_values(&s)));
+                for (v, k) in s {
+                    *stray_values.entry(v).or_default() += k;
+                }
+            }
+        }
+        // Two instances of one class share the label's pixels: each gets those where the
+        // render at the GT poses shows it (without the models, none).
+        let split = match (shared.is_empty(), renderer) {
+            (false, Some(r)) => {
+                let k = frame_intrinsics(f, cam.width, cam.height);
+                Some(render_gt(r, f, &k)?.instance)
+            }
+            _ => None,
+        };
+        if !shared.is_empty() {
+            shared_frames.push(format!(
+                "{}/{:06} image {}",
+                loc.split, loc.scene_id, loc.im_id
+            ));
+        }
         let visib: Vec<Vec<u8>> =
             f.gt.iter()
-                .map(|g| match &label {
+                .enumerate()
+                .map(|(gt_id, g)| match &label {
                     Some(l) => l
                         .data
                         .iter()
-                        .map(|&v| if u32::from(v) == g.obj_id { 255 } else { 0 })
+                        .enumerate()
+                        .map(|(i, &v)| {
+                            let mine = u32::from(v) == g.obj_id
+                                && (!shared.contains(&g.obj_id)
+                                    || split
+                                        .as_ref()
+                                        .is_some_and(|s| usize::from(s[i]) == gt_id + 1));
+                            if mine {
+                                255
+                            } else {
+                                0
+                            }
+                        })
                         .collect(),
                     None => vec![0; n],
                 })
@@ -195,6 +250,30 @@ pub fn ycbv_to_bop(
     }
     write_camera_info(&dst.join("camera.json"), &cam)?;
     progress.finish();
+    if !stray.is_empty() {
+        let n = stray.len();
+        stray.truncate(10);
+        progress.warn(&format!(
+            "{n} frames have label values that are no class of their -meta.mat (values {}): those pixels are in no mask_visib: {}{}",
+            format_label_values(&stray_values),
+            stray.join("; "),
+            if n > 10 { format!("; ... and {} more", n - 10) } else { String::new() }
+        ));
+    }
+    if !shared_frames.is_empty() {
+        let n = shared_frames.len();
+        shared_frames.truncate(10);
+        progress.warn(&format!(
+            "{n} frames have two or more instances of one class, which label.png cannot tell apart: {}: {}{}",
+            if renderer.is_some() {
+                "their label pixels were split along the render at the GT poses"
+            } else {
+                "without the models they have empty mask_visib"
+            },
+            shared_frames.join(", "),
+            if n > 10 { format!(", ... and {} more", n - 10) } else { String::new() }
+        ));
+    }
     Ok(summary)
 }
 

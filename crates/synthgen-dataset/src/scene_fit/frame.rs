@@ -89,16 +89,58 @@ const CENTRE_BELOW_M: f64 = 0.03;
 /// ... and this far above it, for the candidate to count as their support.
 const CENTRE_ABOVE_M: f64 = 0.5;
 
-/// Measures `frame`; `Ok(Err(reason))` when it has no usable table plane (the frame is
-/// skipped), `Err` when its files cannot be read.
+/// Why a frame is left out of the fit.
+pub(crate) struct Skip {
+    pub reason: String,
+    /// The median ratio of the depth readings on the objects to their depth rendered at the
+    /// GT poses, when that is what disagreed.
+    pub depth_ratio: Option<f64>,
+}
+
+impl From<String> for Skip {
+    fn from(reason: String) -> Skip {
+        Skip {
+            reason,
+            depth_ratio: None,
+        }
+    }
+}
+
+/// Depth readings on the objects over their depth rendered at the GT poses (median) must lie
+/// within this of 1: a misread depth scale is off by a factor of 10 (YCB-Video's
+/// factor_depth, BOP's depth_scale), GT poses off by millimetres by well under 1 %.
+pub const MAX_DEPTH_RATIO_ERROR: f64 = 0.1;
+/// With fewer object pixels that have both a reading and a rendered depth, the frame is not
+/// judged (the plane fit decides).
+const MIN_DEPTH_CHECK_PX: usize = 100;
+
+/// The median of reading / rendered depth over the pixels where the GT render shows an object
+/// and both are positive; `None` with too few such pixels.
+fn depth_ratio(reading_m: &[f32], rendered: &synthgen_core::RenderedFrame) -> Option<f64> {
+    let mut v: Vec<f32> = reading_m
+        .iter()
+        .zip(&rendered.depth_m)
+        .zip(&rendered.instance)
+        .filter(|((&d, &z), &i)| i > 0 && d > 0.0 && z > 0.0)
+        .map(|((&d, &z), _)| d / z)
+        .collect();
+    if v.len() < MIN_DEPTH_CHECK_PX {
+        return None;
+    }
+    let mid = v.len() / 2;
+    Some(f64::from(*v.select_nth_unstable_by(mid, f32::total_cmp).1))
+}
+
+/// Measures `frame`; `Ok(Err(skip))` when it has no usable table plane or its depth disagrees
+/// with its GT poses (the frame is skipped), `Err` when its files cannot be read.
 pub(crate) fn measure_frame(
     ctx: &FrameContext<'_>,
     frame: &SourceFrame,
-) -> Result<std::result::Result<FrameFit, String>> {
+) -> Result<std::result::Result<FrameFit, Skip>> {
     let (w, h) = (ctx.width, ctx.height);
     let k = frame.camera.intrinsics(w, h);
     let Some(depth_path) = &frame.depth else {
-        return Ok(Err("no depth image".into()));
+        return Ok(Err(Skip::from("no depth image".to_string())));
     };
     let depth = read_depth_m(depth_path, frame.camera.depth_scale)?;
     if (depth.width, depth.height) != (w, h) {
@@ -109,6 +151,23 @@ pub(crate) fn measure_frame(
                 depth.width, depth.height
             ),
         ));
+    }
+    // The depth must agree with the GT poses, as `sensor fit` checks: a misread depth scale
+    // would fit a table a tenth as far away, under the objects' centres.
+    if let Some(renderer) = ctx.renderer {
+        let rendered = crate::annotate::render_gt(renderer, frame, &k)?;
+        if let Some(ratio) = depth_ratio(&depth.data, &rendered) {
+            if (ratio - 1.0).abs() > MAX_DEPTH_RATIO_ERROR {
+                return Ok(Err(Skip {
+                    reason: format!(
+                        "the depth disagrees with the GT poses: the readings on the objects are {ratio:.3} times their depth rendered at the GT poses (median; accepted {:.1} to {:.1})",
+                        1.0 - MAX_DEPTH_RATIO_ERROR,
+                        1.0 + MAX_DEPTH_RATIO_ERROR
+                    ),
+                    depth_ratio: Some(ratio),
+                }));
+            }
+        }
     }
     let mut visib: Vec<Option<Vec<u8>>> = Vec::with_capacity(frame.gt.len());
     for m in &frame.masks_visib {
@@ -153,7 +212,7 @@ pub(crate) fn measure_frame(
             .all(|&c| (-CENTRE_BELOW_M..=CENTRE_ABOVE_M).contains(&p.height(c)))
     };
     let Some(fit) = ransac_plane(&points, &ransac, accept) else {
-        return Ok(Err(format!(
+        return Ok(Err(Skip::from(format!(
             "no table plane under the objects: no plane within {} mm holds {:.0} % (and {}) of the {} depth points outside the objects with every object centre {:.0} cm below to {:.0} cm above it",
             ransac.inlier_band_m * 1000.0,
             ransac.min_inlier_share * 100.0,
@@ -161,7 +220,7 @@ pub(crate) fn measure_frame(
             points.len(),
             CENTRE_BELOW_M * 100.0,
             CENTRE_ABOVE_M * 100.0
-        )));
+        ))));
     };
     let plane = fit.plane;
     let n = plane.normal;
@@ -171,10 +230,10 @@ pub(crate) fn measure_frame(
     // The optical axis s·(0, 0, 1) meets the plane at the height of the mean centre.
     let s = (mean_height - plane.d) / n.z;
     if !(s.is_finite() && s > 0.0) {
-        return Ok(Err(format!(
+        return Ok(Err(Skip::from(format!(
             "the optical axis does not reach the objects' height (table normal in the camera frame {:.2}, {:.2}, {:.2})",
             n.x, n.y, n.z
-        )));
+        ))));
     }
     let look_at = DVec3::new(0.0, 0.0, s);
 

@@ -94,6 +94,10 @@ impl Observed {
 pub struct SkippedFrame {
     pub location: FrameLocation,
     pub reason: String,
+    /// The median ratio of its depth readings on the objects to their depth at the GT poses,
+    /// when that is why it was left out.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub depth_ratio: Option<f64>,
 }
 
 /// The camera the frames were taken with.
@@ -200,9 +204,10 @@ pub fn select_frames(source: &dyn FrameSource, scenes: &[u32]) -> Result<Vec<Sou
 
 /// Fits a scene to `frames` of `source` (from [`select_frames`]). `models` (metres, by
 /// obj_id) give each object's lowest point above the table, a check that it stands on it;
-/// `renderer` the visible fraction of frames without `scene_gt_info` (not computed without
-/// one). One `progress` step per frame. Frames without a table plane are skipped (listed);
-/// an error when none is left.
+/// `renderer` renders the objects at their GT poses: the check that the depth agrees with
+/// them (its scale) and the visible fraction of frames without `scene_gt_info` (neither
+/// without one). One `progress` step per frame. Frames without a table plane or whose depth
+/// disagrees with the GT are skipped (listed); an error when none is left.
 pub fn fit_scene(
     source: &dyn FrameSource,
     frames: &[SourceFrame],
@@ -232,7 +237,7 @@ pub fn fit_scene(
         max_points: options.max_points,
         mask_margin_px: options.mask_margin_px,
     };
-    let measured: Vec<std::result::Result<FrameFit, String>> = frames
+    let measured: Vec<std::result::Result<FrameFit, frame::Skip>> = frames
         .par_iter()
         .map(|f| {
             let r = frame::measure_frame(&ctx, f);
@@ -249,11 +254,26 @@ pub fn fit_scene(
                 used.push(fit);
                 used_frames.push(f);
             }
-            Err(reason) => skipped.push(SkippedFrame {
+            Err(skip) => skipped.push(SkippedFrame {
                 location: f.location.clone(),
-                reason,
+                reason: skip.reason,
+                depth_ratio: skip.depth_ratio,
             }),
         }
+    }
+    let ratios: Vec<f64> = skipped.iter().filter_map(|s| s.depth_ratio).collect();
+    if used.is_empty() && !ratios.is_empty() {
+        let mut sorted = ratios.clone();
+        sorted.sort_by(f64::total_cmp);
+        return Err(Error::InvalidRequest(format!(
+            "the depth disagrees with the GT poses in {} of the {} frames of {}: the readings on the objects are {:.3} times their depth rendered at the GT poses (median over those frames; accepted {:.1} to {:.1}); check the depth scale (BOP: depth_scale in scene_camera.json; YCB-Video: factor_depth in -meta.mat)",
+            ratios.len(),
+            frames.len(),
+            source.root().display(),
+            sorted[sorted.len() / 2],
+            1.0 - frame::MAX_DEPTH_RATIO_ERROR,
+            1.0 + frame::MAX_DEPTH_RATIO_ERROR
+        )));
     }
     if used.is_empty() {
         return Err(Error::InvalidRequest(format!(

@@ -102,6 +102,92 @@ pub struct FitReport {
     pub zone_hole_rates: [f64; 2],
     /// What was kept from the base spec or could not be measured.
     pub notes: Vec<String>,
+    /// Per scene, the projector side its own shadows give (scenes with enough edges).
+    pub shadow_by_scene: Vec<SceneShadow>,
+    /// What the user should know about the fit: weak or contradicting evidence.
+    pub warnings: Vec<String>,
+}
+
+/// The projector baseline one scene's shadows give.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SceneShadow {
+    pub scene_id: u32,
+    /// Shadow runs measured beside [left, right] silhouette edges.
+    pub edges: [u64; 2],
+    /// Run growth per (px·m) beside [left, right] edges.
+    pub slope_m: [f64; 2],
+    /// `None` where neither side shows a shadow.
+    pub baseline_m: Option<f64>,
+}
+
+/// A shadow grows by at least this (metres of baseline) to count as the projector's.
+const MIN_SHADOW_SLOPE_M: f64 = 0.002;
+/// Fewer edges than this on the projector's side of a scene say little about it.
+const MIN_SIDE_EDGES: u64 = 100;
+
+/// The baseline the shadows on `[left, right]` edges give (its sign: the projector's side), or
+/// `None` without a shadow.
+fn projector_baseline(shadow: &[SideFit; 2]) -> Option<f64> {
+    let main = if shadow[0].slope_m >= shadow[1].slope_m {
+        0
+    } else {
+        1
+    };
+    // A shadow on the left (side 0) means the projector is to the right (+x).
+    let sign = if main == 0 { 1.0 } else { -1.0 };
+    (shadow[main].slope_m > MIN_SHADOW_SLOPE_M)
+        .then(|| sign * shadow[main].slope_m.clamp(0.001, 1.0))
+}
+
+/// Warnings about the projector side: scenes that contradict each other, or evidence too weak
+/// to tell the projector from the second view.
+fn projector_warnings(
+    shadow: &[SideFit; 2],
+    scenes: &[SceneShadow],
+    baseline_m: f64,
+) -> Vec<String> {
+    let mut out = Vec::new();
+    let decided: Vec<&SceneShadow> = scenes
+        .iter()
+        .filter(|s| s.baseline_m.is_some() && s.edges.iter().sum::<u64>() >= MIN_SIDE_EDGES)
+        .collect();
+    let side = |b: f64| if b > 0.0 { "left" } else { "right" };
+    let list = |v: &[&&SceneShadow]| -> String {
+        v.iter()
+            .map(|s| format!("{} ({:+.3})", s.scene_id, s.baseline_m.unwrap_or(0.0)))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let pos: Vec<&&SceneShadow> = decided
+        .iter()
+        .filter(|s| s.baseline_m > Some(0.0))
+        .collect();
+    let neg: Vec<&&SceneShadow> = decided
+        .iter()
+        .filter(|s| s.baseline_m < Some(0.0))
+        .collect();
+    if !pos.is_empty() && !neg.is_empty() {
+        out.push(format!(
+            "the scenes disagree on the projector's side: scenes {} give a positive baseline_m (shadows on the {} of objects), scenes {} a negative one (shadows on the {}); the fit over all of them uses {baseline_m:+.3}. Fit each rig apart (--scenes), or check the odd scenes' depth registration",
+            list(&pos),
+            side(1.0),
+            list(&neg),
+            side(-1.0)
+        ));
+    }
+    let (l, r) = (shadow[0].slope_m, shadow[1].slope_m);
+    let (hi, lo) = (l.max(r), l.min(r));
+    let edges: u64 = shadow[if l >= r { 0 } else { 1 }]
+        .bins
+        .iter()
+        .map(|b| b.n)
+        .sum();
+    if hi > MIN_SHADOW_SLOPE_M && (lo > 0.75 * hi || edges < MIN_SIDE_EDGES) {
+        out.push(format!(
+            "the projector's side is uncertain: shadow runs grow {l:.4} m (left edges) and {r:.4} m (right edges) per px·m over {edges} edges on the stronger side; baseline_m ({baseline_m:+.4}) and second_view_m may be swapped"
+        ));
+    }
+    out
 }
 
 /// Fits the structured-light model to `st` (measured on frames with real depth).
@@ -111,6 +197,12 @@ pub fn fit(st: &DepthStats, options: &FitOptions) -> Result<FitReport> {
         return Err(Error::InvalidRequest(
             "no usable frame to fit to: every frame was left out or shows no object".into(),
         ));
+    }
+    if total.holes == total.n {
+        return Err(Error::InvalidRequest(format!(
+            "no depth readings: all {} object pixels of the {} frames read 0, so there is nothing to fit (are the depth images empty, or stored at a scale that rounds them to 0?)",
+            total.n, st.frames
+        )));
     }
     let mut spec = options.base.clone();
     let mut notes = Vec::new();
@@ -125,8 +217,8 @@ pub fn fit(st: &DepthStats, options: &FitOptions) -> Result<FitReport> {
     };
     // A shadow on the left (side 0) means the projector is to the right (+x).
     let sign = |side: usize| if side == 0 { 1.0 } else { -1.0 };
-    if shadow[main].slope_m > 0.002 {
-        spec.baseline_m = sign(main) * shadow[main].slope_m.clamp(0.001, 1.0);
+    if let Some(b) = projector_baseline(&shadow) {
+        spec.baseline_m = b;
     } else {
         notes.push(format!(
             "no shadow beside the objects could be measured (fewer than two populated bins or \
@@ -177,6 +269,20 @@ pub fn fit(st: &DepthStats, options: &FitOptions) -> Result<FitReport> {
             .into(),
     );
 
+    let shadow_by_scene: Vec<SceneShadow> = st
+        .runs_by_scene
+        .iter()
+        .map(|(&scene_id, runs)| {
+            let sides = [side_fit(&runs[0]), side_fit(&runs[1])];
+            SceneShadow {
+                scene_id,
+                edges: [0, 1].map(|s| runs[s].iter().map(|b| b.n).sum()),
+                slope_m: [sides[0].slope_m, sides[1].slope_m],
+                baseline_m: projector_baseline(&sides),
+            }
+        })
+        .collect();
+    let warnings = projector_warnings(&shadow, &shadow_by_scene, spec.baseline_m);
     let report = FitReport {
         frames_used: st.frames,
         frames_excluded: excluded(st),
@@ -210,6 +316,8 @@ pub fn fit(st: &DepthStats, options: &FitOptions) -> Result<FitReport> {
         edge_profile,
         zone_hole_rates: [st.zones[0].hole_rate(), st.zones[1].hole_rate()],
         notes,
+        shadow_by_scene,
+        warnings,
         spec,
     };
     Ok(report)
@@ -619,6 +727,72 @@ fn fit_hole_size(run: f64, p: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sensor::measure::RunBin;
+
+    /// Shadow runs growing `left` and `right` m per px·m beside left and right edges.
+    fn runs(left: f64, right: f64) -> [[RunBin; 6]; 2] {
+        let mut r = [[RunBin::default(); 6]; 2];
+        for (s, k) in [(0, left), (1, right)] {
+            for (b, g) in [(1, 7.0), (2, 15.0), (3, 30.0)] {
+                r[s][b] = RunBin {
+                    n: 100,
+                    sum_g: 100.0 * g,
+                    sum_run: 100.0 * (0.5 + k * g),
+                };
+            }
+        }
+        r
+    }
+
+    /// Issue 26: one scene's shadows gave baseline -0.11 m, two gave +0.02 m, silently.
+    #[test]
+    fn scenes_that_disagree_on_the_projector_side_are_named() {
+        let scenes = [
+            (0, runs(0.0, 0.11)),
+            (1, runs(0.02, 0.0)),
+            (2, runs(0.021, 0.0)),
+        ];
+        let mut pooled = [[RunBin::default(); 6]; 2];
+        let shadow_by_scene: Vec<SceneShadow> = scenes
+            .iter()
+            .map(|(id, r)| {
+                for s in 0..2 {
+                    for (a, b) in pooled[s].iter_mut().zip(&r[s]) {
+                        a.n += b.n;
+                        a.sum_g += b.sum_g;
+                        a.sum_run += b.sum_run;
+                    }
+                }
+                let sides = [side_fit(&r[0]), side_fit(&r[1])];
+                SceneShadow {
+                    scene_id: *id,
+                    edges: [300, 300],
+                    slope_m: [sides[0].slope_m, sides[1].slope_m],
+                    baseline_m: projector_baseline(&sides),
+                }
+            })
+            .collect();
+        assert!((shadow_by_scene[0].baseline_m.unwrap() + 0.11).abs() < 1e-9);
+        assert!((shadow_by_scene[1].baseline_m.unwrap() - 0.02).abs() < 1e-9);
+        let shadow = [side_fit(&pooled[0]), side_fit(&pooled[1])];
+        let b = projector_baseline(&shadow).unwrap();
+        let w = projector_warnings(&shadow, &shadow_by_scene, b).join("\n");
+        assert!(
+            w.contains("disagree on the projector's side")
+                && w.contains("scenes 1 (+0.020), 2 (+0.021)")
+                && w.contains("scenes 0 (-0.110)"),
+            "{w}"
+        );
+        // One scene alone: no disagreement, and a clear side is not "uncertain".
+        let one = &shadow_by_scene[1..2];
+        let s1 = [side_fit(&scenes[1].1[0]), side_fit(&scenes[1].1[1])];
+        assert!(projector_warnings(&s1, one, 0.02).is_empty());
+        // Shadows as wide on both sides: which is the projector is uncertain.
+        let both = runs(0.019, 0.018);
+        let s2 = [side_fit(&both[0]), side_fit(&both[1])];
+        let w = projector_warnings(&s2, &[], 0.019).join("\n");
+        assert!(w.contains("projector's side is uncertain"), "{w}");
+    }
 
     #[test]
     fn edge_profile_interpolates_and_ends_at_zero_outside() {

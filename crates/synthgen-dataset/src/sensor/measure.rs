@@ -304,6 +304,9 @@ pub struct DepthStats {
     pub profile: [[ProfileCell; PROFILE_LEN]; 2],
     /// Hole runs outside [left, right] silhouette edges against a farther background.
     pub runs: [[RunBin; 6]; 2],
+    /// The same per scene: scenes may disagree on the projector's side (another rig).
+    #[serde(skip)]
+    pub runs_by_scene: BTreeMap<u32, [[RunBin; 6]; 2]>,
     /// Horizontal runs of holes within object pixels: how many, and their pixels.
     pub hole_runs: u64,
     pub hole_run_px: u64,
@@ -328,6 +331,7 @@ impl Default for DepthStats {
             offsets: Vec::new(),
             profile: [[ProfileCell::default(); PROFILE_LEN]; 2],
             runs: [[RunBin::default(); 6]; 2],
+            runs_by_scene: BTreeMap::new(),
             hole_runs: 0,
             hole_run_px: 0,
             frame_residuals: Vec::new(),
@@ -390,6 +394,16 @@ impl DepthStats {
                 a.n += b.n;
                 a.sum_run += b.sum_run;
                 a.sum_g += b.sum_g;
+            }
+        }
+        for (scene, runs) in &o.runs_by_scene {
+            let mine = self.runs_by_scene.entry(*scene).or_default();
+            for s in 0..2 {
+                for (a, b) in mine[s].iter_mut().zip(&runs[s]) {
+                    a.n += b.n;
+                    a.sum_run += b.sum_run;
+                    a.sum_g += b.sum_g;
+                }
             }
         }
         self.frame_residuals
@@ -633,6 +647,7 @@ pub fn measure_frame(
         }
     }
     scan_rows(v, &mut st);
+    st.runs_by_scene.insert(location.scene_id, st.runs);
     (st, true)
 }
 

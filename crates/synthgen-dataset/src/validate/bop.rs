@@ -264,7 +264,7 @@ fn check_scene(
                     ctx.check_depth(
                         &depth_path,
                         &mask_name,
-                        &d.data,
+                        d,
                         cam.depth_scale,
                         m,
                         g.cam_t_m2c[2],

@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 use synthgen_core::{Pose, Progress};
 
-use crate::bop::ModelInfo;
+use crate::bop::{ModelInfo, Plane};
 use crate::error::Error;
 
 /// One problem found, with the file it is about.
@@ -199,42 +199,98 @@ impl Ctx {
         }
     }
 
-    /// Reports depth under `mask` outside `t_z ± (radius + tolerance)`.
-    #[allow(clippy::too_many_arguments)]
+    /// Reports depth under `mask` outside `t_z ± (radius + tolerance)`. Only the mask's
+    /// interior is judged (pixels at least [`DEPTH_EDGE_PX`] from its edge): a depth sensor's
+    /// edge artefacts (mixed and shifted readings, real ones and synthgen's sensor models
+    /// alike) are a large share of a small mask. A mask with fewer than
+    /// [`MIN_INTERIOR_READINGS`] interior readings (a sliver beside an occluder, which a
+    /// sensor's shifted and mixed readings can cover entirely) is judged by the median of all
+    /// its readings, and only for a gross error: more than [`GROSS_DEPTH_FACTOR`] times off
+    /// t_z either way (a depth unit or scale mistake).
     pub fn check_depth(
         &mut self,
         depth_path: &Path,
         mask_name: &str,
-        depth: &[u16],
+        depth: &Plane<u16>,
         depth_scale: f64,
         mask: &[u8],
         t_z_mm: f64,
         model: &ModelInfo,
     ) {
         let range = model_radius_mm(model) + self.checks.depth_tolerance_mm;
+        let off = |d: u16| (f64::from(d) * depth_scale - t_z_mm).abs() > range;
+        let inner = interior(mask, depth.width as usize, DEPTH_EDGE_PX);
         let (mut n, mut bad) = (0u64, 0u64);
-        for (&d, &m) in depth.iter().zip(mask) {
+        let mut all: Vec<u16> = Vec::new();
+        for ((&d, &m), &i) in depth.data.iter().zip(mask).zip(&inner) {
             if m == 0 || d == 0 {
                 continue;
             }
-            n += 1;
-            if (d as f64 * depth_scale - t_z_mm).abs() > range {
-                bad += 1;
+            all.push(d);
+            if i {
+                n += 1;
+                bad += u64::from(off(d));
             }
         }
-        if n > 0 && bad as f64 > self.checks.depth_outlier_fraction * n as f64 {
-            self.problem(
-                depth_path,
-                format!(
-                    "{bad} of {n} depth values under {mask_name} are outside the object's depth \
-                     range {:.1}..{:.1} mm (t_z ± model radius + {} mm)",
-                    t_z_mm - range,
-                    t_z_mm + range,
-                    self.checks.depth_tolerance_mm
-                ),
-            );
+        let (tol, t_lo, t_hi) = (
+            self.checks.depth_tolerance_mm,
+            t_z_mm - range,
+            t_z_mm + range,
+        );
+        if n >= MIN_INTERIOR_READINGS {
+            if bad as f64 > self.checks.depth_outlier_fraction * n as f64 {
+                self.problem(
+                    depth_path,
+                    format!(
+                        "{bad} of {n} depth values inside {mask_name} ({DEPTH_EDGE_PX} px or more from its edge) are outside the object's depth range {t_lo:.1}..{t_hi:.1} mm (t_z ± model radius + {tol} mm)"
+                    ),
+                );
+            }
+        } else if !all.is_empty() && t_z_mm > 0.0 {
+            let mid = all.len() / 2;
+            let median_mm = f64::from(*all.select_nth_unstable(mid).1) * depth_scale;
+            let ratio = median_mm / t_z_mm;
+            if off(*all.select_nth_unstable(mid).1)
+                && !(1.0 / GROSS_DEPTH_FACTOR..=GROSS_DEPTH_FACTOR).contains(&ratio)
+            {
+                self.problem(
+                    depth_path,
+                    format!(
+                        "the median of the {} depth values under {mask_name}, {median_mm:.1} mm, is {ratio:.2} times t_z, far outside the object's depth range {t_lo:.1}..{t_hi:.1} mm (t_z ± model radius + {tol} mm)",
+                        all.len()
+                    ),
+                );
+            }
         }
     }
+}
+
+/// Pixels of a mask this close to its edge are not judged by the depth check.
+pub const DEPTH_EDGE_PX: usize = 2;
+/// Fewer interior readings than this: the depth check judges the median of all of them.
+pub const MIN_INTERIOR_READINGS: u64 = 20;
+/// A small mask's median depth this many times off t_z (either way) is an error.
+pub const GROSS_DEPTH_FACTOR: f64 = 2.0;
+
+/// Mask pixels whose (2r+1)² neighbourhood lies inside the mask and the image.
+fn interior(mask: &[u8], width: usize, r: usize) -> Vec<bool> {
+    let w = width.max(1);
+    let h = mask.len() / w;
+    // Horizontal then vertical run tests: a pixel is interior when r pixels on each side are.
+    let inside = |x: usize, y: usize| mask[y * w + x] > 0;
+    let mut rows = vec![false; mask.len()];
+    for y in 0..h {
+        for x in r..w.saturating_sub(r) {
+            rows[y * w + x] = (x - r..=x + r).all(|xx| inside(xx, y));
+        }
+    }
+    let mut out = vec![false; mask.len()];
+    for y in r..h.saturating_sub(r) {
+        for x in 0..w {
+            out[y * w + x] = (y - r..=y + r).all(|yy| rows[yy * w + x]);
+        }
+    }
+    out
 }
 
 /// Distance from the model origin to the farthest corner of its bounding box, mm.
@@ -257,6 +313,28 @@ pub(crate) fn count_nonzero(mask: &[u8]) -> u64 {
 #[allow(clippy::unwrap_used, clippy::expect_used)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn interior_keeps_pixels_two_from_every_edge() {
+        // A 6x5 block in a 10x8 image: its interior is the 2x1 centre.
+        let (w, h) = (10, 8);
+        let mut m = vec![0u8; w * h];
+        for y in 1..6 {
+            for x in 2..8 {
+                m[y * w + x] = 255;
+            }
+        }
+        let inner = interior(&m, w, 2);
+        let got: Vec<(usize, usize)> = (0..w * h)
+            .filter(|&i| inner[i])
+            .map(|i| (i % w, i / w))
+            .collect();
+        assert_eq!(got, vec![(4, 3), (5, 3)]);
+        // A mask filling a 3x3 image: the border pixels' neighbourhoods leave the image.
+        let full = interior(&[255; 9], 3, 1);
+        assert_eq!(full.iter().filter(|&&b| b).count(), 1);
+        assert!(full[4]);
+    }
 
     #[test]
     fn radius_is_the_farthest_corner() {

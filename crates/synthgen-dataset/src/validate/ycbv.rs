@@ -13,7 +13,9 @@ use synthgen_core::Progress;
 use super::Ctx;
 use crate::bop::image::{read_depth_raw, read_label, read_rgb};
 use crate::bop::ModelInfo;
-use crate::ycbv::{read_meta_with, YcbvDataset, YcbvFrameFiles};
+use crate::ycbv::{
+    format_label_values, read_meta_with, stray_label_values, YcbvDataset, YcbvFrameFiles,
+};
 
 /// Collects the loader's warnings (a missing texture) instead of printing them.
 #[derive(Default)]
@@ -33,8 +35,15 @@ pub(super) fn validate(ctx: &mut Ctx, progress: &dyn Progress) {
         Ok(ds) => ds,
         Err(e) => return ctx.error(&root, &e),
     };
+    for w in ds.left_out.warnings() {
+        ctx.report.warnings.push(super::Problem {
+            path: root.join("data"),
+            message: w,
+        });
+    }
     progress.start("validating", ds.frames.len() as u64);
     let mut size = None;
+    let mut shared: Vec<String> = Vec::new();
     let mut used: BTreeSet<u32> = BTreeSet::new();
     let mut frames = Vec::new();
     for f in &ds.frames {
@@ -49,10 +58,36 @@ pub(super) fn validate(ctx: &mut Ctx, progress: &dyn Progress) {
                     ctx.check_rotation(&meta_path, &what, &g.cam_r_m2c, &g.cam_t_m2c);
                 }
                 used.extend(meta.cls_indexes.iter().copied());
+                let s = meta.shared_classes();
+                if !s.is_empty() {
+                    let classes: Vec<String> =
+                        s.iter().map(|(c, n)| format!("class {c} x{n}")).collect();
+                    shared.push(format!(
+                        "data/{:04}/{:06} ({})",
+                        f.scene_id,
+                        f.im_id,
+                        classes.join(", ")
+                    ));
+                }
                 frames.push((f, meta));
             }
             Err(e) => ctx.error(&meta_path, &e),
         }
+    }
+    if !shared.is_empty() {
+        let n = shared.len();
+        if n > 10 {
+            let more = format!("... and {} more", n - 10);
+            shared.truncate(10);
+            shared.push(more);
+        }
+        ctx.report.warnings.push(super::Problem {
+            path: root.join("data"),
+            message: format!(
+                "{n} frames have two or more instances of one class, which label.png cannot tell apart: synthgen reads no visible mask for them, and `convert --to bop` splits the label along the render at the GT poses: {}",
+                shared.join(", ")
+            ),
+        });
     }
     let models = check_models(ctx, &ds, &used);
     for (f, meta) in &frames {
@@ -143,27 +178,27 @@ fn check_images(
         }
     };
     let Some(label) = label else { return };
-    let known: BTreeSet<u16> = meta.cls_indexes.iter().map(|&c| c as u16).collect();
-    let mut stray: BTreeSet<u16> = label
-        .data
-        .iter()
-        .copied()
-        .filter(|v| *v != 0 && !known.contains(v))
-        .collect();
-    if let Some(v) = stray.pop_first() {
+    let stray = stray_label_values(&label.data, &meta.cls_indexes);
+    if !stray.is_empty() {
         ctx.problem(
             &label_path,
             format!(
-                "label value {v} is not a class of this frame's -meta.mat (cls_indexes {:?})",
+                "label values {} are not classes of this frame's -meta.mat (cls_indexes {:?})",
+                format_label_values(&stray),
                 meta.cls_indexes
             ),
         );
     }
+    let shared: Vec<u32> = meta.shared_classes().into_iter().map(|c| c.0).collect();
     let Some(depth) = depth else { return };
     if depth.data.len() != label.data.len() {
         return;
     }
     for (c, p) in meta.cls_indexes.iter().zip(&meta.poses) {
+        // One label for two instances: the depth under it is not one object's.
+        if shared.contains(c) {
+            continue;
+        }
         let Some(model) = models.get(c) else { continue };
         let mask: Vec<u8> = label
             .data
@@ -173,7 +208,7 @@ fn check_images(
         ctx.check_depth(
             &depth_path,
             &format!("the label of class {c}"),
-            &depth.data,
+            &depth,
             meta.depth_scale(),
             &mask,
             p.t_m[2] * 1000.0,

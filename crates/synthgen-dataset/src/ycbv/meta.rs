@@ -84,6 +84,16 @@ impl YcbvMeta {
             .collect()
     }
 
+    /// The classes with more than one instance in this frame, with their counts: a label
+    /// image holds one visible mask per class, so it cannot tell these instances apart.
+    pub fn shared_classes(&self) -> Vec<(u32, usize)> {
+        let mut n: std::collections::BTreeMap<u32, usize> = std::collections::BTreeMap::new();
+        for &c in &self.cls_indexes {
+            *n.entry(c).or_default() += 1;
+        }
+        n.into_iter().filter(|&(_, k)| k > 1).collect()
+    }
+
     /// Millimetres per depth PNG value (BOP's `depth_scale`): 0.1 for factor_depth 10000.
     pub fn depth_scale(&self) -> f64 {
         1000.0 / self.factor_depth

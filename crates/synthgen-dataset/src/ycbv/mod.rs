@@ -116,6 +116,50 @@ pub struct YcbvDataset {
     pub classes: Vec<String>,
     /// Sorted by (split, scene, image).
     pub frames: Vec<YcbvFrameFiles>,
+    /// Frames on disk that are not read (no `-meta.mat`, or in no image list).
+    pub left_out: LeftOutFrames,
+}
+
+/// Frames in `data/` that a YCB-Video reader leaves out, as (scene, frame).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct LeftOutFrames {
+    /// Colour, depth or label images without a `-meta.mat` (no poses to read).
+    pub without_meta: Vec<(u32, u32)>,
+    /// Frames with a `-meta.mat` in no `image_sets/*.txt` list (only listed frames are read).
+    pub unlisted: Vec<(u32, u32)>,
+}
+
+impl LeftOutFrames {
+    /// One line per kind, with a count and the first frames (`data/0000/000003`).
+    pub fn warnings(&self) -> Vec<String> {
+        let name = |v: &[(u32, u32)]| -> String {
+            let mut s: Vec<String> = v
+                .iter()
+                .take(5)
+                .map(|(sc, im)| format!("data/{sc:04}/{im:06}"))
+                .collect();
+            if v.len() > 5 {
+                s.push(format!("... ({} more)", v.len() - 5));
+            }
+            s.join(", ")
+        };
+        let mut out = Vec::new();
+        if !self.without_meta.is_empty() {
+            out.push(format!(
+                "{} frames have colour, depth or label images but no -meta.mat and are left out: {}",
+                self.without_meta.len(),
+                name(&self.without_meta)
+            ));
+        }
+        if !self.unlisted.is_empty() {
+            out.push(format!(
+                "{} frames have a -meta.mat but are in no image_sets/*.txt list and are left out (only listed frames are read): {}",
+                self.unlisted.len(),
+                name(&self.unlisted)
+            ));
+        }
+        out
+    }
 }
 
 /// Whether `root` looks like a YCB-Video dataset: `classes.txt` beside a `data/` folder with
@@ -167,15 +211,29 @@ impl YcbvDataset {
         let sets = root.join("image_sets");
         let lists = list_files(&sets)?;
         let mut frames = Vec::new();
+        let mut left_out = LeftOutFrames::default();
+        let mut on_disk: BTreeMap<u32, BTreeMap<u32, OnDisk>> = BTreeMap::new();
+        for (&scene_id, dir) in &scenes {
+            on_disk.insert(scene_id, scan_scene(dir)?);
+        }
+        for (&scene_id, ids) in &on_disk {
+            for (&im_id, d) in ids {
+                if !d.meta {
+                    left_out.without_meta.push((scene_id, im_id));
+                }
+            }
+        }
         if lists.is_empty() {
             for (&scene_id, dir) in &scenes {
-                for im_id in meta_ids(dir)? {
-                    frames.push(YcbvFrameFiles {
-                        split: "train".into(),
-                        scene_id,
-                        im_id,
-                        dir: dir.clone(),
-                    });
+                for (&im_id, d) in &on_disk[&scene_id] {
+                    if d.meta {
+                        frames.push(YcbvFrameFiles {
+                            split: "train".into(),
+                            scene_id,
+                            im_id,
+                            dir: dir.clone(),
+                        });
+                    }
                 }
             }
         } else {
@@ -185,6 +243,13 @@ impl YcbvDataset {
                 for (scene_id, im_id) in read_list(path)? {
                     let e = split_of.entry((scene_id, im_id)).or_insert(test);
                     *e |= test;
+                }
+            }
+            for (&scene_id, ids) in &on_disk {
+                for (&im_id, d) in ids {
+                    if d.meta && !split_of.contains_key(&(scene_id, im_id)) {
+                        left_out.unlisted.push((scene_id, im_id));
+                    }
                 }
             }
             for ((scene_id, im_id), test) in split_of {
@@ -217,6 +282,7 @@ impl YcbvDataset {
             root: root.to_path_buf(),
             classes,
             frames,
+            left_out,
         })
     }
 
@@ -286,24 +352,60 @@ fn read_list(path: &Path) -> Result<Vec<(u32, u32)>> {
     Ok(out)
 }
 
-/// Frame ids of the `NNNNNN-meta.mat` files in a scene folder, sorted.
-fn meta_ids(dir: &Path) -> Result<Vec<u32>> {
+/// The values of a label image that are not classes of its frame (`cls`), with their pixel
+/// counts: those pixels are in no instance's visible mask.
+pub fn stray_label_values(label: &[u16], cls: &[u32]) -> BTreeMap<u16, u64> {
+    let mut out: BTreeMap<u16, u64> = BTreeMap::new();
+    for &v in label {
+        if v != 0 && !cls.iter().any(|&c| c == u32::from(v)) {
+            *out.entry(v).or_default() += 1;
+        }
+    }
+    out
+}
+
+/// `3 (200 px), 7 (640 px)`.
+pub fn format_label_values(values: &BTreeMap<u16, u64>) -> String {
+    values
+        .iter()
+        .map(|(v, n)| format!("{v} ({n} px)"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// What a scene folder holds of one frame.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+struct OnDisk {
+    /// `NNNNNN-meta.mat`.
+    meta: bool,
+    /// `NNNNNN-color.png|jpg`, `-depth.png` or `-label.png`.
+    images: bool,
+}
+
+/// The frames of a scene folder by id: which have a `-meta.mat`, which have images.
+fn scan_scene(dir: &Path) -> Result<BTreeMap<u32, OnDisk>> {
     let entries = std::fs::read_dir(dir).map_err(|e| Error::io("read", dir, e))?;
-    let mut ids = Vec::new();
+    let mut out: BTreeMap<u32, OnDisk> = BTreeMap::new();
     for e in entries {
         let e = e.map_err(|e| Error::io("list directory", dir, e))?;
         let name = e.file_name().to_string_lossy().into_owned();
-        if let Some(id) = name.strip_suffix("-meta.mat").and_then(parse_number) {
-            ids.push(id);
+        let Some((id, kind)) = name
+            .split_once('-')
+            .and_then(|(id, kind)| Some((parse_number(id)?, kind)))
+        else {
+            continue;
+        };
+        match kind {
+            "meta.mat" => out.entry(id).or_default().meta = true,
+            "color.png" | "color.jpg" | "depth.png" | "label.png" => {
+                out.entry(id).or_default().images = true
+            }
+            _ => {}
         }
     }
-    ids.sort_unstable();
-    Ok(ids)
+    Ok(out)
 }
 
-/// The class list a YCB-Video dataset written from BOP object ids needs: line i names
-/// obj_id i. Known ids keep YCB-Video's class names when `ycbv_names` (the objects are
-/// YCB-Video's), others are `obj_NNNNNN`; ids up to the largest one are listed.
 /// Checks a class list as `classes.txt` and `models/<class>/` need it: each name a plain folder
 /// name (non-empty, without '/', '\\' or a line break, not "." or "..") used once — two
 /// classes of one name would share one model folder. The message names 1-based lines.
@@ -327,6 +429,9 @@ pub fn check_class_names(classes: &[String]) -> std::result::Result<(), String> 
     Ok(())
 }
 
+/// The class list a YCB-Video dataset written from BOP object ids needs: line i names
+/// obj_id i. Known ids keep YCB-Video's class names when `ycbv_names` (the objects are
+/// YCB-Video's), others are `obj_NNNNNN`; ids up to the largest one are listed.
 pub fn class_list(obj_ids: &[u32], ycbv_names: bool) -> Vec<String> {
     let max = obj_ids.iter().copied().max().unwrap_or(0);
     (1..=max)

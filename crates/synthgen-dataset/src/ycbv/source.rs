@@ -45,6 +45,9 @@ impl YcbvSource {
     pub fn frame(&self, f: &YcbvFrameFiles) -> Result<SourceFrame> {
         let meta = self.dataset.read_meta(f)?;
         let gt = meta.gt();
+        // Two instances of one class share the label's pixels: no visible mask is known for
+        // either (`convert --to bop` splits them along the render at the GT poses).
+        let shared: Vec<u32> = meta.shared_classes().into_iter().map(|c| c.0).collect();
         let label = f.label_path();
         let has_label = label.is_file();
         let depth = f.depth_path();
@@ -60,7 +63,7 @@ impl YcbvSource {
                 .iter()
                 .map(|g| {
                     let value = u16::try_from(g.obj_id).ok()?;
-                    has_label.then(|| MaskRef::Label {
+                    (has_label && !shared.contains(&g.obj_id)).then(|| MaskRef::Label {
                         path: label.clone(),
                         value,
                     })
