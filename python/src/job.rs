@@ -38,8 +38,7 @@ fn build_spec(a: &JobArgs) -> PyResult<SceneSpec> {
         spec.camera.preset = name.clone();
     }
     if let Some((w, h)) = a.image_size {
-        spec.camera.width = Some(w);
-        spec.camera.height = Some(h);
+        spec.camera.set_image_size(w, h).map_err(to_py)?;
     }
     spec.validate().map_err(to_py)?;
     Ok(spec)

@@ -671,8 +671,9 @@ pub struct RenderArgs {
     )]
     pub camera_k: Option<Vec<f64>>,
 
-    /// Image width and height in pixels. Alone it scales the preset's intrinsics (the same
-    /// camera at another resolution); with --camera-k, K is used as given.
+    /// Image width and height in pixels. Alone it scales the camera's intrinsics (the preset's,
+    /// or the scene file's [camera] K: the same camera at another resolution); with --camera-k,
+    /// K is used as given.
     #[arg(long, value_name = "W,H", value_delimiter = ',')]
     pub image_size: Option<Vec<u32>>,
 

@@ -12,6 +12,19 @@ pub enum Error {
     ParseSpec { message: String, path: PathBuf },
     #[error("invalid scene spec: {0}")]
     InvalidSpec(String),
+    #[error("cannot read sensor file: {source}: {path}")]
+    ReadSensor {
+        source: std::io::Error,
+        path: PathBuf,
+    },
+    #[error("malformed sensor file: {message}: {path}")]
+    ParseSensor { message: String, path: PathBuf },
+    #[error("invalid sensor file: {message}: {path}")]
+    InvalidSensor { message: String, path: PathBuf },
+    #[error(
+        "unknown sensor {0:?}: neither a sensor file nor one of none, d455, tof, structured_light"
+    )]
+    UnknownSensor(String),
     #[error("unknown camera preset {0:?} (known: linemod, d455, d455-720, ycbv, ycbv-cmu)")]
     UnknownCamera(String),
     #[error("invalid pose: {0}")]

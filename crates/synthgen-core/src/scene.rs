@@ -84,6 +84,29 @@ impl Default for CameraSpec {
 }
 
 impl CameraSpec {
+    /// Sets the image size, scaling the camera to it: the preset's intrinsics as
+    /// [`intrinsics`](Self::intrinsics) scales them, and an explicit K (a scene file's
+    /// `[camera]` fx, fy, cx, cy, given for the spec's current size) likewise, so that the
+    /// same camera is rendered at another resolution.
+    pub fn set_image_size(&mut self, width: u32, height: u32) -> Result<(), Error> {
+        let explicit =
+            self.fx.is_some() || self.fy.is_some() || self.cx.is_some() || self.cy.is_some();
+        if explicit {
+            let k = self.intrinsics()?;
+            let (sx, sy) = (
+                f64::from(width) / f64::from(k.width),
+                f64::from(height) / f64::from(k.height),
+            );
+            self.fx = Some(k.fx * sx);
+            self.fy = Some(k.fy * sy);
+            self.cx = Some((k.cx + 0.5) * sx - 0.5);
+            self.cy = Some((k.cy + 0.5) * sy - 0.5);
+        }
+        self.width = Some(width);
+        self.height = Some(height);
+        Ok(())
+    }
+
     pub fn intrinsics(&self) -> Result<Intrinsics, Error> {
         let mut k = Intrinsics::preset(&self.preset)?;
         let explicit =

@@ -402,6 +402,35 @@ fn check_value(name: &str, v: f64, lo: f64, hi: f64) -> Result<(), Error> {
 }
 
 impl SensorSpec {
+    /// The model sections set (unlike their defaults) beside a `depth` that does not use them,
+    /// as messages: `depth = "none"` with a `[structured_light]` section renders clean depth,
+    /// which the user who wrote the section likely did not mean.
+    pub fn unused_sections(&self) -> Vec<String> {
+        let set = [
+            ("d455", DepthModel::D455, self.d455 != D455Spec::default()),
+            ("tof", DepthModel::Tof, self.tof != TofSpec::default()),
+            (
+                "structured_light",
+                DepthModel::StructuredLight,
+                self.structured_light != StructuredLightSpec::default(),
+            ),
+        ];
+        let depth = match self.depth {
+            DepthModel::None => "none",
+            DepthModel::D455 => "d455",
+            DepthModel::Tof => "tof",
+            DepthModel::StructuredLight => "structured_light",
+        };
+        set.into_iter()
+            .filter(|&(_, model, differs)| differs && model != self.depth)
+            .map(|(name, _, _)| {
+                format!(
+                    "sensor.{name} is set but sensor.depth is \"{depth}\": it has no effect (set depth = \"{name}\" to use it)"
+                )
+            })
+            .collect()
+    }
+
     /// Checks every parameter; errors name the field.
     pub fn validate(&self) -> Result<(), Error> {
         let d = &self.d455;
@@ -496,16 +525,19 @@ impl SensorSpec {
 
     /// Reads a sensor file ([`from_toml_str`](Self::from_toml_str)); errors name the file.
     pub fn from_toml_file(path: &std::path::Path) -> Result<SensorSpec, Error> {
-        let text = std::fs::read_to_string(path).map_err(|source| Error::ReadSpec {
+        let text = std::fs::read_to_string(path).map_err(|source| Error::ReadSensor {
             source,
             path: path.to_path_buf(),
         })?;
         Self::from_toml_str(&text).map_err(|e| match e {
-            Error::ParseSpec { message, .. } => Error::ParseSpec {
+            Error::ParseSpec { message, .. } => Error::ParseSensor {
                 message,
                 path: path.to_path_buf(),
             },
-            Error::InvalidSpec(m) => Error::InvalidSpec(format!("{m} (in {})", path.display())),
+            Error::InvalidSpec(message) => Error::InvalidSensor {
+                message,
+                path: path.to_path_buf(),
+            },
             other => other,
         })
     }
@@ -517,9 +549,7 @@ impl SensorSpec {
         }
         let path = std::path::Path::new(arg);
         if !path.exists() {
-            return Err(Error::InvalidSpec(format!(
-                "--sensor {arg:?} is neither a sensor file nor one of none, d455, tof, structured_light"
-            )));
+            return Err(Error::UnknownSensor(arg.to_string()));
         }
         Self::from_toml_file(path)
     }

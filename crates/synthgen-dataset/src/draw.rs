@@ -197,7 +197,12 @@ impl Canvas {
         }
     }
 
+    /// Writes the canvas as a PNG, creating the missing folders above it (as `sensor fit
+    /// --out` and every other output of synthgen does).
     pub fn write_png(&self, path: &Path) -> Result<()> {
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            crate::io::create_dir_all(dir)?;
+        }
         let bytes = encode_rgb_png(
             &self.rgb,
             self.width,

@@ -13,6 +13,9 @@ pub enum Error {
     },
     #[error("missing file: {path}")]
     MissingFile { path: PathBuf },
+    /// A dataset folder that does not exist (or is not a folder).
+    #[error("no such dataset: {path}")]
+    NoSuchDataset { path: PathBuf },
     /// Syntax or type error; serde's message carries the line and column.
     #[error("malformed {file}: {source}: {path}")]
     Json {
@@ -153,6 +156,7 @@ impl Error {
             Error::NoSpace { path, .. }
             | Error::Io { path, .. }
             | Error::MissingFile { path }
+            | Error::NoSuchDataset { path }
             | Error::Json { path, .. }
             | Error::Malformed { path, .. }
             | Error::Yaml { path, .. }

@@ -218,6 +218,11 @@ impl BopDataset {
 /// Opens a dataset folder in whichever layout it has (see [`detect_layout`]): Linemod,
 /// YCB-Video, else BOP (whose errors then name what is missing).
 pub fn open_source(root: &Path) -> Result<Box<dyn FrameSource>> {
+    if !root.is_dir() {
+        return Err(Error::NoSuchDataset {
+            path: root.to_path_buf(),
+        });
+    }
     match detect_layout(root) {
         Some(Layout::Linemod) => Ok(Box::new(LinemodSource::open(root)?)),
         Some(Layout::Ycbv) => Ok(Box::new(YcbvSource::open(root)?)),

@@ -7,12 +7,14 @@
 //! Only annotations are read up front; images are read, decoded and drawn when a page asks
 //! for them (thumbnails are cached in memory). No request can reach a file outside the
 //! datasets: images are addressed by (dataset, frame), and `/file/…` paths are resolved and
-//! checked to lie below the dataset's root.
+//! checked to lie below the dataset's root. Requests must name this server in `Host` (its
+//! address, or `localhost` on loopback): a web page whose own name resolves here (DNS
+//! rebinding) sends its name and is refused.
 
 mod images;
 mod state;
 
-use std::net::SocketAddr;
+use std::net::{IpAddr, SocketAddr};
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -63,8 +65,73 @@ const STATS_HTML: &str = include_str!("assets/stats.html");
 const APP_JS: &str = include_str!("assets/app.js");
 const STYLE_CSS: &str = include_str!("assets/style.css");
 
-/// The routes: pages, `/api/…` (JSON), `/img/…` (images by dataset and frame), `/file/…`.
-pub fn router(viewer: Shared) -> Router {
+/// Which `Host` values a server bound to `bound` answers: its own address; any IP address
+/// when bound to all interfaces (which of them a client used is unknown); `localhost` on
+/// loopback or all interfaces. Always with the bound port. Names other than `localhost` are
+/// refused: a page served from `evil.example`, whose name its owner pointed at this machine
+/// (DNS rebinding), sends `Host: evil.example`.
+#[derive(Debug, Clone, Copy)]
+pub struct HostGuard {
+    pub bound: SocketAddr,
+}
+
+impl HostGuard {
+    pub fn allows(&self, host: &str) -> bool {
+        let (name, port) = match host.strip_prefix('[') {
+            Some(rest) => match rest.split_once(']') {
+                Some((ip, tail)) => (ip, tail.strip_prefix(':')),
+                None => return false,
+            },
+            None => match host.rsplit_once(':') {
+                Some((n, p)) => (n, Some(p)),
+                None => (host, None),
+            },
+        };
+        let port_ok = match port {
+            Some(p) => p.parse::<u16>() == Ok(self.bound.port()),
+            None => self.bound.port() == 80,
+        };
+        let ip = self.bound.ip();
+        port_ok
+            && match name.parse::<IpAddr>() {
+                Ok(a) => a == ip || ip.is_unspecified() || (ip.is_loopback() && a.is_loopback()),
+                Err(_) => {
+                    name.eq_ignore_ascii_case("localhost")
+                        && (ip.is_loopback() || ip.is_unspecified())
+                }
+            }
+    }
+}
+
+async fn check_host(
+    State(guard): State<HostGuard>,
+    req: axum::extract::Request,
+    next: axum::middleware::Next,
+) -> Response {
+    let host = req
+        .uri()
+        .authority()
+        .map(|a| a.as_str().to_owned())
+        .or_else(|| {
+            req.headers()
+                .get(header::HOST)
+                .and_then(|h| h.to_str().ok())
+                .map(str::to_owned)
+        });
+    match host {
+        Some(h) if guard.allows(&h) => next.run(req).await,
+        h => Error::Forbidden(format!(
+            "Host {:?} is not this server ({}): open it by its address",
+            h.unwrap_or_default(),
+            guard.bound
+        ))
+        .into_response(),
+    }
+}
+
+/// The routes: pages, `/api/…` (JSON), `/img/…` (images by dataset and frame), `/file/…`;
+/// requests whose `Host` is not the server bound at `bound` are refused ([`HostGuard`]).
+pub fn router(viewer: Shared, bound: SocketAddr) -> Router {
     Router::new()
         .route("/", get(|| async { Html(INDEX_HTML) }))
         .route("/frame", get(|| async { Html(FRAME_HTML) }))
@@ -84,6 +151,10 @@ pub fn router(viewer: Shared) -> Router {
         .route("/img/{ds}/{idx}/{kind}", get(image))
         .route("/file/{ds}/{*path}", get(file))
         .with_state(viewer)
+        .layer(axum::middleware::from_fn_with_state(
+            HostGuard { bound },
+            check_host,
+        ))
 }
 
 async fn blocking<T: Send + 'static>(
@@ -127,6 +198,16 @@ async fn datasets(State(v): State<Shared>) -> Json<Value> {
 /// `/api/frames`'s query, as the grid's form sends it (empty fields mean "any").
 type FramesQuery = std::collections::HashMap<String, String>;
 
+/// A number field of the query: finite (`nan` and `inf` are 400s, as docs/view.md says).
+fn number_field(q: &FramesQuery, key: &str) -> Result<Option<f64>, Error> {
+    match field::<f64>(q, key)? {
+        Some(v) if !v.is_finite() => Err(Error::BadRequest(format!(
+            "{key}={v} is not a finite number"
+        ))),
+        v => Ok(v),
+    }
+}
+
 /// Field `key` of the query parsed, None when absent or empty.
 fn field<T: std::str::FromStr>(q: &FramesQuery, key: &str) -> Result<Option<T>, Error> {
     match q.get(key).map(|v| v.trim()).filter(|v| !v.is_empty()) {
@@ -149,10 +230,10 @@ async fn frames(
         obj: field(&q, "obj")?,
         scene: field(&q, "scene")?,
         split: field(&q, "split")?,
-        min_visib: field(&q, "min_visib")?,
-        max_visib: field(&q, "max_visib")?,
-        min_dist: field(&q, "min_dist")?,
-        max_dist: field(&q, "max_dist")?,
+        min_visib: number_field(&q, "min_visib")?,
+        max_visib: number_field(&q, "max_visib")?,
+        min_dist: number_field(&q, "min_dist")?,
+        max_dist: number_field(&q, "max_dist")?,
     };
     let d = v
         .datasets
@@ -351,7 +432,8 @@ pub fn serve(
         .build()?;
     rt.block_on(async move {
         let listener = tokio::net::TcpListener::bind(addr).await?;
-        ready(listener.local_addr()?)?;
-        axum::serve(listener, router(Arc::new(viewer))).await
+        let bound = listener.local_addr()?;
+        ready(bound)?;
+        axum::serve(listener, router(Arc::new(viewer), bound)).await
     })
 }

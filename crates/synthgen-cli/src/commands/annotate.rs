@@ -76,6 +76,12 @@ struct Report {
 }
 
 pub fn run(args: AnnotateArgs, printer: &Printer) -> Result<ExitStatus> {
+    if !args.dir.is_dir() {
+        return Err(synthgen_dataset::Error::NoSuchDataset {
+            path: args.dir.clone(),
+        }
+        .into());
+    }
     let layout = detect_layout(&args.dir);
     if !args.compare && layout != Some(Layout::Bop) {
         let what = layout.map_or("not a dataset synthgen recognises".into(), |l| {

@@ -35,6 +35,9 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     render_resume::check_supported(&args)?;
     let frame_range = render_resume::frame_range(&args)?;
     let spec = build_spec(&args)?;
+    for w in spec.sensor.unused_sections() {
+        printer.warning(w);
+    }
     if spec.ground.visible && spec.camera_pose.elevation_deg[0] < 0.0 {
         printer.warning(format!(
             "camera_pose.elevation_deg starts at {}°, below the table: some cameras look at the objects from under the ground plane (a scene fitted to depth at the wrong scale looks like this)",
@@ -175,6 +178,21 @@ fn build_spec(args: &RenderArgs) -> Result<SceneSpec> {
     if let Some(name) = &args.camera {
         spec.camera.preset = name.clone();
     }
+    // The size first: it scales the camera (a scene file's K too); --camera-k is K as given.
+    if let Some(s) = &args.image_size {
+        if s.len() != 2 {
+            return Err(user_error(
+                format!("--image-size needs 2 numbers, got {}", s.len()),
+                "write it as --image-size 640,480",
+            ));
+        }
+        if args.camera_k.is_some() {
+            spec.camera.width = Some(s[0]);
+            spec.camera.height = Some(s[1]);
+        } else {
+            spec.camera.set_image_size(s[0], s[1])?;
+        }
+    }
     if let Some(k) = &args.camera_k {
         if k.len() != 4 {
             return Err(user_error(
@@ -186,16 +204,6 @@ fn build_spec(args: &RenderArgs) -> Result<SceneSpec> {
         spec.camera.fy = Some(k[1]);
         spec.camera.cx = Some(k[2]);
         spec.camera.cy = Some(k[3]);
-    }
-    if let Some(s) = &args.image_size {
-        if s.len() != 2 {
-            return Err(user_error(
-                format!("--image-size needs 2 numbers, got {}", s.len()),
-                "write it as --image-size 640,480",
-            ));
-        }
-        spec.camera.width = Some(s[0]);
-        spec.camera.height = Some(s[1]);
     }
     if let Some(r) = args.distance_m {
         spec.camera_pose.distance_m = r;

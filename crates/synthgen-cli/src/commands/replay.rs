@@ -51,6 +51,9 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
         Some(arg) => render_extras::sensor_flag(arg, &SensorSpec::default())?,
         None => SensorSpec::default(),
     };
+    for w in sensor_spec.unused_sections() {
+        printer.warning(w);
+    }
     // Before anything is created: an output inside the real dataset would be written there.
     check_apart(&args.out, &[("real dataset", &real)])?;
 

@@ -24,6 +24,12 @@ pub fn run(args: ViewArgs, printer: &Printer) -> Result<ExitStatus> {
         "annotations indexed in {:.2} s; images are read when a page shows them",
         t0.elapsed().as_secs_f64()
     ));
+    if !args.host.is_loopback() {
+        printer.warning(format!(
+            "--host {}: the viewer has no login, and anyone who can reach this machine on that port can read these datasets (read-only); open it by IP address (names other than localhost are refused)",
+            args.host
+        ));
+    }
     let addr = SocketAddr::new(args.host, args.port);
     synthgen_view::serve(viewer, addr, |bound| {
         // The one line on stdout: scripts read the address from it.

@@ -108,3 +108,193 @@ fn malformed_scene_spec_names_file_and_field() {
     assert_eq!(out.status.code(), Some(1));
     assert!(stderr(&out).contains("syntax.toml"), "{}", stderr(&out));
 }
+
+/// Issue 26 papercut: `--image-size` alone scaled a camera preset but not a scene file's
+/// `[camera]` K, so the same camera at half size was cropped or refused.
+#[test]
+fn image_size_scales_a_scene_files_camera_too() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    crate::render::write_box_ply(&d.join("box.ply"));
+    std::fs::write(
+        d.join("cam.toml"),
+        "[camera]\nwidth = 640\nheight = 480\nfx = 572.4114\nfy = 573.57043\ncx = 325.2611\ncy = 242.04899\n",
+    )
+    .unwrap();
+    let render = |out: &str, extra: &[&str]| {
+        let o = run(synthgen()
+            .current_dir(d)
+            .args([
+                "render",
+                "-q",
+                "--objects",
+                "box.ply",
+                "--units",
+                "m",
+                "--frames",
+                "1",
+            ])
+            .args(["--image-size", "320,240", "--out", out])
+            .args(extra));
+        assert!(o.status.success(), "{out}: {}", stderr(&o));
+        let cams: serde_json::Value = serde_json::from_slice(
+            &std::fs::read(d.join(out).join("train_pbr/000000/scene_camera.json")).unwrap(),
+        )
+        .unwrap();
+        cams["0"]["cam_K"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect::<Vec<f64>>()
+    };
+    let from_file = render("file", &["--scene", "cam.toml"]);
+    let from_preset = render("preset", &["--camera", "linemod"]);
+    for (a, b) in from_file.iter().zip(&from_preset) {
+        assert!((a - b).abs() < 1e-9, "{from_file:?} vs {from_preset:?}");
+    }
+    assert!((from_file[0] - 572.4114 / 2.0).abs() < 1e-9);
+    // With --camera-k, K is used as given.
+    let given = render(
+        "given",
+        &["--scene", "cam.toml", "--camera-k", "300,300,160,120"],
+    );
+    assert_eq!(given[0], 300.0);
+    assert_eq!(given[2], 160.0);
+}
+
+/// Issue 26 papercut: a missing dataset folder was "missing file DIR/camera.json".
+#[test]
+fn a_missing_dataset_folder_is_no_such_dataset() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for args in [
+        &["stats", "gone"][..],
+        &["preview", "gone", "--out", "p.png"],
+        &["annotate", "gone"],
+        &["train", "--data", "gone", "--out", "r"],
+        &["eval", "--data", "gone", "--results", "r.csv"],
+        &["sensor", "fit", "--data", "gone", "--out", "s.toml"],
+        &["sensor", "compare", "--real", "gone", "--synth", "gone"],
+        &["scene", "fit", "--data", "gone", "--out", "s.toml"],
+        &["export", "coco", "gone"],
+        &["view", "gone", "--port", "0"],
+    ] {
+        std::fs::write(d.join("r.csv"), "scene_id,im_id,obj_id,score,R,t,time\n").unwrap();
+        let o = run(synthgen().current_dir(d).args(args));
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {e}");
+        assert!(
+            e.contains("no such dataset") && e.contains("gone"),
+            "{args:?}: {e}"
+        );
+        assert!(!e.contains("camera.json"), "{args:?}: {e}");
+    }
+}
+
+/// Issue 26 papercuts: errors in a sensor file said "scene spec"; `depth = "none"` beside a
+/// `[structured_light]` section rendered clean depth without a word.
+#[test]
+fn sensor_file_errors_name_the_sensor_file_and_unused_sections_warn() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    crate::render::write_box_ply(&d.join("box.ply"));
+    let render = |extra: &[&str]| {
+        run(synthgen()
+            .current_dir(d)
+            .args([
+                "render",
+                "-q",
+                "--objects",
+                "box.ply",
+                "--units",
+                "m",
+                "--frames",
+                "1",
+            ])
+            .args(["--image-size", "80,60", "--force", "--out", "o"])
+            .args(extra))
+    };
+    for (text, what) in [
+        (
+            "depth = \"structured_light\"\n[structured_light]\nbaseline_m = 99\n",
+            "invalid",
+        ),
+        ("depth = \n", "malformed"),
+    ] {
+        std::fs::write(d.join("bad.toml"), text).unwrap();
+        for args in [&["--sensor", "bad.toml"][..], &["--scene", "scene.toml"]] {
+            std::fs::write(d.join("scene.toml"), "[sensor]\nfile = \"bad.toml\"\n").unwrap();
+            let o = render(args);
+            let e = stderr(&o);
+            assert_eq!(o.status.code(), Some(1), "{args:?}: {e}");
+            assert!(
+                e.contains(&format!("{what} sensor file")) && e.contains("bad.toml"),
+                "{args:?}: {e}"
+            );
+            // A scene whose sensor file is bad is an invalid scene: the cause names the file.
+            if args[0] == "--sensor" {
+                assert!(!e.contains("scene spec"), "{args:?}: {e}");
+            }
+        }
+    }
+    let o = render(&["--sensor", "nosuch"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("unknown sensor \"nosuch\""),
+        "{}",
+        stderr(&o)
+    );
+
+    std::fs::write(
+        d.join("quiet.toml"),
+        "depth = \"none\"\n[structured_light]\ndisparity_sigma_px = 0.3\n",
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("quiet_scene.toml"),
+        "[sensor]\ndepth = \"none\"\n[sensor.structured_light]\ndisparity_sigma_px = 0.3\n",
+    )
+    .unwrap();
+    for args in [
+        &["--sensor", "quiet.toml"][..],
+        &["--scene", "quiet_scene.toml"],
+    ] {
+        let o = render(args);
+        let e = stderr(&o);
+        assert!(o.status.success(), "{args:?}: {e}");
+        assert!(
+            e.contains("warning: sensor.structured_light is set but sensor.depth is \"none\""),
+            "{args:?}: {e}"
+        );
+    }
+    // A sensor section that the depth model uses is no warning.
+    let o = render(&["--sensor", "structured_light"]);
+    assert!(
+        o.status.success() && !stderr(&o).contains("no effect"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+/// Issue 26 papercut: `sensor compare --plot` into a missing folder failed, where `sensor fit
+/// --out` creates it.
+#[test]
+fn sensor_compare_plot_creates_missing_folders() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    crate::mix::render_tiny(d, "a", 4, 1);
+    crate::mix::render_tiny(d, "b", 4, 2);
+    let o = run(synthgen().current_dir(d).args([
+        "sensor",
+        "compare",
+        "--real",
+        "a",
+        "--synth",
+        "b",
+        "--plot",
+        "plots/new/cmp.png",
+    ]));
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(d.join("plots/new/cmp.png").is_file());
+}

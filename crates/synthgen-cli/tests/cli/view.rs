@@ -66,8 +66,13 @@ impl Server {
 
     /// The status of a request sent byte for byte (no client-side path normalization).
     pub fn raw_status(&self, path: &str) -> u16 {
-        let host = self.url.trim_start_matches("http://");
-        let mut s = TcpStream::connect(host).unwrap();
+        self.raw_status_host(path, self.url.trim_start_matches("http://"))
+    }
+
+    /// [`Server::raw_status`] with `host` in the `Host` header.
+    pub fn raw_status_host(&self, path: &str, host: &str) -> u16 {
+        let addr = self.url.trim_start_matches("http://");
+        let mut s = TcpStream::connect(addr).unwrap();
         write!(
             s,
             "GET {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n"
@@ -283,5 +288,69 @@ fn view_refuses_a_folder_that_is_not_a_dataset() {
         stderr(&o).contains(&tmp.path().display().to_string()),
         "{}",
         stderr(&o)
+    );
+}
+
+/// Issue 26: the viewer answered any `Host` (a page whose name its owner points at this machine,
+/// DNS rebinding, could read the datasets) and took `min_visib=nan`.
+#[test]
+fn view_answers_only_its_own_host_and_refuses_non_finite_filters() {
+    let tmp = tempfile::tempdir().unwrap();
+    crate::mix::render_tiny(tmp.path(), "a", 2, 1);
+    let s = Server::start(&[tmp.path().join("a").as_os_str()]);
+    let port = s.url.rsplit(':').next().unwrap().to_string();
+    for (host, status) in [
+        (format!("127.0.0.1:{port}"), 200),
+        (format!("localhost:{port}"), 200),
+        (format!("LOCALHOST:{port}"), 200),
+        (format!("evil.example:{port}"), 403),
+        ("evil.example".to_string(), 403),
+        ("127.0.0.1:1".to_string(), 403),
+        (format!("10.1.2.3:{port}"), 403),
+    ] {
+        assert_eq!(
+            s.raw_status_host("/api/datasets", &host),
+            status,
+            "Host: {host}"
+        );
+    }
+    assert_eq!(
+        s.raw_status_host("/file/0/camera.json", "evil.example"),
+        403
+    );
+    for q in [
+        "min_visib=nan",
+        "max_visib=NaN",
+        "min_dist=inf",
+        "max_dist=-inf",
+    ] {
+        assert_eq!(s.get(&format!("/api/frames?ds=0&{q}")).0, 400, "{q}");
+    }
+    assert_eq!(s.get("/api/frames?ds=0&min_visib=0.5").0, 200);
+}
+
+#[test]
+fn view_on_every_interface_warns_that_anyone_can_read_the_datasets() {
+    let tmp = tempfile::tempdir().unwrap();
+    crate::mix::render_tiny(tmp.path(), "a", 2, 1);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_synthgen"))
+        .arg("view")
+        .arg(tmp.path().join("a"))
+        .args(["--host", "0.0.0.0", "--port", "0"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let _ = child.kill();
+    let out = child.wait_with_output().unwrap();
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(line.starts_with("http://0.0.0.0:"), "{line}");
+    assert!(
+        e.contains("warning:") && e.contains("0.0.0.0") && e.contains("no login"),
+        "{e}"
     );
 }

@@ -201,6 +201,11 @@ pub struct BopDataset {
 impl BopDataset {
     /// Reads `camera.json` and `models/models_info.json` and lists the splits.
     pub fn open(root: &Path) -> Result<BopDataset> {
+        if !root.is_dir() {
+            return Err(Error::NoSuchDataset {
+                path: root.to_path_buf(),
+            });
+        }
         let camera = read_camera_info(&root.join("camera.json"))?;
         let info_path = root.join("models").join("models_info.json");
         let models_info = if info_path.exists() {
