@@ -17,7 +17,7 @@ use synthgen_train::eval::{evaluate as score, load_eval_objects, pick_split, rea
 use synthgen_train::metrics::Rotations;
 use synthgen_train::results::read_results_csv;
 
-use crate::errors::input_error;
+use crate::errors::{input_error, ToPyErr};
 use crate::gil::{detached, PyProgress};
 use crate::job::{render_job, JobArgs};
 
@@ -39,8 +39,11 @@ fn check_out_dir(out: &Path, force: bool) -> PyResult<()> {
         if !synthgen_dataset::output::is_empty(out) && !force {
             return Err(input_error(
                 format!("output folder is not empty: {}", out.display()),
-                Some("choose another out, or pass force=True to write into it"),
+                Some("choose another out, or pass force=True to replace it"),
             ));
+        }
+        if force {
+            synthgen_dataset::output::check_force(out).map_err(|e| e.to_py_err())?;
         }
     } else if out.exists() {
         return Err(input_error(
@@ -123,6 +126,9 @@ fn render<'py>(
     };
     let report = detached(py, || {
         let _lock = OutputLock::acquire(&out).map_err(synthgen_pipeline::Error::from)?;
+        if force {
+            synthgen_dataset::output::clear_output(&out).map_err(synthgen_pipeline::Error::from)?;
+        }
         let job = job.build(&progress)?;
         job.write(&options, &progress)
     })?;

@@ -399,7 +399,8 @@ pub struct MixArgs {
     #[arg(long)]
     pub out: Option<PathBuf>,
 
-    /// Replace a mix already in --out.
+    /// Replace a mix (or other output synthgen wrote) in a non-empty --out: everything in it
+    /// is removed first; a folder holding other files is refused.
     #[arg(long)]
     pub force: bool,
 
@@ -491,7 +492,8 @@ pub struct ConvertArgs {
     #[arg(long, allow_negative_numbers = true, default_value_t = 0.1)]
     pub min_visib_fract: f64,
 
-    /// Write into a non-empty OUT folder.
+    /// Replace the output in a non-empty OUT that synthgen wrote (everything in it is removed
+    /// first); a folder holding other files is refused.
     #[arg(long)]
     pub force: bool,
 }
@@ -613,7 +615,8 @@ pub struct RenderArgs {
     #[arg(long, default_value = "data/synth")]
     pub out: PathBuf,
 
-    /// Write into a non-empty --out folder, replacing files with the same names.
+    /// Replace the output in a non-empty --out that synthgen wrote (everything in it is
+    /// removed first); a folder holding other files is refused.
     #[arg(long)]
     pub force: bool,
 

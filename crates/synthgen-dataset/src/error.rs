@@ -13,6 +13,9 @@ pub enum Error {
     },
     #[error("missing file: {path}")]
     MissingFile { path: PathBuf },
+    /// `--force` asked to replace a folder that synthgen did not write.
+    #[error("--force replaces an output synthgen wrote (it has a synthgen.json, or an unfinished render's run plan), but this folder holds other files; choose another output folder, or empty it yourself: {path}")]
+    ForeignOutput { path: PathBuf },
     /// A dataset folder that does not exist (or is not a folder).
     #[error("no such dataset: {path}")]
     NoSuchDataset { path: PathBuf },
@@ -157,6 +160,7 @@ impl Error {
             | Error::Io { path, .. }
             | Error::MissingFile { path }
             | Error::NoSuchDataset { path }
+            | Error::ForeignOutput { path }
             | Error::Json { path, .. }
             | Error::Malformed { path, .. }
             | Error::Yaml { path, .. }

@@ -81,6 +81,55 @@ pub fn resolve(path: &Path) -> PathBuf {
 }
 
 /// Whether `dir` holds nothing but its lock file (or does not exist).
+/// The run plan an unfinished render leaves in its output (synthgen-pipeline's resume record).
+pub const RUN_PLAN_FILE: &str = ".synthgen-run.json";
+
+/// Whether `out` holds what synthgen wrote: a `synthgen.json` manifest that reads as one, or
+/// an unfinished render's run plan. (Not the lock file: a refused command may leave one in a
+/// folder it did not write.)
+pub fn written_by_synthgen(out: &Path) -> bool {
+    crate::manifest::read_manifest(out).is_ok() || out.join(RUN_PLAN_FILE).is_file()
+}
+
+/// What `--force` may replace: an absent or empty `out`, or one synthgen wrote
+/// ([`written_by_synthgen`]). A folder holding other files is refused, so that `--force` never
+/// mixes a new dataset into another one, nor deletes files synthgen did not write.
+pub fn check_force(out: &Path) -> Result<()> {
+    if is_empty(out) || written_by_synthgen(out) {
+        Ok(())
+    } else {
+        Err(Error::ForeignOutput {
+            path: out.to_path_buf(),
+        })
+    }
+}
+
+/// `--force`'s replacement, with the folder's lock held: removes everything in `out` but the
+/// lock file, so that nothing of the old output is left among the new. Returns how many
+/// entries were removed.
+pub fn clear_output(out: &Path) -> Result<usize> {
+    let Ok(entries) = std::fs::read_dir(out) else {
+        return Ok(0);
+    };
+    let mut n = 0;
+    for e in entries {
+        let e = e.map_err(|e| Error::io("list directory", out, e))?;
+        if e.file_name() == std::ffi::OsStr::new(LOCK_FILE) {
+            continue;
+        }
+        let p = e.path();
+        let is_dir = e.file_type().map(|t| t.is_dir()).unwrap_or(false);
+        let r = if is_dir {
+            std::fs::remove_dir_all(&p)
+        } else {
+            std::fs::remove_file(&p)
+        };
+        r.map_err(|e| Error::io("remove", &p, e))?;
+        n += 1;
+    }
+    Ok(n)
+}
+
 pub fn is_empty(dir: &Path) -> bool {
     match std::fs::read_dir(dir) {
         Ok(entries) => entries

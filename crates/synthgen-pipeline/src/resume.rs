@@ -15,7 +15,7 @@ use crate::error::{Error, Result};
 use crate::sink::Sink;
 
 /// File name of the run plan at the root of an unfinished output folder.
-pub const RUN_PLAN: &str = ".synthgen-run.json";
+pub use synthgen_dataset::output::RUN_PLAN_FILE as RUN_PLAN;
 
 /// The parts of a manifest two runs must share to write the same dataset.
 fn run_identity(m: &Manifest) -> serde_json::Value {

@@ -52,7 +52,9 @@ def render(
     Args:
         objects, scene, camera, image_size, units, obj_ids, seed, threads: as for
             :class:`Generator`.
-        out: the dataset folder; it must be empty or absent unless ``force``.
+        out: the dataset folder; it must be empty or absent unless ``force``, which replaces
+            an output synthgen wrote there (everything in it is removed first) and refuses a
+            folder holding other files.
         format: ``"bop"`` (default), ``"linemod"`` or ``"ycbv"``.
         split, chunk_size: BOP's split folder and frames per scene folder.
         rgb_format, jpg_quality: ``"png"`` or ``"jpg"`` RGB images.
@@ -129,7 +131,8 @@ def mix(
     Args:
         test_count: real frames held out for testing (default: 10% of the real frames).
         test_scenes: hold out every frame of these scenes (``2`` or ``"test/2"``) instead.
-        force: replace an existing mix in ``out``.
+        force: replace an existing mix (or other output synthgen wrote) in ``out``; a folder
+            holding other files is refused.
         exclude_shared: leave out training frames that are the same image as a test frame.
 
     Returns:

@@ -72,7 +72,8 @@ pub struct MergeArgs {
     #[arg(long)]
     pub copy: bool,
 
-    /// Write into a non-empty --out folder (files with the same names must match).
+    /// Replace the output in a non-empty --out that synthgen wrote (everything in it is
+    /// removed first); a folder holding other files is refused.
     #[arg(long)]
     pub force: bool,
 }

@@ -78,17 +78,22 @@ pub fn run(args: ConvertArgs, printer: &Printer) -> Result<ExitStatus> {
         ));
     }
     check_apart(&args.output, &[("input", &args.input)])?;
-    // Empty or absent: a failed conversion then leaves nothing behind (with --force into a
-    // folder that had files, what it wrote stays, as documented).
-    let fresh = is_empty(&args.output);
-    if !fresh && !args.force {
-        return Err(user_error(
-            format!("output folder is not empty: {}", args.output.display()),
-            "choose another OUT, or pass --force to write into it",
-        ));
+    // Empty or absent, or replaced (--force into what synthgen wrote): a failed conversion
+    // then leaves nothing behind.
+    if !is_empty(&args.output) {
+        if !args.force {
+            return Err(user_error(
+                format!("output folder is not empty: {}", args.output.display()),
+                "choose another OUT, or pass --force to replace it",
+            ));
+        }
+        synthgen_dataset::output::check_force(&args.output)?;
     }
     let existed = args.output.exists();
     let lock = OutputLock::acquire(&args.output)?;
+    if args.force {
+        super::render::replace_output(&args.output, printer)?;
+    }
     let opts = ConvertOptions {
         depth_scale: args.depth_scale,
         min_visib_fract: args.min_visib_fract,
@@ -98,9 +103,7 @@ pub fn run(args: ConvertArgs, printer: &Printer) -> Result<ExitStatus> {
     let (summary, classes) = match result {
         Ok(r) => r,
         Err(e) => {
-            if fresh {
-                discard_output(&args.output, existed);
-            }
+            discard_output(&args.output, existed);
             drop(lock);
             return Err(e.context(format!("cannot convert {} to {to}", args.input.display())));
         }

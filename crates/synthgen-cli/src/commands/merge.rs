@@ -38,6 +38,9 @@ pub fn run(args: MergeArgs, printer: &Printer) -> Result<ExitStatus> {
     check_apart(&args.out, &shards)?;
     check_out(&args.out, args.force)?;
     let _lock = OutputLock::acquire(&args.out)?;
+    if args.force {
+        super::render::replace_output(&args.out, printer)?;
+    }
     let summary = merge(&args.dirs, &args.out, &MergeOptions { copy: args.copy })?;
     write_manifest(&args.out, &merged)?;
     printer.info(format!(
@@ -60,8 +63,11 @@ fn check_out(out: &Path, force: bool) -> Result<()> {
     if out.is_dir() && !is_empty(out) && !force {
         return Err(user_error(
             format!("output folder is not empty: {}", out.display()),
-            "choose another --out, or pass --force",
+            "choose another --out, or pass --force to replace it",
         ));
+    }
+    if force {
+        synthgen_dataset::output::check_force(out)?;
     }
     Ok(())
 }

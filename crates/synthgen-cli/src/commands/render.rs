@@ -50,6 +50,9 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     }
     // One writer per output folder; a crashed run's lock goes with its process.
     let _lock = OutputLock::acquire(&args.out)?;
+    if args.force && !args.resume {
+        replace_output(&args.out, printer)?;
+    }
 
     let job = RenderJob::new(spec)
         .objects(&sources)
@@ -282,13 +285,29 @@ fn check_out_dir(out: &Path, force: bool) -> Result<()> {
             return Err(user_error(
                 format!("output folder is not empty: {}", out.display()),
                 "if a render there was interrupted (Ctrl-C, a crash), continue it with the same \
-                 command and --resume; else choose another --out, or pass --force to write into it",
+                 command and --resume; else choose another --out, or pass --force to replace it",
             ));
+        }
+        if force {
+            synthgen_dataset::output::check_force(out)?;
         }
     } else if out.exists() {
         return Err(user_error(
             format!("output path exists and is not a folder: {}", out.display()),
             "choose another --out",
+        ));
+    }
+    Ok(())
+}
+
+/// `--force`, with the output's lock held: what an earlier run wrote there goes (the folder
+/// was checked to be synthgen's), so that the new output is not mixed with it.
+pub(crate) fn replace_output(out: &Path, printer: &Printer) -> Result<()> {
+    let n = synthgen_dataset::output::clear_output(out)?;
+    if n > 0 {
+        printer.info(format!(
+            "--force: removed the earlier output in {} ({n} entries)",
+            out.display()
         ));
     }
     Ok(())

@@ -86,8 +86,11 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     if !is_empty(&args.out) && !args.force {
         return Err(user_error(
             format!("output folder is not empty: {}", args.out.display()),
-            "choose another --out, or pass --force to write into it",
+            "choose another --out, or pass --force to replace it",
         ));
+    }
+    if args.force {
+        synthgen_dataset::output::check_force(&args.out)?;
     }
     if args.out.exists() && !args.out.is_dir() {
         return Err(user_error(
@@ -99,6 +102,9 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
         ));
     }
     let _lock = OutputLock::acquire(&args.out)?;
+    if args.force {
+        super::render::replace_output(&args.out, printer)?;
+    }
 
     let (jobs, mut sinks) = plan(
         &args,

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use serde_json::Value;
 
-use crate::common::{refused, run, shared_data, stderr, synthgen};
+use crate::common::{copy_dir, refused, run, shared_data, stderr, synthgen};
 
 const OBJ_IDS: [u32; 8] = [1, 5, 6, 8, 9, 10, 11, 12];
 const CASES: [&str; 4] = ["perturbed", "symmetric", "truncated", "extras"];
@@ -32,21 +32,13 @@ fn render_base(shared: &Path, out: &Path) {
     assert!(o.status.success(), "{}", stderr(&o));
 }
 
-fn copy_dir(from: &Path, to: &Path) {
-    fs::create_dir_all(to).unwrap();
-    for e in fs::read_dir(from).unwrap() {
-        let e = e.unwrap();
-        fs::copy(e.path(), to.join(e.file_name())).unwrap();
-    }
-}
-
 /// A case's dataset (as bop_agreement.sh lays it out for bop_toolkit): scene 2 of `lmo`,
 /// models_eval from the shared Linemod-Occluded models with the case's models_info.
 fn case_dataset(shared: &Path, base: &Path, case: &Path, root: &Path) {
     let scene = root.join("test/000002");
     fs::create_dir_all(&scene).unwrap();
     fs::copy(base.join("camera.json"), root.join("camera.json")).unwrap();
-    copy_dir(&base.join("models"), &root.join("models"));
+    copy_dir(&base.join("models"), &root.join("models"), &[]);
     let eval = root.join("models_eval");
     fs::create_dir_all(&eval).unwrap();
     for id in OBJ_IDS {
@@ -61,7 +53,7 @@ fn case_dataset(shared: &Path, base: &Path, case: &Path, root: &Path) {
     .unwrap();
     let src = base.join("test/000000");
     for d in ["rgb", "depth"] {
-        copy_dir(&src.join(d), &scene.join(d));
+        copy_dir(&src.join(d), &scene.join(d), &[]);
     }
     fs::copy(
         src.join("scene_camera.json"),

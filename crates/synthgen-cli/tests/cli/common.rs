@@ -87,3 +87,21 @@ pub fn ycbv_small_copy(real: &Path, to: &Path) {
         }
     }
 }
+
+/// Copies `from` to `to` (files, recursively), leaving out the top-level entries `skip`.
+pub fn copy_dir(from: &Path, to: &Path, skip: &[&str]) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        let name = e.file_name();
+        if skip.iter().any(|s| name == *s) {
+            continue;
+        }
+        let dst = to.join(&name);
+        if e.file_type().unwrap().is_dir() {
+            copy_dir(&e.path(), &dst, &[]);
+        } else {
+            std::fs::copy(e.path(), dst).unwrap();
+        }
+    }
+}

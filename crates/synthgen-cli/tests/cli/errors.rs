@@ -298,3 +298,67 @@ fn sensor_compare_plot_creates_missing_folders() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(d.join("plots/new/cmp.png").is_file());
 }
+
+/// Issue 26: `render --force` / `convert --force` into a folder holding another dataset left
+/// a mix of both. --force now replaces an output synthgen wrote, refuses a folder it did not
+/// write (keeping its files), and validate names files that no image owns.
+#[test]
+fn force_replaces_a_synthgen_output_and_refuses_other_folders() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    crate::mix::render_tiny(d, "o", 6, 1);
+    let render = |out: &str, frames: &str| {
+        run(synthgen()
+            .current_dir(d)
+            .args(["render", "-q", "--objects", "box.ply", "--units", "m"])
+            .args(["--image-size", "80,60", "--camera-k", "80,80,40,30"])
+            .args(["--frames", frames, "--seed", "2", "--force", "--out", out]))
+    };
+    let o = render("o", "2");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        !d.join("o/train_pbr/000000/rgb/000005.png").exists(),
+        "frames of the earlier render were left"
+    );
+    let v = run(synthgen().current_dir(d).args(["validate", "o"]));
+    assert!(v.status.success(), "{}", String::from_utf8_lossy(&v.stdout));
+    // convert --force over a conversion of another dataset: only the new one is there.
+    crate::mix::render_tiny(d, "big", 6, 3);
+    for src in ["big", "o"] {
+        let o = run(synthgen()
+            .current_dir(d)
+            .args(["convert", "--to", "linemod", "--force", src, "lm"]));
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let v = run(synthgen().current_dir(d).args(["validate", "lm"]));
+    assert!(v.status.success(), "{}", String::from_utf8_lossy(&v.stdout));
+    // Files no image owns are named by validate.
+    std::fs::copy(
+        d.join("o/train_pbr/000000/rgb/000000.png"),
+        d.join("o/train_pbr/000000/rgb/000009.png"),
+    )
+    .unwrap();
+    let v = run(synthgen().current_dir(d).args(["validate", "o"]));
+    assert_eq!(v.status.code(), Some(1));
+    let out = String::from_utf8_lossy(&v.stdout);
+    assert!(
+        out.contains("rgb: 1 files belong to no image") && out.contains("000009.png"),
+        "{out}"
+    );
+    // A folder synthgen did not write: refused even with --force, its files kept.
+    std::fs::create_dir_all(d.join("mine")).unwrap();
+    std::fs::write(d.join("mine/notes.txt"), "x").unwrap();
+    crate::common::refused(
+        &render("mine", "1"),
+        &["--force replaces an output synthgen wrote", "mine"],
+    );
+    let o = run(synthgen()
+        .current_dir(d)
+        .args(["convert", "--to", "linemod", "--force", "o", "mine"]));
+    crate::common::refused(&o, &["--force replaces"]);
+    assert_eq!(
+        std::fs::read_to_string(d.join("mine/notes.txt")).unwrap(),
+        "x"
+    );
+    assert_eq!(std::fs::read_dir(d.join("mine")).unwrap().count(), 1);
+}

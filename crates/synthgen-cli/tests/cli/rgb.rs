@@ -320,3 +320,72 @@ fn rgb_trains_and_evaluates_on_the_real_ycbv_frames() {
     assert!(j["all"]["n_gt"].as_u64().unwrap() >= 200, "{j}");
     assert!(j["all"]["mean_te_cm"].as_f64().unwrap().is_finite());
 }
+
+/// Issue 26: `experiment rgb --train X --test X`, or a copy of X, scored the model on its own
+/// training frames; refused as `mix` refuses it, before anything is written.
+#[test]
+fn experiment_rgb_refuses_to_score_its_own_training_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let set = two_class_set(dir.path(), "set", "4", "5");
+    let copy = dir.path().join("copy");
+    crate::common::copy_dir(&set, &copy, &[]);
+    for test in [&set, &copy] {
+        let out = dir.path().join("exp");
+        let o = run(synthgen()
+            .args(["experiment", "rgb", "--quick", "--train"])
+            .arg(&set)
+            .arg("--test")
+            .arg(test)
+            .arg("--out")
+            .arg(&out));
+        refused(&o, &["same images as test frames", "memorized"]);
+        assert!(!out.exists(), "nothing written before the refusal");
+    }
+}
+
+/// Issue 26: `experiment rgb` resumed with the scores of a test set that had been replaced by
+/// another under the same path (or lost frames): the inputs are fingerprinted.
+#[test]
+fn experiment_rgb_refuses_to_resume_when_its_data_changed() {
+    let dir = tempfile::tempdir().unwrap();
+    let train = two_class_set(dir.path(), "train", "6", "5");
+    let test = two_class_set(dir.path(), "test", "3", "6");
+    let out = dir.path().join("exp");
+    let exp = |extra: &[&str]| {
+        run(synthgen()
+            .args(["experiment", "rgb", "--quick", "--variants", "xyz"])
+            .args([
+                "--crop-size",
+                "16",
+                "--width",
+                "16",
+                "--epochs",
+                "1",
+                "--train",
+            ])
+            .arg(&train)
+            .arg("--test")
+            .arg(&test)
+            .arg("--out")
+            .arg(&out)
+            .args(extra))
+    };
+    let o = exp(&[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(out.join("inputs.json").is_file());
+    let o = exp(&[]);
+    assert!(o.status.success(), "the same data resumes: {}", stderr(&o));
+    std::fs::remove_dir_all(&test).unwrap();
+    two_class_set(dir.path(), "test", "3", "7"); // another dataset under the same path
+    refused(&exp(&[]), &["--test dataset", "changed", "--force"]);
+    let o = exp(&["--force"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // A frame rewritten in place (here: only its modification time) is a change too.
+    std::fs::File::options()
+        .write(true)
+        .open(train.join("train_pbr/000000/rgb/000005.png"))
+        .unwrap()
+        .set_modified(std::time::UNIX_EPOCH + std::time::Duration::from_secs(1))
+        .unwrap();
+    refused(&exp(&[]), &["--train dataset", "changed", "then", "now"]);
+}

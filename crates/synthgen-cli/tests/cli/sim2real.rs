@@ -6,7 +6,7 @@ use std::process::Output;
 
 use serde_json::Value;
 
-use crate::common::{refused, run, stderr, synthgen, ycbv_real};
+use crate::common::{copy_dir, refused, run, stderr, synthgen, ycbv_real};
 
 fn sim2real(fit: &Path, test: &Path, out: &Path, extra: &[&str]) -> Output {
     run(synthgen()
@@ -205,22 +205,10 @@ fn sim2real_refuses_what_cannot_be_measured() {
         &o,
         &["no test object (8, 14, 21) is annotated in the --fit frames"],
     );
-}
-
-/// Copies `from` to `to` (files, recursively), leaving out the top-level entries `skip`.
-fn copy_dir(from: &Path, to: &Path, skip: &[&str]) {
-    std::fs::create_dir_all(to).unwrap();
-    for e in std::fs::read_dir(from).unwrap() {
-        let e = e.unwrap();
-        let name = e.file_name();
-        if skip.iter().any(|s| name == *s) {
-            continue;
-        }
-        let dst = to.join(&name);
-        if e.file_type().unwrap().is_dir() {
-            copy_dir(&e.path(), &dst, &[]);
-        } else {
-            std::fs::copy(e.path(), dst).unwrap();
-        }
-    }
+    // Issue 26: a copy of the test frames as --fit: the fits would see the test frames.
+    let twin = d.join("twin");
+    copy_dir(&real, &twin, &[]);
+    let o = sim2real(&twin, &real, &d.join("h"), &["--test-scenes", "2"]);
+    refused(&o, &["--fit dataset shares", "--test frames"]);
+    assert!(!d.join("h").exists(), "nothing written before the refusal");
 }

@@ -353,7 +353,7 @@ pub fn write_mix(
     // or share frames by hard link or copy.
     let test_frames: Vec<&SourceFrame> = plan.test.iter().map(|&i| &real_frames[i]).collect();
     let train_frames: Vec<&SourceFrame> = plan.train.iter().map(frame_of).collect();
-    let leaks = shared::same_images(&test_frames, &train_frames)?;
+    let leaks = crate::shared_frames::same_images(&test_frames, &train_frames)?;
     let mut excluded_shared = 0;
     if let Some(&(j, i)) = leaks.first() {
         if !opts.exclude_shared {
@@ -376,7 +376,7 @@ pub fn write_mix(
         excluded_shared = drop.len();
     }
     let train_frames: Vec<&SourceFrame> = plan.train.iter().map(frame_of).collect();
-    let duplicate_train = shared::same_images(&train_frames, &train_frames)?
+    let duplicate_train = crate::shared_frames::same_images(&train_frames, &train_frames)?
         .iter()
         .filter(|(j, i)| i != j)
         .count();
@@ -532,20 +532,18 @@ impl SceneJson {
 }
 
 /// Creates `out`; refuses a non-empty folder unless `force`, which removes what a mix writes.
+/// An absent or empty `out`; with `force`, one synthgen wrote, emptied (but for its lock) so
+/// that nothing of the old output is left among the new mix.
 fn prepare_out(out: &Path, force: bool) -> Result<()> {
-    if out.exists() {
-        if !crate::output::is_empty(out) && !force {
+    if out.exists() && !crate::output::is_empty(out) {
+        if !force {
             return Err(Error::InvalidRequest(format!(
                 "output folder is not empty (use --force to replace a mix there): {}",
                 out.display()
             )));
         }
-        for dir in [TRAIN_SPLIT, TEST_SPLIT, "models"] {
-            let p = out.join(dir);
-            if p.is_dir() {
-                std::fs::remove_dir_all(&p).map_err(|e| Error::io("remove", &p, e))?;
-            }
-        }
+        crate::output::check_force(out)?;
+        crate::output::clear_output(out)?;
     }
     create_dir_all(out)
 }
@@ -689,7 +687,6 @@ fn write_models(
 }
 
 pub mod scenes;
-mod shared;
 
 #[cfg(test)]
 #[allow(clippy::unwrap_used, clippy::expect_used)]

@@ -274,6 +274,53 @@ fn check_scene(
             }
         }
     }
+    check_orphans(ctx, dir, &cams, &gt);
+}
+
+/// Image files that no entry of the scene's JSON owns: left over from another dataset written
+/// into the same folder (`--force` used to leave them), or copied in by hand. One problem per
+/// folder, with a count and the first file.
+fn check_orphans(
+    ctx: &mut Ctx,
+    dir: &Path,
+    cams: &BTreeMap<u32, SceneCamera>,
+    gt: &BTreeMap<u32, Vec<GtEntry>>,
+) {
+    for sub in ["rgb", "gray", "depth", "mask", "mask_visib"] {
+        let Ok(entries) = std::fs::read_dir(dir.join(sub)) else {
+            continue;
+        };
+        let mut names: Vec<String> = entries
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| !n.starts_with('.'))
+            .filter(|n| {
+                let stem = n.split('.').next().unwrap_or("");
+                let mut parts = stem.split('_');
+                let im = parts.next().and_then(|p| p.parse::<u32>().ok());
+                let inst = parts.next().map(|p| p.parse::<usize>().ok());
+                match (im, inst) {
+                    (Some(im), None) => !cams.contains_key(&im),
+                    (Some(im), Some(Some(g))) => {
+                        !cams.contains_key(&im) || gt.get(&im).is_none_or(|v| g >= v.len())
+                    }
+                    _ => true,
+                }
+            })
+            .collect();
+        if names.is_empty() {
+            continue;
+        }
+        names.sort();
+        ctx.problem(
+            &dir.join(sub),
+            format!(
+                "{} files belong to no image of scene_camera.json or no instance of scene_gt.json (first: {}): left over from another dataset written here?",
+                names.len(),
+                names[0]
+            ),
+        );
+    }
 }
 
 #[allow(clippy::too_many_arguments)]

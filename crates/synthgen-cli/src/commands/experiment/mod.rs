@@ -441,24 +441,96 @@ fn model_name(m: ModelArg) -> &'static str {
 
 /// Writes the settings, or checks them against those of the experiment already in `out`.
 fn check_settings(out: &Path, settings: &Settings, force: bool) -> Result<()> {
+    // The datasets the experiment reads (a rendered source is its own, under OUT/sources).
+    let source = |s: &sources::SourceSettings| {
+        s.rendered
+            .is_none()
+            .then(|| s.converted_from.clone().unwrap_or_else(|| s.path.clone()))
+    };
+    let (real, synth) = (source(&settings.real), source(&settings.synth));
+    let mut inputs: Vec<(&str, &Path)> = Vec::new();
+    if let Some(p) = &real {
+        inputs.push(("--real", p));
+    }
+    if let Some(p) = &synth {
+        inputs.push(("--synth", p));
+    }
     check_settings_file(
         out,
         SETTINGS_FILE,
         settings,
+        &inputs,
         force,
         &["rows", "sources", TEST_SPLIT_FILE],
         false,
     )
 }
 
-/// Writes an experiment's settings `file` in `out`, or checks it against the one already
-/// there: the same settings resume; others are refused unless `force`, which removes the old
-/// run's `stale` folders and files first. With `refuse_foreign`, a non-empty `out` without
-/// a settings file is refused too (unless `force`).
+/// What an experiment read, beside its settings: `inputs.json`.
+const INPUTS_FILE: &str = "inputs.json";
+
+/// One dataset an experiment reads, and what it held.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct Input {
+    /// The flag that named it (`--test`, `--real`, ...).
+    role: String,
+    path: PathBuf,
+    fingerprint: synthgen_dataset::fingerprint::Fingerprint,
+}
+
+fn fingerprint_inputs(inputs: &[(&str, &Path)]) -> Result<Vec<Input>> {
+    let mut out: Vec<Input> = Vec::new();
+    for &(role, path) in inputs {
+        if out.iter().any(|i| i.path == path) {
+            continue;
+        }
+        out.push(Input {
+            role: role.to_string(),
+            path: path.to_path_buf(),
+            fingerprint: synthgen_dataset::fingerprint::fingerprint(path)?,
+        });
+    }
+    Ok(out)
+}
+
+/// The first input whose files changed since `out`'s experiment recorded them, as a message;
+/// None when they are the same (or an experiment from before inputs were recorded).
+fn changed_input(out: &Path, now: &[Input]) -> Option<String> {
+    let text = std::fs::read_to_string(out.join(INPUTS_FILE)).ok()?;
+    let then: Vec<Input> = serde_json::from_str(&text).ok()?;
+    now.iter().find_map(|n| {
+        let t = then.iter().find(|t| t.role == n.role)?;
+        (t.fingerprint != n.fingerprint).then(|| {
+            format!(
+                "the {} dataset {} changed since this experiment's finished steps read it (then {} files, {} bytes; now {} files, {} bytes): their results are not this data's",
+                n.role,
+                n.path.display(),
+                t.fingerprint.files,
+                t.fingerprint.bytes,
+                n.fingerprint.files,
+                n.fingerprint.bytes
+            )
+        })
+    })
+}
+
+fn write_inputs(out: &Path, inputs: &[Input]) -> Result<()> {
+    let text = serde_json::to_string_pretty(inputs)? + "\n";
+    atomic_write(&out.join(INPUTS_FILE), text.as_bytes())?;
+    Ok(())
+}
+
+/// Writes an experiment's settings `file` in `out` and the fingerprints of the datasets it
+/// reads (`inputs`: flag and folder; `inputs.json`), or checks both against those already
+/// there: the same settings on the same data resume; other settings, or data that changed
+/// (frames deleted, another dataset under the same path), are refused unless `force`, which
+/// removes the old run's `stale` folders and files first. With `refuse_foreign`, a non-empty
+/// `out` without a settings file is refused too (unless `force`).
 pub(crate) fn check_settings_file<S>(
     out: &Path,
     file: &str,
     settings: &S,
+    inputs: &[(&str, &Path)],
     force: bool,
     stale: &[&str],
     refuse_foreign: bool,
@@ -467,20 +539,30 @@ where
     S: Serialize + serde::de::DeserializeOwned + PartialEq,
 {
     let path = out.join(file);
+    let now = fingerprint_inputs(inputs)?;
     if let Ok(text) = std::fs::read_to_string(&path) {
         let same = serde_json::from_str::<S>(&text).is_ok_and(|s| &s == settings);
-        if same {
-            return Ok(());
+        let changed = if same { changed_input(out, &now) } else { None };
+        if same && changed.is_none() {
+            // (An experiment from before inputs were recorded gets its record now.)
+            return write_inputs(out, &now);
         }
         if !force {
-            return Err(user_error(
-                format!(
-                    "{} holds an experiment with other settings ({file} differs)",
-                    out.display()
+            return Err(match changed {
+                Some(msg) => user_error(
+                    msg,
+                    "restore the dataset, pass --force to redo every step on the data as it is now, or choose another --out",
                 ),
-                "pass the same options to resume it, choose another --out, or add --force to start over",
-            ));
+                None => user_error(
+                    format!(
+                        "{} holds an experiment with other settings ({file} differs)",
+                        out.display()
+                    ),
+                    "pass the same options to resume it, choose another --out, or add --force to start over",
+                ),
+            });
         }
+        let _ = std::fs::remove_file(out.join(INPUTS_FILE));
         for name in stale {
             let p = out.join(name);
             if p.is_dir() {
@@ -500,7 +582,7 @@ where
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
     let text = serde_json::to_string_pretty(settings)? + "\n";
     atomic_write(&path, text.as_bytes())?;
-    Ok(())
+    write_inputs(out, &now)
 }
 
 /// Every row must have been tested on the same real frames.

@@ -166,6 +166,40 @@ fn mean_over_objects(cells: &BTreeMap<u32, Cell>) -> Cell {
     }
 }
 
+/// Refuses training frames that are test frames (the same file, a hard link, the same bytes:
+/// `--train X --test X`, or a copy of X), before anything is written: the scores would measure
+/// memorized frames.
+fn refuse_shared_frames(
+    train: &dyn FrameSource,
+    train_split: &str,
+    test: &dyn FrameSource,
+    test_split: &str,
+    test_scenes: &[u32],
+) -> Result<()> {
+    let test_frames: Vec<_> = test
+        .frames(&[test_split.to_string()])?
+        .into_iter()
+        .filter(|f| test_scenes.is_empty() || test_scenes.contains(&f.location.scene_id))
+        .collect();
+    let train_frames = train.frames(&[train_split.to_string()])?;
+    let t: Vec<&_> = test_frames.iter().collect();
+    let tr: Vec<&_> = train_frames.iter().collect();
+    let shared = synthgen_dataset::shared_frames::same_images(&t, &tr)?;
+    if let Some(&(j, i)) = shared.first() {
+        return Err(user_error(
+            format!(
+                "{} of the {} training frames are the same images as test frames (the same file, a hard link or the same bytes), e.g. {} is the test frame {}: the scores would measure memorized frames",
+                shared.len(),
+                tr.len(),
+                tr[j].rgb.display(),
+                t[i].rgb.display()
+            ),
+            "test on frames the model does not train on: another dataset, or another split (--train-split / --test-split)",
+        ));
+    }
+    Ok(())
+}
+
 fn open(dir: &Path, what: &str) -> Result<Box<dyn FrameSource>> {
     if !dir.exists() {
         return Err(user_error(
@@ -226,6 +260,13 @@ pub fn run(args: ExperimentRgbArgs, printer: &Printer) -> Result<ExitStatus> {
     let test_src = open(&args.test, "test")?;
     let train_split = pick_split(train_src.as_ref(), args.train_split.as_deref())?;
     let test_split = pick_split(test_src.as_ref(), args.test_split.as_deref())?;
+    refuse_shared_frames(
+        train_src.as_ref(),
+        &train_split,
+        test_src.as_ref(),
+        &test_split,
+        &args.test_scenes,
+    )?;
     std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
     let _lock = OutputLock::acquire(&out)?;
     let settings = Settings {
@@ -248,6 +289,7 @@ pub fn run(args: ExperimentRgbArgs, printer: &Printer) -> Result<ExitStatus> {
         &out,
         SETTINGS_FILE,
         &settings,
+        &[("--train", &settings.train), ("--test", &settings.test)],
         args.force,
         &["variants", "table.md", "table.csv", "report.json"],
         true,

@@ -511,18 +511,12 @@ fn test_split(entries: &[serde_json::Value]) -> (String, Vec<String>) {
         .collect();
     lines.sort();
     (
-        format!("{:016x}", fnv1a(lines.join("\n").as_bytes())),
+        format!(
+            "{:016x}",
+            synthgen_dataset::fingerprint::fnv1a(lines.join("\n").as_bytes())
+        ),
         lines,
     )
-}
-
-fn fnv1a(bytes: &[u8]) -> u64 {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for &b in bytes {
-        h ^= u64::from(b);
-        h = h.wrapping_mul(0x0000_0100_0000_01b3);
-    }
-    h
 }
 
 /// Writes the test frame list on the first row; later rows must match it.
@@ -544,16 +538,4 @@ fn record_test_split(out: &Path, hash: &str, lines: &[String]) -> Result<()> {
     let text = serde_json::to_string_pretty(&value)? + "\n";
     atomic_write(&path, text.as_bytes())?;
     Ok(())
-}
-
-#[cfg(test)]
-#[allow(clippy::unwrap_used, clippy::expect_used)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn fnv1a_matches_the_reference_values() {
-        assert_eq!(fnv1a(b""), 0xcbf2_9ce4_8422_2325);
-        assert_eq!(fnv1a(b"a"), 0xaf63_dc4c_8601_ec8c);
-    }
 }

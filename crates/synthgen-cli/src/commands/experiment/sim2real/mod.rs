@@ -192,6 +192,23 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
         &test_frames,
         &fit_frames,
     )?;
+    // A copy (or hard links) of the test frames as --fit: the fits and the real-only baseline
+    // would see the test frames.
+    let t: Vec<&_> = test_frames.iter().collect();
+    let f: Vec<&_> = fit_frames.iter().collect();
+    let shared = synthgen_dataset::shared_frames::same_images(&t, &f)?;
+    if let Some(&(j, i)) = shared.first() {
+        return Err(user_error(
+            format!(
+                "the --fit dataset shares {} of its {} frames with the --test frames (the same file, a hard link or the same bytes), e.g. {} is the test frame {}: the scene and sensor fits and the real-only baseline would see the test frames",
+                shared.len(),
+                f.len(),
+                f[j].rgb.display(),
+                t[i].rgb.display()
+            ),
+            "pass one folder as --fit and --test with --test-scenes (those scenes are left out of the fits), or fit to other frames",
+        ));
+    }
     let settings = Settings {
         fit: fit_dir.clone(),
         test: test_dir.clone(),
@@ -506,12 +523,14 @@ fn most_common_k(frames: &[SourceFrame], w: u32, h: u32) -> synthgen_core::Intri
         .unwrap_or_else(|| synthgen_core::Intrinsics::YCBV)
 }
 
-/// Writes the settings, or checks them against those of the experiment already in `out`.
+/// Writes the settings, or checks them (and the fit and test data) against those of the
+/// experiment already in `out`.
 fn check_settings(out: &Path, settings: &Settings, force: bool) -> Result<()> {
     super::check_settings_file(
         out,
         SETTINGS_FILE,
         settings,
+        &[("--fit", &settings.fit), ("--test", &settings.test)],
         force,
         &["rows", "sources", "fit", TIMING_FILE],
         true,

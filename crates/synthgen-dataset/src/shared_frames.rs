@@ -1,5 +1,6 @@
 //! Frames that are the same image under different names: the same file, a hard link to it,
-//! or a copy with the same bytes. A mix must never train on its own test frames.
+//! or a copy with the same bytes. A mix, and an experiment, must never train on its own test
+//! frames.
 
 use std::collections::HashMap;
 use std::hash::Hasher;
