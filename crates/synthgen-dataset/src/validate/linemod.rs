@@ -231,7 +231,7 @@ fn check_folder(
                 ctx.check_depth(
                     &depth_path,
                     &mask_name,
-                    &d,
+                    d,
                     cam.depth_scale,
                     &m.data,
                     g.cam_t_m2c[2],

@@ -207,6 +207,7 @@ impl Ctx {
     /// sensor's shifted and mixed readings can cover entirely) is judged by the median of all
     /// its readings, and only for a gross error: more than [`GROSS_DEPTH_FACTOR`] times off
     /// t_z either way (a depth unit or scale mistake).
+    #[allow(clippy::too_many_arguments)]
     pub fn check_depth(
         &mut self,
         depth_path: &Path,
