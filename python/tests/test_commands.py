@@ -88,6 +88,18 @@ def test_evaluate_gt_as_results_is_perfect(tmp_path: Path, rendered: Path) -> No
     assert "| all |" in r["markdown"]
 
 
+def test_evaluate_rotations_as_stored_or_nearest(tmp_path: Path, rendered: Path) -> None:
+    ds = synthgen.open_dataset(rendered)
+    csv = tmp_path / "gt.csv"
+    results_csv(ds, csv)
+    stored = synthgen.evaluate(rendered, csv, min_visib_fract=0.0)
+    nearest = synthgen.evaluate(rendered, csv, min_visib_fract=0.0, rotations="nearest")
+    # synthgen's own rotations are proper: both ways agree.
+    assert nearest["scores"]["all"]["acc_5cm5deg"] == stored["scores"]["all"]["acc_5cm5deg"] == 1.0
+    with pytest.raises(synthgen.InputError, match="rotations must be"):
+        synthgen.evaluate(rendered, csv, rotations="projected")
+
+
 def test_evaluate_equals_the_cli(tmp_path: Path, rendered: Path) -> None:
     exe = Path(os.environ.get("SYNTHGEN_BIN", REPO / "target" / "debug" / "synthgen"))
     if not exe.is_file():
