@@ -748,6 +748,12 @@ pub struct RenderArgs {
     #[arg(long)]
     pub fail_fast: bool,
 
+    /// The share of the frames that may fail (each reported, the others written) before the
+    /// run exits with 1. Frames whose objects do not fit are drawn again and then placed with
+    /// fewer objects first, so a failure is rare. 0: any failure is an error.
+    #[arg(long, value_name = "FRACTION", default_value_t = 0.01)]
+    pub max_failed_fraction: f64,
+
     /// --backend blender: Cycles path-tracing samples per pixel.
     #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..))]
     pub samples: u32,

@@ -29,6 +29,11 @@ pub enum UpAxis {
     /// whose rest pose no real frame showed; every face it might lie on is covered).
     #[serde(rename = "any")]
     Any,
+    /// Unknown: each instance rests on a stable face of the model's convex hull, drawn with
+    /// the probability that a random drop ends there (`SceneObject::rest_poses`, computed
+    /// from the mesh by synthgen-physics). Without rest poses, as `any`.
+    #[serde(rename = "stable")]
+    Stable,
 }
 
 impl UpAxis {
@@ -49,15 +54,16 @@ impl UpAxis {
             UpAxis::MinusX => DVec3::NEG_X,
             UpAxis::PlusY => DVec3::Y,
             UpAxis::MinusY => DVec3::NEG_Y,
-            UpAxis::PlusZ | UpAxis::Any => DVec3::Z,
+            UpAxis::PlusZ | UpAxis::Any | UpAxis::Stable => DVec3::Z,
             UpAxis::MinusZ => DVec3::NEG_Z,
         }
     }
 
-    /// A concrete axis: itself, or for `any` one of the six drawn from `rng`.
+    /// A concrete axis: itself, or for `any` (and `stable` without rest poses) one of the six
+    /// drawn from `rng`.
     pub fn resolve(self, rng: &mut ChaCha8Rng) -> UpAxis {
         match self {
-            UpAxis::Any => UpAxis::ALL[rng.gen_range(0..UpAxis::ALL.len())],
+            UpAxis::Any | UpAxis::Stable => UpAxis::ALL[rng.gen_range(0..UpAxis::ALL.len())],
             up => up,
         }
     }
@@ -107,7 +113,7 @@ impl UpAxis {
             UpAxis::MinusX => DMat3::from_rotation_y(FRAC_PI_2),
             UpAxis::PlusY => DMat3::from_rotation_x(FRAC_PI_2),
             UpAxis::MinusY => DMat3::from_rotation_x(-FRAC_PI_2),
-            UpAxis::PlusZ | UpAxis::Any => DMat3::IDENTITY,
+            UpAxis::PlusZ | UpAxis::Any | UpAxis::Stable => DMat3::IDENTITY,
             UpAxis::MinusZ => DMat3::from_rotation_x(PI),
         }
     }
@@ -122,6 +128,7 @@ impl UpAxis {
             UpAxis::PlusZ => "+z",
             UpAxis::MinusZ => "-z",
             UpAxis::Any => "any",
+            UpAxis::Stable => "stable",
         }
     }
 }

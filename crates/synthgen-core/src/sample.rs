@@ -34,6 +34,17 @@ pub struct SceneObject {
     pub up: UpAxis,
     /// With `upright` placement: the largest tilt from that rest pose, degrees.
     pub tilt_deg: f64,
+    /// With `up = "stable"`: the model's stable rest poses and their probabilities
+    /// (synthgen-physics' `stable_rest_poses`); empty otherwise.
+    pub rest_poses: Arc<[RestPose]>,
+}
+
+/// A way an object rests on a table: `rotation` turns the model so that a stable face lies on
+/// the table (the yaw about +z is drawn on top), drawn with `probability`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RestPose {
+    pub rotation: DMat3,
+    pub probability: f64,
 }
 
 impl SceneObject {
@@ -49,7 +60,28 @@ impl SceneObject {
             support_points_m: model.support_points(Self::SUPPORT_POINTS),
             up: UpAxis::PlusZ,
             tilt_deg: 0.0,
+            rest_poses: Arc::from([]),
         }
+    }
+
+    /// The rotation of this object's rest pose at `yaw_rad`: its fitted or given up axis and
+    /// tilt ([`upright_rotation`]), or with `up = "stable"` and rest poses, one drawn by its
+    /// probability, tilted likewise.
+    pub fn rest_rotation(&self, yaw_rad: f64, rng: &mut ChaCha8Rng) -> DMat3 {
+        if self.up != UpAxis::Stable || self.rest_poses.is_empty() {
+            return upright_rotation(yaw_rad, self.up, self.tilt_deg, rng);
+        }
+        let u: f64 = rng.gen();
+        let mut acc = 0.0;
+        let rest = self
+            .rest_poses
+            .iter()
+            .find(|r| {
+                acc += r.probability;
+                u < acc
+            })
+            .unwrap_or(&self.rest_poses[self.rest_poses.len() - 1]);
+        upright_rotation(yaw_rad, UpAxis::PlusZ, self.tilt_deg, rng) * rest.rotation
     }
 
     /// This instance standing on `up` (upright placement), tilted by up to `tilt_deg`.
@@ -282,7 +314,24 @@ pub struct SceneSampler {
     bin_models: Option<usize>,
     /// Frames whose physics placement failed and fell back to the footprint poses, with why.
     fallbacks: Arc<Mutex<Vec<(u64, String)>>>,
+    /// Frames whose targets were placed on another draw, or with fewer of them.
+    resamples: Arc<Mutex<Vec<Resample>>>,
 }
+
+/// A frame whose targets did not fit on the first draw: placed after `redraws` other draws
+/// (from the frame's own placement stream), leaving out `dropped` (the largest targets first).
+#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+pub struct Resample {
+    pub frame: u64,
+    pub redraws: u32,
+    pub dropped: Vec<String>,
+}
+
+/// Other draws a frame whose targets do not fit gets before it leaves its largest target out
+/// (at most half of its targets are left out).
+pub const PLACEMENT_REDRAWS: u32 = 4;
+/// The placement stream's redraws use ChaCha streams from here on (stream 1 is physics').
+const REDRAW_STREAM: u64 = 0x100;
 
 fn uniform(rng: &mut ChaCha8Rng, [lo, hi]: Range) -> f64 {
     if hi > lo {
@@ -313,6 +362,21 @@ const PLACE_ROUNDS: u32 = 4;
 struct Footprint {
     center: [f64; 2],
     radius: f64,
+    /// Height of the object's top above the table, metres.
+    top_z: f64,
+    /// Stands on the table with nothing on it yet (another target may rest on it).
+    free_top: bool,
+}
+
+/// An object in a drawn rest rotation: the rotation, its bounding box's low and high
+/// corners, its footprint's centre offset from the origin in x, y, and the footprint's
+/// radius.
+struct Rested {
+    rotation: DMat3,
+    lo: DVec3,
+    hi: DVec3,
+    off: [f64; 2],
+    radius: f64,
 }
 
 impl SceneSampler {
@@ -339,6 +403,7 @@ impl SceneSampler {
             distractors: DistractorPool::default(),
             bin_models: None,
             fallbacks: Arc::default(),
+            resamples: Arc::default(),
         })
     }
 
@@ -384,6 +449,16 @@ impl SceneSampler {
         v
     }
 
+    /// Frames that were placed on another draw or with fewer targets, in frame order.
+    pub fn resamples(&self) -> Vec<Resample> {
+        let mut v = match self.resamples.lock() {
+            Ok(v) => v.clone(),
+            Err(p) => p.into_inner().clone(),
+        };
+        v.sort();
+        v
+    }
+
     /// Samples frame `frame_index`. The same (seed, index) always gives the same frame.
     pub fn sample(&self, frame_index: u64) -> Result<FrameScene, Error> {
         let spec = &self.spec;
@@ -399,8 +474,8 @@ impl SceneSampler {
         } else {
             Vec::new()
         };
-        let objects = self.frame_objects(frame_index);
-        let (targets, mut footprints) = self.place_objects(frame_index, &objects)?;
+        let (objects, (targets, mut footprints)) =
+            self.place_robustly(frame_index, self.frame_objects(frame_index))?;
         let placed = self.place_distractors(chosen, &mut drng, &mut footprints);
         let (chosen, distractor_poses): (Vec<Chosen>, Vec<Pose>) = placed.into_iter().unzip();
         let all: Vec<&SceneObject> = objects
@@ -650,21 +725,96 @@ impl SceneSampler {
         chosen.into_iter().map(|i| &self.objects[i]).collect()
     }
 
-    /// Places the targets: each round that cannot fit every one widens the area by 25%; the
-    /// result stays a pure function of (seed, frame). Returns the poses and footprints.
-    fn place_objects(
+    /// Places the frame's targets; when they do not fit, tries [`PLACEMENT_REDRAWS`] other
+    /// draws (the frame's placement stream, other ChaCha streams), then leaves out the largest
+    /// target and tries again, down to half of the targets (a frame that would lose more fails:
+    /// the spec asks for what the area cannot hold). A frame that fits on the first draw is sampled
+    /// exactly as before; every outcome stays a pure function of (seed, frame). Resampled
+    /// frames are recorded ([`SceneSampler::resamples`]).
+    #[allow(clippy::type_complexity)]
+    fn place_robustly<'a>(
         &self,
         frame_index: u64,
+        mut objects: Vec<&'a SceneObject>,
+    ) -> Result<(Vec<&'a SceneObject>, (Vec<Pose>, Vec<Footprint>)), Error> {
+        let mut dropped = Vec::new();
+        let min_kept = objects.len().div_ceil(2).max(1);
+        let mut first_error: Option<Error> = None;
+        let mut draw: u64 = 0;
+        loop {
+            let mut rng = frame_rng(self.seed, frame_index, Stream::Placement);
+            if draw > 0 {
+                rng.set_stream(REDRAW_STREAM + draw);
+            }
+            match self.place_objects(&objects, &mut rng) {
+                Ok(placed) => {
+                    if draw > 0 {
+                        let r = Resample {
+                            frame: frame_index,
+                            redraws: draw as u32,
+                            dropped,
+                        };
+                        match self.resamples.lock() {
+                            Ok(mut v) => v.push(r),
+                            Err(p) => p.into_inner().push(r),
+                        }
+                    }
+                    return Ok((objects, placed));
+                }
+                Err(e) => {
+                    draw += 1;
+                    let drop_one = draw.is_multiple_of(u64::from(PLACEMENT_REDRAWS) + 1);
+                    if drop_one && objects.len() <= min_kept {
+                        // The first draw's error names every target the spec asked for.
+                        return Err(first_error.unwrap_or(e));
+                    }
+                    first_error.get_or_insert(e);
+                    if drop_one {
+                        // The largest footprints go first: they are the ones that do not fit
+                        // (one at a time, an eighth of a crowd).
+                        let radius = |o: &SceneObject| {
+                            o.support_points_m
+                                .iter()
+                                .map(|p| p.length())
+                                .fold(0.0f32, f32::max)
+                        };
+                        let step = (objects.len() / 8).clamp(1, objects.len() - min_kept);
+                        for _ in 0..step {
+                            let i = objects
+                                .iter()
+                                .enumerate()
+                                .max_by(|a, b| radius(a.1).total_cmp(&radius(b.1)))
+                                .map_or(0, |(i, _)| i);
+                            dropped.push(objects.remove(i).name.clone());
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Places the targets: each round that cannot fit every one widens the area by 25%; the
+    /// result stays a pure function of `rng`'s state. Returns the poses and footprints.
+    fn place_objects(
+        &self,
         objects: &[&SceneObject],
+        rng: &mut ChaCha8Rng,
     ) -> Result<(Vec<Pose>, Vec<Footprint>), Error> {
         let p = &self.spec.placement;
-        let mut rng = frame_rng(self.seed, frame_index, Stream::Placement);
         let mut area = p.area_m;
         for round in 0..PLACE_ROUNDS {
             let mut placed = Vec::with_capacity(objects.len());
             let poses: Option<Vec<Pose>> = objects
                 .iter()
-                .map(|o| self.place_one(o, &mut rng, area, &mut placed))
+                .map(|o| {
+                    // Drawn only when stacking is on, so other specs keep their streams.
+                    if p.stack_prob > 0.0 && !placed.is_empty() && rng.gen_bool(p.stack_prob) {
+                        if let Some(pose) = self.stack_one(o, rng, &mut placed) {
+                            return Some(pose);
+                        }
+                    }
+                    self.place_one(o, rng, area, &mut placed)
+                })
                 .collect();
             match poses {
                 Some(poses) => return Ok((poses, placed)),
@@ -714,27 +864,13 @@ impl SceneSampler {
     ) -> Option<Pose> {
         let p = &self.spec.placement;
         for _ in 0..p.max_tries {
-            let rotation = match p.orientation {
-                Orientation::Upright => {
-                    let yaw = rng.gen_range(0.0..std::f64::consts::TAU);
-                    upright_rotation(yaw, o.up, o.tilt_deg, rng)
-                }
-                Orientation::Random => random_rotation(rng),
-            };
-            let pts: Vec<DVec3> = o
-                .support_points_m
-                .iter()
-                .map(|v| rotation * v.as_dvec3())
-                .collect();
-            let (lo, hi) = pts.iter().fold(
-                (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-                |(lo, hi), v| (lo.min(*v), hi.max(*v)),
-            );
-            let off = [(lo.x + hi.x) * 0.5, (lo.y + hi.y) * 0.5];
-            let radius = pts
-                .iter()
-                .map(|v| ((v.x - off[0]).powi(2) + (v.y - off[1]).powi(2)).sqrt())
-                .fold(0.0, f64::max);
+            let Rested {
+                lo,
+                hi,
+                off,
+                radius,
+                rotation,
+            } = self.rested(o, rng);
             let center = [
                 rng.gen_range(-0.5..=0.5) * area[0],
                 rng.gen_range(-0.5..=0.5) * area[1],
@@ -752,12 +888,107 @@ impl SceneSampler {
                 d >= f.radius + radius + p.min_gap_m
             });
             if clear {
-                placed.push(Footprint { center, radius });
+                placed.push(Footprint {
+                    center,
+                    radius,
+                    top_z: hi.z - lo.z,
+                    free_top: true,
+                });
                 return Some(Pose::new(
                     rotation,
                     DVec3::new(center[0] - off[0], center[1] - off[1], -lo.z),
                 ));
             }
+        }
+        None
+    }
+
+    /// A rest rotation for `o` (its `up`, `tilt_deg` or stable faces, a random yaw; or a
+    /// uniform rotation) and the extents that go with it.
+    fn rested(&self, o: &SceneObject, rng: &mut ChaCha8Rng) -> Rested {
+        let rotation = match self.spec.placement.orientation {
+            Orientation::Upright => {
+                let yaw = rng.gen_range(0.0..std::f64::consts::TAU);
+                o.rest_rotation(yaw, rng)
+            }
+            Orientation::Random => random_rotation(rng),
+        };
+        let pts: Vec<DVec3> = o
+            .support_points_m
+            .iter()
+            .map(|v| rotation * v.as_dvec3())
+            .collect();
+        let (lo, hi) = pts.iter().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(lo, hi), v| (lo.min(*v), hi.max(*v)),
+        );
+        let off = [(lo.x + hi.x) * 0.5, (lo.y + hi.y) * 0.5];
+        let radius = pts
+            .iter()
+            .map(|v| ((v.x - off[0]).powi(2) + (v.y - off[1]).powi(2)).sqrt())
+            .fold(0.0, f64::max);
+        Rested {
+            rotation,
+            lo,
+            hi,
+            off,
+            radius,
+        }
+    }
+
+    /// `o` resting on top of a target already on the table (`placement.stack_prob`): one no
+    /// narrower than it, its centre within half the base's radius of the base's centre, its
+    /// footprint clear of every other; None after `max_tries`.
+    fn stack_one(
+        &self,
+        o: &SceneObject,
+        rng: &mut ChaCha8Rng,
+        placed: &mut Vec<Footprint>,
+    ) -> Option<Pose> {
+        let p = &self.spec.placement;
+        for _ in 0..p.max_tries {
+            let bases: Vec<usize> = (0..placed.len()).filter(|&i| placed[i].free_top).collect();
+            if bases.is_empty() {
+                return None;
+            }
+            let b = bases[rng.gen_range(0..bases.len())];
+            let Rested {
+                lo,
+                hi,
+                off,
+                radius,
+                rotation,
+            } = self.rested(o, rng);
+            let base = &placed[b];
+            if radius > base.radius {
+                continue;
+            }
+            let (r, a) = (
+                0.5 * base.radius * rng.gen::<f64>().sqrt(),
+                rng.gen_range(0.0..std::f64::consts::TAU),
+            );
+            let center = [base.center[0] + r * a.cos(), base.center[1] + r * a.sin()];
+            let clear = placed.iter().enumerate().all(|(i, f)| {
+                i == b
+                    || ((f.center[0] - center[0]).powi(2) + (f.center[1] - center[1]).powi(2))
+                        .sqrt()
+                        >= f.radius + radius + p.min_gap_m
+            });
+            if !clear {
+                continue;
+            }
+            let z = base.top_z;
+            placed[b].free_top = false;
+            placed.push(Footprint {
+                center,
+                radius,
+                top_z: z + hi.z - lo.z,
+                free_top: false,
+            });
+            return Some(Pose::new(
+                rotation,
+                DVec3::new(center[0] - off[0], center[1] - off[1], z - lo.z),
+            ));
         }
         None
     }
@@ -860,6 +1091,7 @@ mod tests {
                 support_points_m: m.support_points(64),
                 up: UpAxis::PlusZ,
                 tilt_deg: 0.0,
+                rest_poses: Arc::from([]),
             })
             .collect()
     }
@@ -1003,11 +1235,86 @@ mod tests {
 
     #[test]
     fn impossible_placement_errors() {
+        // A bin too small for any object: not even one target fits, on any draw.
+        let mut spec = SceneSpec::default();
+        spec.bin.enabled = true;
+        spec.bin.size_m = [0.001, 0.001];
+        spec.placement.max_tries = 3;
+        let s = SceneSampler::new(spec, objs(2), 1)
+            .unwrap()
+            .with_bin_models(2);
+        let e = s.sample(0).unwrap_err();
+        assert!(e.to_string().contains("cannot place"), "{e}");
+    }
+
+    /// Issue 27: real objects rest on others (YCB-Video scene 2's pudding box); with
+    /// `placement.stack_prob` a target lies on one already on the table, no wider than it.
+    #[test]
+    fn stacked_targets_rest_on_a_wider_one() {
+        let big = Model::cuboid("big", Vec3::new(0.2, 0.2, 0.05));
+        let small = Model::cuboid("small", Vec3::new(0.06, 0.06, 0.04));
+        let obj = |i: u32, m: &Model| SceneObject {
+            model_index: i as usize,
+            obj_id: i + 1,
+            name: m.name.clone(),
+            support_points_m: m.support_points(64),
+            up: UpAxis::PlusZ,
+            tilt_deg: 0.0,
+            rest_poses: Arc::from([]),
+        };
+        let mut spec = SceneSpec::default();
+        spec.placement.stack_prob = 1.0;
+        let s = SceneSampler::new(spec, vec![obj(0, &big), obj(1, &small)], 4).unwrap();
+        for f in 0..20 {
+            let fr = s.sample(f).unwrap();
+            let w = world_from_objs(&fr);
+            // The small box's bottom (centre 2 cm above its base) on the big one's top (5 cm).
+            assert!(
+                (w[1].translation_m.z - 0.07).abs() < 1e-6,
+                "frame {f}: {:?}",
+                w[1]
+            );
+            let d = (w[1].translation_m - w[0].translation_m)
+                .truncate()
+                .length();
+            assert!(
+                d <= 0.5 * 0.2 * std::f64::consts::SQRT_2 + 1e-9,
+                "frame {f}: {d} m off its base"
+            );
+        }
+        // Reversed, the big box cannot rest on the small one: both stand on the table.
+        let mut spec = SceneSpec::default();
+        spec.placement.stack_prob = 1.0;
+        let s = SceneSampler::new(spec, vec![obj(1, &small), obj(0, &big)], 4).unwrap();
+        let w = world_from_objs(&s.sample(0).unwrap());
+        assert!((w[1].translation_m.z - 0.025).abs() < 1e-6, "{:?}", w[1]);
+    }
+
+    /// Issue 27: a frame whose targets did not fit stopped the render. It is drawn again
+    /// (other streams of its own RNG), then placed with fewer targets, deterministically.
+    #[test]
+    fn a_frame_that_does_not_fit_is_redrawn_then_placed_with_fewer_targets() {
+        let mut spec = SceneSpec::default();
+        spec.placement.area_m = [0.0, 0.0]; // one target fits at the centre, two never
+        spec.placement.max_tries = 3;
+        let s = SceneSampler::new(spec, objs(2), 1).unwrap();
+        let f = s.sample(0).unwrap();
+        assert_eq!(f.objects.len(), 1);
+        let r = s.resamples();
+        assert_eq!(r.len(), 1);
+        assert_eq!((r[0].frame, r[0].redraws), (0, PLACEMENT_REDRAWS + 1));
+        assert_eq!(r[0].dropped.len(), 1);
+        assert_eq!(s.sample(0).unwrap(), f, "deterministic");
+        // At most half of the targets are left out: four that cannot share a point fail.
         let mut spec = SceneSpec::default();
         spec.placement.area_m = [0.0, 0.0];
         spec.placement.max_tries = 3;
-        let s = SceneSampler::new(spec, objs(2), 1).unwrap();
+        let s = SceneSampler::new(spec, objs(4), 1).unwrap();
         let e = s.sample(0).unwrap_err();
         assert!(e.to_string().contains("cannot place"), "{e}");
+        // Frames that fit on the first draw are sampled as before, and not recorded.
+        let ok = SceneSampler::new(SceneSpec::default(), objs(2), 1).unwrap();
+        let _ = ok.sample(3).unwrap();
+        assert!(ok.resamples().is_empty());
     }
 }

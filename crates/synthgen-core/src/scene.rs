@@ -257,6 +257,10 @@ pub struct PlacementSpec {
     /// by `count`) of a size drawn uniformly in min..=max (clamped to how many there are).
     /// Default: unset, every target in every frame.
     pub objects_per_frame: Option<[u32; 2]>,
+    /// The probability that a target (after the frame's first) rests on top of a target
+    /// already on the table, one no wider than it, instead of on the table (`scene fit`: the
+    /// share of the real instances whose lowest point is off the table). Default 0.
+    pub stack_prob: f64,
 }
 
 impl Default for PlacementSpec {
@@ -269,6 +273,7 @@ impl Default for PlacementSpec {
             min_gap_m: 0.005,
             max_tries: 200,
             objects_per_frame: None,
+            stack_prob: 0.0,
         }
     }
 }
@@ -637,6 +642,12 @@ impl SceneSpec {
             return Err(Error::InvalidSpec(
                 "placement.max_tries must be >= 1".into(),
             ));
+        }
+        let sp = self.placement.stack_prob;
+        if !(0.0..=1.0).contains(&sp) {
+            return Err(Error::InvalidSpec(format!(
+                "placement.stack_prob must be in 0..=1, got {sp}"
+            )));
         }
         if let Some([lo, hi]) = self.placement.objects_per_frame {
             if lo == 0 || lo > hi {

@@ -24,6 +24,9 @@
 
 use std::collections::BTreeMap;
 
+mod rest;
+pub use rest::stable_rest_poses;
+
 use rapier3d::prelude::*;
 use synthgen_core::bin_spec::BinWall;
 use synthgen_core::glam::{DMat3, DQuat, DVec3};

@@ -24,6 +24,7 @@ fn objects() -> Vec<SceneObject> {
                 support_points_m: m.support_points(64),
                 up: Default::default(),
                 tilt_deg: 0.0,
+                rest_poses: Arc::from([]),
             }
         })
         .collect()

@@ -4,8 +4,10 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use std::sync::Arc;
 use synthgen_assets::Units;
-use synthgen_core::sample::SceneObject;
+
+use synthgen_core::sample::{RestPose, SceneObject};
 use synthgen_core::scene::UpAxis;
 use synthgen_core::{Model, Progress, SceneSpec, Symmetries};
 
@@ -176,6 +178,12 @@ pub(crate) fn scene_objects(
     let mut out = Vec::new();
     for (i, ((m, &id), s)) in models.iter().zip(ids).zip(sources).enumerate() {
         let support = m.support_points(256);
+        // `up = "stable"`: the rest poses of the mesh's convex hull, computed once per model.
+        let rest_poses: Arc<[RestPose]> = if s.up == UpAxis::Stable {
+            synthgen_physics::stable_rest_poses(m).into()
+        } else {
+            Arc::from([])
+        };
         for _ in 0..s.count {
             out.push(SceneObject {
                 model_index: i,
@@ -184,6 +192,7 @@ pub(crate) fn scene_objects(
                 support_points_m: support.clone(),
                 up: s.up,
                 tilt_deg: s.tilt_deg,
+                rest_poses: rest_poses.clone(),
             });
         }
     }

@@ -60,6 +60,9 @@ pub struct WriteReport {
     pub nothing_visible: Vec<u64>,
     /// Frames whose physics did not settle and kept the non-physics placement, with why.
     pub physics_fallbacks: Vec<(u64, String)>,
+    /// Frames whose targets did not fit on the first draw: placed on another draw, or with
+    /// fewer targets (`synthgen_core::sample::Resample`).
+    pub resampled: Vec<synthgen_core::sample::Resample>,
     /// Depth pixels beyond what the format's 16-bit depth holds, written as 0.
     pub depth_out_of_range_px: u64,
     /// "a BOP dataset to OUT (split train_pbr, 1 scene folder)" and the like.
@@ -159,6 +162,7 @@ impl PreparedJob {
         let summary = writer.finish(out)?;
         progress.finish();
         let fallbacks = self.sampler.physics_fallbacks();
+        let resampled = self.sampler.resamples();
         // Frames in the dataset: those an earlier, interrupted run wrote and this run's.
         let written = if options.sink.format == Format::Bop {
             done.count() + rendered
@@ -176,6 +180,13 @@ impl PreparedJob {
                 "physics_fallback_frames".into(),
                 fallbacks.iter().map(|f| f.0).collect::<Vec<_>>().into(),
             );
+            // Recorded only when it happened, so that other manifests stay as they were.
+            if !resampled.is_empty() {
+                extra.insert(
+                    "resampled_frames".into(),
+                    serde_json::to_value(&resampled).unwrap_or_default(),
+                );
+            }
         }
         write_manifest(out, &manifest)?;
         resume::end(out)?;
@@ -185,6 +196,7 @@ impl PreparedJob {
             failures,
             nothing_visible,
             physics_fallbacks: fallbacks,
+            resampled,
             depth_out_of_range_px: summary.depth_out_of_range_px,
             description: summary.description,
             resumed: done.count(),

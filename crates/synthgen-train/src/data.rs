@@ -40,6 +40,31 @@ pub struct DataOptions {
     pub seed: u64,
     /// The split to read; `None` picks `test`, else the only split.
     pub split: Option<String>,
+    /// Perturbations of the visible pixels, for training on synthetic frames (none: the
+    /// instances as rendered).
+    pub augment: Augment,
+}
+
+/// Perturbations of each instance's visible pixels before its points are drawn, toward what
+/// real frames give a model that synthetic ones do not: a segmenter's mask boundary, bleeding
+/// onto the background or falling short of the object; occluders the renders lack; missing
+/// readings. Drawn per instance from its own RNG stream (a pure function of the seed and the
+/// instance). The default changes nothing.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+pub struct Augment {
+    /// The visible mask grows or shrinks by a whole number of pixels drawn uniformly in
+    /// −k..=k (grown pixels take the depth there: the background behind an edge).
+    pub mask_jitter_px: u32,
+    /// Probability that an instance loses the pixels beyond a random line (10–50 % of them).
+    pub occlusion_prob: f64,
+    /// Up to this share of the visible pixels is dropped at random (0..1).
+    pub dropout: f64,
+}
+
+impl Augment {
+    pub fn is_none(&self) -> bool {
+        *self == Augment::default()
+    }
 }
 
 impl Default for DataOptions {
@@ -53,6 +78,7 @@ impl Default for DataOptions {
             depth_points: true,
             seed: 0,
             split: None,
+            augment: Augment::default(),
         }
     }
 }
@@ -211,14 +237,19 @@ fn load_frame(frame: &SourceFrame, opts: &DataOptions) -> Result<Vec<Outcome>> {
                 });
             }
         }
-        let valid: Vec<usize> = (0..mask.data.len())
-            .filter(|&i| mask.data[i] > 0 && depth.as_ref().is_none_or(|d| d.data[i] > 0.0))
+        let w = mask.width as usize;
+        let mut in_mask: Vec<bool> = mask.data.iter().map(|&v| v > 0).collect();
+        if !opts.augment.is_none() {
+            let mut rng = instance_rng(opts.seed ^ AUGMENT_STREAM, scene_id, im_id, gt_id);
+            augment_mask(&mut in_mask, w, &opts.augment, &mut rng);
+        }
+        let valid: Vec<usize> = (0..in_mask.len())
+            .filter(|&i| in_mask[i] && depth.as_ref().is_none_or(|d| d.data[i] > 0.0))
             .collect();
         if valid.len() < opts.min_pixels.max(1) {
             out.push(Outcome::FewPixels);
             continue;
         }
-        let w = mask.width as usize;
         // The sampled pixels (u, v, index) and their back-projected points; none without depth.
         let (uv, points_m): (Vec<Pixel>, Vec<[f32; 3]>) = match &depth {
             Some(depth) => {
@@ -305,6 +336,65 @@ fn load_frame(frame: &SourceFrame, opts: &DataOptions) -> Result<Vec<Outcome>> {
         })));
     }
     Ok(out)
+}
+
+/// Seeds the augmentation's per-instance streams apart from the point sampling's.
+const AUGMENT_STREAM: u64 = 0xa06e_17a7_e5ee_d000;
+
+/// Applies `a` to a visible mask (`width` pixels a row), in place.
+fn augment_mask(mask: &mut [bool], width: usize, a: &Augment, rng: &mut ChaCha8Rng) {
+    let h = mask.len() / width.max(1);
+    if a.mask_jitter_px > 0 {
+        let k = rng.gen_range(-(a.mask_jitter_px as i64)..=a.mask_jitter_px as i64);
+        for _ in 0..k.unsigned_abs() {
+            let grow = k > 0;
+            let before = mask.to_vec();
+            for y in 0..h {
+                for x in 0..width {
+                    let i = y * width + x;
+                    let n = [
+                        (x > 0).then(|| before[i - 1]),
+                        (x + 1 < width).then(|| before[i + 1]),
+                        (y > 0).then(|| before[i - width]),
+                        (y + 1 < h).then(|| before[i + width]),
+                    ];
+                    if grow {
+                        mask[i] = before[i] || n.iter().flatten().any(|&v| v);
+                    } else {
+                        mask[i] = before[i] && n.iter().all(|v| v.unwrap_or(false));
+                    }
+                }
+            }
+        }
+    }
+    if a.occlusion_prob > 0.0 && rng.gen::<f64>() < a.occlusion_prob {
+        let pts: Vec<(f64, f64)> = (0..mask.len())
+            .filter(|&i| mask[i])
+            .map(|i| ((i % width) as f64, (i / width) as f64))
+            .collect();
+        if pts.len() > 10 {
+            // A line at a random angle, placed so that 10–50 % of the pixels lie beyond it.
+            let angle = rng.gen_range(0.0..std::f64::consts::TAU);
+            let (dx, dy) = (angle.cos(), angle.sin());
+            let mut proj: Vec<f64> = pts.iter().map(|p| p.0 * dx + p.1 * dy).collect();
+            proj.sort_by(f64::total_cmp);
+            let cut = proj[((1.0 - rng.gen_range(0.1..0.5)) * (proj.len() - 1) as f64) as usize];
+            for (i, m) in mask.iter_mut().enumerate() {
+                let (x, y) = ((i % width) as f64, (i / width) as f64);
+                if *m && x * dx + y * dy > cut {
+                    *m = false;
+                }
+            }
+        }
+    }
+    if a.dropout > 0.0 {
+        let p = rng.gen_range(0.0..=a.dropout);
+        for m in mask.iter_mut() {
+            if *m && rng.gen::<f64>() < p {
+                *m = false;
+            }
+        }
+    }
 }
 
 /// Loads every instance of a split (frames in parallel), in (scene, image, gt) order, from a

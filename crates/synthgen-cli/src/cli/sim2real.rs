@@ -11,9 +11,9 @@ use super::ModelArg;
 fn parse_up(s: &str) -> Result<UpAxis, String> {
     UpAxis::ALL
         .into_iter()
-        .chain([UpAxis::Any])
+        .chain([UpAxis::Any, UpAxis::Stable])
         .find(|a| a.as_str() == s)
-        .ok_or_else(|| format!("{s:?}: one of +x, -x, +y, -y, +z, -z, any"))
+        .ok_or_else(|| format!("{s:?}: one of +x, -x, +y, -y, +z, -z, any, stable"))
 }
 
 pub const SIM2REAL_EXAMPLES: &str = "Examples:
@@ -75,19 +75,51 @@ pub struct ExperimentSim2realArgs {
 
     /// Also the ablation rows: the fitted set without the scene fit (synthgen's default
     /// scene, all objects standing on +z), with primitive distractors, with textured
-    /// ground and walls, with physics placement.
+    /// ground and walls, with physics placement, with unseen objects on +z; and
+    /// synth_fitted's frames trained without the mask jitter, with occlusion cuts, with
+    /// point dropout.
     #[arg(long)]
     pub ablation: bool,
 
     /// How test objects that no --fit frame shows stand in the synthetic sets: a model axis
-    /// up (+x, -x, +y, -y, +z, -z), or `any` (each instance on one of the six, drawn
-    /// uniformly). Objects the fit frames show get their fitted rest pose.
-    #[arg(long, value_name = "AXIS", default_value = "+z", value_parser = parse_up, allow_hyphen_values = true)]
+    /// up (+x, -x, +y, -y, +z, -z), `any` (each instance on one of the six, drawn uniformly),
+    /// or `stable` (each instance on a stable face of the mesh's convex hull, drawn with the
+    /// probability that a drop ends there). Objects the fit frames show get their fitted rest
+    /// pose.
+    #[arg(long, value_name = "AXIS", default_value = "stable", value_parser = parse_up, allow_hyphen_values = true)]
     pub unseen_up: UpAxis,
+
+    /// Training on the synthetic sets: each instance's visible mask grows or shrinks by up
+    /// to this many pixels (a real segmenter's boundary). 0: as rendered. The default was
+    /// chosen on validation scenes (docs/experiments.md).
+    #[arg(long, value_name = "PX", default_value_t = 3)]
+    pub mask_jitter_px: u32,
+
+    /// Training on the synthetic sets: the probability that an instance loses the pixels
+    /// beyond a random line (10-50 % of them: occluders the renders lack).
+    #[arg(long, value_name = "P", default_value_t = 0.0)]
+    pub occlusion_prob: f64,
+
+    /// Training on the synthetic sets: up to this share of each instance's pixels is
+    /// dropped at random.
+    #[arg(long, value_name = "P", default_value_t = 0.0)]
+    pub point_dropout: f64,
 
     /// Seeds the renders and the training.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+
+    /// Only these rows (synth_fitted, synth_no_sensor, synth_d455, the ablation rows,
+    /// real_only; the naive centroid always): a quicker look, or a comparison of settings.
+    /// Rows missing from an earlier run are computed on a re-run. Default: all.
+    #[arg(long, value_delimiter = ',', value_name = "ROW,...")]
+    pub rows: Vec<String>,
+
+    /// The share of a synthetic set's frames that may fail to render (each reported and
+    /// left out) before the experiment stops. Frames whose objects do not fit are drawn
+    /// again and then placed with fewer objects first.
+    #[arg(long, value_name = "FRACTION", default_value_t = 0.01)]
+    pub max_failed_fraction: f64,
 
     /// Small and fast, to check the pipeline: the --quick defaults above, synthetic sets at a
     /// quarter of the camera's resolution.

@@ -34,6 +34,7 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     check_backend(&args)?;
     render_resume::check_supported(&args)?;
     let frame_range = render_resume::frame_range(&args)?;
+    let asked = frame_range.end - frame_range.start;
     let spec = build_spec(&args)?;
     for w in spec.sensor.unused_sections() {
         printer.warning(w);
@@ -79,6 +80,7 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
         failures,
         nothing_visible,
         physics_fallbacks: fallbacks,
+        resampled,
         depth_out_of_range_px,
         description,
         ..
@@ -90,6 +92,25 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
             if fallbacks.len() == 1 { "" } else { "s" },
         ));
         printer.hint("raise placement.physics.max_steps in the scene spec");
+    }
+    if let Some(first) = resampled.first() {
+        let fewer = resampled.iter().filter(|r| !r.dropped.is_empty()).count();
+        printer.warning(format!(
+            "{} frame{} did not fit on the first draw and {} drawn again ({fewer} with fewer objects; first: frame {}{}); synthgen.json lists them",
+            resampled.len(),
+            if resampled.len() == 1 { "" } else { "s" },
+            if resampled.len() == 1 { "was" } else { "were" },
+            first.frame,
+            if first.dropped.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    ", without {}",
+                    synthgen_core::sample::name_summary(first.dropped.iter().map(String::as_str))
+                )
+            }
+        ));
+        printer.hint("widen [placement] area_m or lower objects_per_frame in the scene spec");
     }
     if depth_out_of_range_px > 0 {
         printer.warning(format!(
@@ -129,11 +150,38 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
             ));
         }
     }
-    Ok(if failures.is_empty() {
-        ExitStatus::Success
-    } else {
+    Ok(failed_status(
+        &failures,
+        asked,
+        args.max_failed_fraction,
+        printer,
+    ))
+}
+
+/// Exit 1 when more than `max_fraction` of the `asked` frames failed; a handful below it is
+/// reported (and listed in synthgen.json) but does not fail the run.
+fn failed_status(
+    failures: &[(u64, String)],
+    asked: u64,
+    max_fraction: f64,
+    printer: &Printer,
+) -> ExitStatus {
+    if failures.is_empty() {
+        return ExitStatus::Success;
+    }
+    let share = failures.len() as f64 / asked.max(1) as f64;
+    if share > max_fraction {
         ExitStatus::Failure
-    })
+    } else {
+        printer.warning(format!(
+            "{} of {} frames failed ({:.2} %, within --max-failed-fraction {}); the others are written",
+            failures.len(),
+            asked,
+            share * 100.0,
+            max_fraction
+        ));
+        ExitStatus::Success
+    }
 }
 
 fn job_backend(args: &RenderArgs) -> JobBackend {

@@ -252,16 +252,7 @@ fn written_poses_match_the_sampler_and_rest_on_the_plane() {
     let m = synthgen_assets::load_model(&dir.path().join("box.ply"), Units::Auto, &NoProgress)
         .unwrap()
         .model;
-    let objects: Vec<SceneObject> = (0..2)
-        .map(|_| SceneObject {
-            model_index: 0,
-            obj_id: 1,
-            name: "box".into(),
-            support_points_m: m.support_points(256),
-            up: Default::default(),
-            tilt_deg: 0.0,
-        })
-        .collect();
+    let objects: Vec<SceneObject> = (0..2).map(|_| SceneObject::new(0, 1, &m)).collect();
     let sampler = SceneSampler::new(spec, objects, seed).unwrap();
     let ds = BopDataset::open(&out).unwrap();
     let mut n = 0;
@@ -397,4 +388,126 @@ fn small_structured_light_render_validates_and_a_wrong_depth_scale_does_not() {
         "{}",
         String::from_utf8_lossy(&v.stdout)
     );
+}
+
+/// Issue 27: a frame whose objects did not fit in the placement area stopped the whole run
+/// ("cannot place ... after 200 tries"). It is drawn again, then placed with fewer objects;
+/// the manifest lists such frames and the run succeeds.
+#[test]
+fn frames_whose_objects_do_not_fit_are_redrawn_then_placed_with_fewer() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_box_ply(&d.join("box.ply"));
+    // Room for one box at the centre: every frame keeps one of its two.
+    std::fs::write(
+        d.join("tight.toml"),
+        "[placement]\narea_m = [0.0, 0.0]\nmax_tries = 5\n",
+    )
+    .unwrap();
+    let o = run(synthgen()
+        .current_dir(d)
+        .args(["render", "-q", "--objects", "box.ply", "box.ply"])
+        .args([
+            "--units",
+            "m",
+            "--scene",
+            "tight.toml",
+            "--image-size",
+            "80,60",
+        ])
+        .args(["--frames", "4", "--out", "o"]));
+    let e = stderr(&o);
+    assert!(o.status.success(), "{e}");
+    assert!(
+        e.contains("4 frames did not fit on the first draw") && e.contains("4 with fewer objects"),
+        "{e}"
+    );
+    let m: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("o/synthgen.json")).unwrap()).unwrap();
+    let r = m["extra"]["resampled_frames"].as_array().unwrap();
+    assert_eq!(r.len(), 4);
+    assert_eq!(r[0]["dropped"].as_array().unwrap().len(), 1);
+    let gt: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("o/train_pbr/000000/scene_gt.json")).unwrap())
+            .unwrap();
+    assert_eq!(gt["0"].as_array().unwrap().len(), 1);
+    // The same command gives the same frames.
+    let o = run(synthgen()
+        .current_dir(d)
+        .args(["render", "-q", "--objects", "box.ply", "box.ply"])
+        .args([
+            "--units",
+            "m",
+            "--scene",
+            "tight.toml",
+            "--image-size",
+            "80,60",
+        ])
+        .args(["--frames", "4", "--out", "o2"]));
+    assert!(o.status.success());
+    assert_eq!(
+        std::fs::read(d.join("o/train_pbr/000000/scene_gt.json")).unwrap(),
+        std::fs::read(d.join("o2/train_pbr/000000/scene_gt.json")).unwrap()
+    );
+    // At most half of a frame's objects are left out: three boxes that cannot share the
+    // point fail, and a run whose frames all fail exits with 1, naming what it asked for.
+    let o = run(synthgen()
+        .current_dir(d)
+        .args(["render", "-q", "--objects", "box.ply", "box.ply", "box.ply"])
+        .args([
+            "--units",
+            "m",
+            "--scene",
+            "tight.toml",
+            "--image-size",
+            "80,60",
+        ])
+        .args(["--frames", "4", "--out", "o3"]));
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(e.contains("cannot place box ×3"), "{e}");
+}
+
+/// Issue 27: a handful of frames that cannot be made no longer stops a run: failures up to
+/// --max-failed-fraction are reported and the others written; beyond it the run exits with 1.
+#[test]
+fn a_few_failed_frames_stay_within_max_failed_fraction() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_box_ply(&d.join("box.ply"));
+    // One to three boxes per frame, room for one: frames with three fail, the others keep one.
+    std::fs::write(
+        d.join("tight.toml"),
+        "[placement]\narea_m = [0.0, 0.0]\nmax_tries = 3\nobjects_per_frame = [1, 3]\n",
+    )
+    .unwrap();
+    let render = |out: &str, extra: &[&str]| {
+        run(synthgen()
+            .current_dir(d)
+            .args(["render", "-q", "--objects", "box.ply", "box.ply", "box.ply"])
+            .args([
+                "--units",
+                "m",
+                "--scene",
+                "tight.toml",
+                "--image-size",
+                "80,60",
+            ])
+            .args(["--frames", "12", "--out", out])
+            .args(extra))
+    };
+    let o = render("strict", &[]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    let failed = e.matches("failed: cannot place box ×3").count();
+    assert!((1..12).contains(&failed), "{e}");
+    let o = render("lenient", &["--max-failed-fraction", "0.9"]);
+    let e = stderr(&o);
+    assert!(o.status.success(), "{e}");
+    assert!(e.contains(&format!("{failed} of 12 frames failed")), "{e}");
+    let gt: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(d.join("lenient/train_pbr/000000/scene_gt.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(gt.as_object().unwrap().len(), 12 - failed);
 }

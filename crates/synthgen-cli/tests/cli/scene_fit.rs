@@ -276,6 +276,16 @@ fn fits_the_real_frames_and_the_scene_renders() {
     );
     assert_eq!(spec.placement.objects_per_frame, Some([3, 6]));
     assert_eq!(spec.camera_pose.azimuth_deg, [0.0, 360.0]);
+    // Scene 2's pudding box rests on another object in its 20 frames (of 260 instances):
+    // the sampler stacks that share of its targets.
+    assert_eq!(
+        r["off_table"],
+        serde_json::json!([20, 260]),
+        "{}",
+        r["off_table"]
+    );
+    assert_eq!(spec.placement.stack_prob, 0.07);
+    assert!(text.contains("stack_prob = 0.07"), "{text}");
     let by_id: BTreeMap<u32, _> = spec
         .objects
         .iter()
@@ -312,6 +322,10 @@ fn fits_the_real_frames_and_the_scene_renders() {
     let ids: Vec<u32> = spec.objects.iter().map(|o| o.obj_id.unwrap()).collect();
     assert_eq!(ids, [8, 14, 21]);
     assert_eq!(spec.placement.objects_per_frame, Some([3, 3]));
+    assert_eq!(
+        spec.placement.stack_prob, 0.0,
+        "every object of scene 0 stands on the table"
+    );
     render_fitted(&one, &d.join("render0"), [3, 3]);
 }
 

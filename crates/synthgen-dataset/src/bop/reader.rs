@@ -153,7 +153,8 @@ fn list_dir(dir: &Path) -> Result<Vec<(String, PathBuf, bool)>> {
         if name.starts_with('.') {
             continue;
         }
-        let is_dir = entry.file_type().map(|t| t.is_dir()).unwrap_or(false);
+        // Follows links: scene folders may be symlinks to where the frames live.
+        let is_dir = std::fs::metadata(entry.path()).is_ok_and(|m| m.is_dir());
         out.push((name, entry.path(), is_dir));
     }
     out.sort();

@@ -126,7 +126,8 @@ impl LinemodDataset {
         for entry in entries {
             let entry = entry.map_err(|e| Error::io("list directory", &data, e))?;
             let name = entry.file_name().to_string_lossy().into_owned();
-            let is_dir = entry.file_type().map(|t| t.is_dir()).unwrap_or(false);
+            // Follows links: scene folders may be symlinks to where the frames live.
+            let is_dir = std::fs::metadata(entry.path()).is_ok_and(|m| m.is_dir());
             if is_dir && !name.is_empty() && name.bytes().all(|b| b.is_ascii_digit()) {
                 if let Ok(id) = name.parse::<u32>() {
                     objects.push(id);

@@ -186,6 +186,9 @@ pub struct SceneFit {
     pub extent_m: [f64; 2],
     pub objects: Vec<FittedObject>,
     pub occlusion: Option<Occlusion>,
+    /// Instances whose lowest point is more than [`OFF_TABLE_M`] above the table (resting on
+    /// another object), of those with a lowest point: the spec's `placement.stack_prob`.
+    pub off_table: [usize; 2],
     /// The derived spec: [camera], [camera_pose], [placement] and [[objects]] (absolute model
     /// paths); every other section at its default.
     pub spec: SceneSpec,
@@ -379,6 +382,20 @@ fn summarize(
                 / visib.len() as f64,
         });
 
+    let lowest: Vec<f64> = used
+        .iter()
+        .flat_map(|f| f.objects.iter().filter_map(|o| o.lowest_point_m))
+        .collect();
+    let off_table = [
+        lowest.iter().filter(|&&l| l > OFF_TABLE_M).count(),
+        lowest.len(),
+    ];
+    let stack_prob = if off_table[1] == 0 {
+        0.0
+    } else {
+        round_to(off_table[0] as f64 / off_table[1] as f64, 0.01, false)
+    };
+
     let k = camera.intrinsics;
     let area = |e: f64| round_to((e * (1.0 + LENGTH_MARGIN)).max(MIN_AREA_M), 0.01, true);
     let spec = SceneSpec {
@@ -401,6 +418,7 @@ fn summarize(
         placement: PlacementSpec {
             area_m: [area(extent_m[0]), area(extent_m[1])],
             objects_per_frame: Some([objects_per_frame.min as u32, objects_per_frame.max as u32]),
+            stack_prob,
             ..PlacementSpec::default()
         },
         objects: objects
@@ -440,6 +458,7 @@ fn summarize(
         extent_m,
         objects,
         occlusion,
+        off_table,
         spec,
         frames: used,
     })

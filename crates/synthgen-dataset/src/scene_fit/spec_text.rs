@@ -210,6 +210,19 @@ pub fn spec_toml(fit: &SceneFit, out: &Path, sensor: Option<&Path>) -> Result<St
         fit.extent_m[0], fit.extent_m[1]
     );
     let _ = writeln!(t, "area_m = {}", range(p.area_m));
+    if fit.off_table[1] > 0 {
+        let _ = writeln!(
+            t,
+            "# Instances resting off the table (lowest point over {:.0} cm up: on another object):\n\
+             # {} of {}.",
+            crate::scene_fit::OFF_TABLE_M * 100.0,
+            fit.off_table[0],
+            fit.off_table[1]
+        );
+    }
+    if p.stack_prob > 0.0 {
+        let _ = writeln!(t, "stack_prob = {}", p.stack_prob);
+    }
     if let Some(o) = &fit.occlusion {
         let _ = writeln!(
             t,
@@ -262,7 +275,7 @@ pub fn spec_toml(fit: &SceneFit, out: &Path, sensor: Option<&Path>) -> Result<St
         );
         if o.off_table() {
             t.push_str(
-                "# It does not stand on the table (on another object?); the sampler puts it there.\n",
+                "# It does not stand on the table (on another object?): see stack_prob in [placement].\n",
             );
         }
         let _ = writeln!(t, "path = {}", path_string(&relative_path(&dir, &o.model))?);

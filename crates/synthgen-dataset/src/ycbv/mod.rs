@@ -174,7 +174,8 @@ fn numbered_dirs(dir: &Path) -> Result<Vec<(u32, PathBuf)>> {
     for e in entries {
         let e = e.map_err(|e| Error::io("list directory", dir, e))?;
         let name = e.file_name().to_string_lossy().into_owned();
-        let is_dir = e.file_type().map(|t| t.is_dir()).unwrap_or(false);
+        // Follows links: scene folders may be symlinks to where the frames live.
+        let is_dir = std::fs::metadata(e.path()).is_ok_and(|m| m.is_dir());
         if let (true, Some(id)) = (is_dir, parse_number(&name)) {
             out.push((id, e.path()));
         }

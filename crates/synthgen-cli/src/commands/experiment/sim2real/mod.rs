@@ -21,6 +21,7 @@ use synthgen_dataset::io::atomic_write;
 use synthgen_dataset::output::{check_apart, OutputLock};
 use synthgen_dataset::source::{open_source, FrameSource, SourceFrame};
 use synthgen_pipeline::{Format, RenderJob, SinkOptions, WriteOptions};
+use synthgen_train::data::Augment;
 
 use self::rows::{RowRecord, TrainSpec};
 use crate::cli::{ExperimentSim2realArgs, TrainBudget};
@@ -60,15 +61,27 @@ pub struct Settings {
     /// The rest pose of test objects no fit frame shows.
     #[serde(default)]
     pub unseen_up: UpAxis,
+    /// Perturbations of the synthetic training instances (not the real ones).
+    #[serde(default)]
+    pub augment: synthgen_train::data::Augment,
     pub seed: u64,
     pub quick: bool,
 }
 
-/// A synthetic set: how its scene differs from the fitted one.
+/// A row trained on a synthetic set: how its scene differs from the fitted one, or which set
+/// it trains on with other training-time perturbations.
 struct Variant {
     name: &'static str,
     what: &'static str,
     ablation: bool,
+    /// Trains on this variant's set (rendered once) instead of a render of its own.
+    uses_set: Option<&'static str>,
+    /// Its training instances' perturbations, from the settings'.
+    augment: fn(Augment) -> Augment,
+}
+
+fn as_set(a: Augment) -> Augment {
+    a
 }
 
 const VARIANTS: &[Variant] = &[
@@ -76,36 +89,84 @@ const VARIANTS: &[Variant] = &[
         name: "synth_fitted",
         what: "synthetic, fitted scene and fitted sensor",
         ablation: false,
+        uses_set: None,
+        augment: as_set,
     },
     Variant {
         name: "synth_no_sensor",
         what: "synthetic, fitted scene, clean depth (no sensor model)",
         ablation: false,
+        uses_set: None,
+        augment: as_set,
     },
     Variant {
         name: "synth_d455",
         what: "synthetic, fitted scene, the D455 model",
         ablation: false,
+        uses_set: None,
+        augment: as_set,
     },
     Variant {
         name: "ablation_no_scene_fit",
         what: "synthetic, synthgen's default scene (all objects every frame, standing on +z), fitted sensor",
         ablation: true,
+        uses_set: None,
+        augment: as_set,
     },
     Variant {
         name: "ablation_distractors",
         what: "synthetic, fitted scene and sensor, 1-3 primitive distractors per frame",
         ablation: true,
+        uses_set: None,
+        augment: as_set,
     },
     Variant {
         name: "ablation_textures",
         what: "synthetic, fitted scene and sensor, textured ground and 2-4 textured walls",
         ablation: true,
+        uses_set: None,
+        augment: as_set,
     },
     Variant {
         name: "ablation_physics",
         what: "synthetic, fitted scene and sensor, objects dropped and settled (physics)",
         ablation: true,
+        uses_set: None,
+        augment: as_set,
+    },
+    Variant {
+        name: "ablation_unseen_on_z",
+        what: "synthetic, fitted scene and sensor, objects no fit frame shows standing on +z instead of their stable faces",
+        ablation: true,
+        uses_set: None,
+        augment: as_set,
+    },
+    Variant {
+        name: "ablation_no_mask_jitter",
+        what: "synth_fitted's frames, trained without the mask boundary jitter",
+        ablation: true,
+        uses_set: Some("synth_fitted"),
+        augment: |a| Augment {
+            mask_jitter_px: 0,
+            ..a
+        },
+    },
+    Variant {
+        name: "ablation_occlusion",
+        what: "synth_fitted's frames, trained with random occlusion cuts (p 0.3)",
+        ablation: true,
+        uses_set: Some("synth_fitted"),
+        augment: |a| Augment {
+            occlusion_prob: 0.3,
+            ..a
+        },
+    },
+    Variant {
+        name: "ablation_dropout",
+        what: "synth_fitted's frames, trained with point dropout (up to 20 %)",
+        ablation: true,
+        uses_set: Some("synth_fitted"),
+        augment: |a| Augment { dropout: 0.2, ..a },
     },
 ];
 
@@ -186,12 +247,7 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
             ));
         }
     }
-    let objects = test_objects(
-        test_src.as_ref(),
-        fit_src.as_ref(),
-        &test_frames,
-        &fit_frames,
-    )?;
+    let objects = test_objects(test_src.as_ref(), fit_src.as_ref(), &test_frames)?;
     // A copy (or hard links) of the test frames as --fit: the fits and the real-only baseline
     // would see the test frames.
     let t: Vec<&_> = test_frames.iter().collect();
@@ -224,6 +280,11 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
         width,
         ablation: args.ablation,
         unseen_up: args.unseen_up,
+        augment: synthgen_train::data::Augment {
+            mask_jitter_px: args.mask_jitter_px,
+            occlusion_prob: args.occlusion_prob,
+            dropout: args.point_dropout,
+        },
         seed: args.seed,
         quick: args.quick,
     };
@@ -262,24 +323,42 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
         test_src.camera().height,
     );
     let mut notes = Vec::new();
-    let base = base_scene(&settings, &fit_out, &test_k, &mut notes)?;
+    let mut base = base_scene(&settings, &fit_out, &test_k, &mut notes)?;
+    widen_distances(&mut base, &test_frames, &mut notes)?;
+    let wanted = |name: &str| args.rows.is_empty() || args.rows.iter().any(|r| r == name);
     let variants: Vec<&Variant> = VARIANTS
         .iter()
-        .filter(|v| !v.ablation || settings.ablation)
+        .filter(|v| (!v.ablation || settings.ablation) && wanted(v.name))
         .collect();
     let mut sets: Vec<(&Variant, PathBuf)> = Vec::new();
+    // Each set rendered once: a row that trains on another's set (`uses_set`) shares it.
+    let mut rendered: BTreeMap<&str, PathBuf> = BTreeMap::new();
     for v in &variants {
-        let Some(spec) = variant_scene(v, &base, &settings, &test_k, &mut notes)? else {
+        let set_name = v.uses_set.unwrap_or(v.name);
+        if let Some(dir) = rendered.get(set_name) {
+            sets.push((v, dir.clone()));
+            continue;
+        }
+        let of = VARIANTS.iter().find(|x| x.name == set_name).unwrap_or(v);
+        let Some(spec) = variant_scene(of, &base, &settings, &test_k, &mut notes)? else {
             continue;
         };
         let t = Instant::now();
-        let (dir, computed) = ensure_render(&settings, &out, v.name, &spec, printer)?;
+        let (dir, computed) = ensure_render(
+            &settings,
+            &out,
+            set_name,
+            &spec,
+            args.max_failed_fraction,
+            printer,
+        )?;
         if computed {
             timing
                 .render_s
-                .insert(v.name.to_string(), t.elapsed().as_secs_f64());
+                .insert(set_name.to_string(), t.elapsed().as_secs_f64());
             write_timing(&out, &timing)?;
         }
+        rendered.insert(set_name, dir.clone());
         sets.push((v, dir));
     }
 
@@ -317,6 +396,7 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
                         scenes: &[],
                         epochs: Some(settings.epochs),
                         steps: None,
+                        augment: (v.augment)(settings.augment),
                     },
                     &test,
                     printer,
@@ -335,8 +415,9 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
         records.push(record);
     }
     let real_only = match rows::read_record(&out, REAL_ONLY) {
-        Some(r) => r,
-        None => {
+        Some(r) => Some(r),
+        None if !wanted(REAL_ONLY) => None,
+        None => Some({
             computed += 1;
             printer.info(format!(
                 "training {REAL_ONLY} on the real frames of {}",
@@ -363,19 +444,20 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
                     scenes: &fit_scenes,
                     epochs: None,
                     steps: synth_steps,
+                    augment: Default::default(),
                 },
                 &test,
                 printer,
             )?
-        }
+        }),
     };
-    records.push(real_only);
+    records.extend(real_only);
     records.push(naive);
 
     let elapsed = started.elapsed().as_secs_f64();
     timing
         .render_s
-        .retain(|k, _| sets.iter().any(|(v, _)| v.name == k));
+        .retain(|k, _| sets.iter().any(|(v, _)| v.uses_set.unwrap_or(v.name) == k));
     timing.rows_s = records
         .iter()
         .map(|r| (r.name.clone(), r.seconds_train + r.seconds_eval))
@@ -384,7 +466,22 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
         timing.fit_s + timing.render_s.values().sum::<f64>() + timing.rows_s.values().sum::<f64>();
     timing.this_run_s = elapsed;
     write_timing(&out, &timing)?;
-    let rep = report::Report::new(&settings, records, timing, notes);
+    // The frames each set's render left out (its synthgen.json's failed_frames).
+    let skipped: BTreeMap<String, Vec<u64>> = sets
+        .iter()
+        .map(|(v, dir)| {
+            let failed = synthgen_dataset::read_manifest(dir)
+                .ok()
+                .and_then(|m| {
+                    m.extra["failed_frames"]
+                        .as_array()
+                        .map(|a| a.iter().filter_map(serde_json::Value::as_u64).collect())
+                })
+                .unwrap_or_default();
+            (v.uses_set.unwrap_or(v.name).to_string(), failed)
+        })
+        .collect();
+    let rep = report::Report::new(&settings, records, timing, notes, skipped);
     rep.write(&out)?;
     printer.data(rep.markdown())?;
     printer.info(format!(
@@ -458,7 +555,6 @@ fn test_objects(
     test: &dyn FrameSource,
     fit: &dyn FrameSource,
     test_frames: &[SourceFrame],
-    fit_frames: &[SourceFrame],
 ) -> Result<Vec<TestObject>> {
     let ids: BTreeSet<u32> = test_frames.iter().flat_map(|f| f.object_set()).collect();
     let mut out = Vec::new();
@@ -486,24 +582,7 @@ fn test_objects(
             "every object scored must be rendered: add its model to the --test or --fit dataset",
         ));
     }
-    let fit_ids: BTreeSet<u32> = fit_frames.iter().flat_map(|f| f.object_set()).collect();
-    if !out.iter().any(|o| fit_ids.contains(&o.obj_id)) {
-        return Err(user_error(
-            format!(
-                "no test object ({}) is annotated in the --fit frames ({})",
-                out.iter()
-                    .map(|o| o.obj_id.to_string())
-                    .collect::<Vec<_>>()
-                    .join(", "),
-                fit_ids
-                    .iter()
-                    .map(u32::to_string)
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ),
-            "fit to real frames of (some of) the same objects: their rest poses come from there",
-        ));
-    }
+    // Objects no fit frame shows get --unseen-up: base_scene notes which.
     Ok(out)
 }
 
@@ -650,6 +729,66 @@ fn base_scene(
     Ok(spec)
 }
 
+/// The camera distances of the test frames, read from their depth alone (no label): per frame
+/// the median reading in the central fifth of the image, where the views look at; [p5, p95]
+/// over the frames, widened by 10 %. None without readings.
+fn test_view_distances(frames: &[SourceFrame]) -> Result<Option<[f64; 2]>> {
+    use rayon::prelude::*;
+    let mut d: Vec<f64> = frames
+        .par_iter()
+        .filter_map(|f| {
+            let path = f.depth.as_ref()?;
+            Some(
+                synthgen_dataset::bop::read_depth_m(path, f.camera.depth_scale).map(|img| {
+                    let (w, h) = (img.width as usize, img.height as usize);
+                    let mut v: Vec<f32> = (2 * h / 5..3 * h / 5)
+                        .flat_map(|y| (2 * w / 5..3 * w / 5).map(move |x| (x, y)))
+                        .map(|(x, y)| img.data[y * w + x])
+                        .filter(|&z| z > 0.0)
+                        .collect();
+                    (!v.is_empty()).then(|| {
+                        let mid = v.len() / 2;
+                        f64::from(*v.select_nth_unstable_by(mid, f32::total_cmp).1)
+                    })
+                }),
+            )
+        })
+        .collect::<std::result::Result<Vec<Option<f64>>, _>>()?
+        .into_iter()
+        .flatten()
+        .collect();
+    if d.is_empty() {
+        return Ok(None);
+    }
+    d.sort_by(f64::total_cmp);
+    let at = |q: f64| d[((d.len() - 1) as f64 * q).round() as usize];
+    Ok(Some([at(0.05) * 0.9, at(0.95) * 1.1]))
+}
+
+/// The fitted camera distances, widened to cover the test frames' own (their depth, read
+/// without labels, as their intrinsics are): a scene fitted to frames taken at 0.6 m says
+/// nothing of test frames taken at 1.1 m.
+fn widen_distances(
+    spec: &mut SceneSpec,
+    test_frames: &[SourceFrame],
+    notes: &mut Vec<String>,
+) -> Result<()> {
+    let Some([lo, hi]) = test_view_distances(test_frames)? else {
+        return Ok(());
+    };
+    let fitted = spec.camera_pose.distance_m;
+    let round = |v: f64| (v * 1000.0).round() / 1000.0;
+    let wide = [round(fitted[0].min(lo)), round(fitted[1].max(hi))];
+    if wide != fitted {
+        notes.push(format!(
+            "camera distances {:.3}..{:.3} m (fitted {:.3}..{:.3} m, widened to the test frames' depth at the image centre, {:.3}..{:.3} m with a 10 % margin: read without labels)",
+            wide[0], wide[1], fitted[0], fitted[1], lo, hi
+        ));
+        spec.camera_pose.distance_m = wide;
+    }
+    Ok(())
+}
+
 fn set_camera(spec: &mut SceneSpec, k: &synthgen_core::Intrinsics) {
     spec.camera.width = Some(k.width);
     spec.camera.height = Some(k.height);
@@ -691,6 +830,13 @@ fn variant_scene(
             set_camera(&mut d, k);
             spec = d;
         }
+        "ablation_unseen_on_z" => {
+            for o in &mut spec.objects {
+                if o.up == UpAxis::Stable {
+                    o.up = UpAxis::default();
+                }
+            }
+        }
         "ablation_distractors" => spec.distractors.count = [1, 3],
         "ablation_textures" => match textures_dir() {
             Some(t) => {
@@ -727,12 +873,14 @@ fn textures_dir() -> Option<PathBuf> {
 
 /// Renders a variant's set into `sources/NAME` (BOP) through the pipeline library, unless a
 /// finished render of the same scene, frames and seed is there (`sources/NAME.done`). The
-/// flag: rendered now.
+/// flag: rendered now. Up to `max_failed_fraction` of the frames may fail (they are left
+/// out, listed in the set's synthgen.json and the report's `skipped_frames`).
 fn ensure_render(
     s: &Settings,
     out: &Path,
     name: &str,
     spec: &SceneSpec,
+    max_failed_fraction: f64,
     printer: &Printer,
 ) -> Result<(PathBuf, bool)> {
     let sources = out.join("sources");
@@ -784,14 +932,32 @@ fn ensure_render(
     options.command_line = std::env::args().collect();
     let report = job.write(&options, printer)?;
     if let Some((i, e)) = report.failures.first() {
-        return Err(user_error(
-            format!(
-                "{} of {} frames of {} failed to render (first: frame {i}: {e})",
-                report.failures.len(),
-                s.frames,
-                dir.display()
-            ),
-            "check the objects' models and the scene",
+        let share = report.failures.len() as f64 / s.frames.max(1) as f64;
+        let what = format!(
+            "{} of {} frames of {} failed to render (first: frame {i}: {e})",
+            report.failures.len(),
+            s.frames,
+            dir.display()
+        );
+        if share > max_failed_fraction {
+            return Err(user_error(
+                what,
+                "check the objects' models and the scene, or allow more with --max-failed-fraction",
+            ));
+        }
+        printer.warning(format!(
+            "{what}; left out (within --max-failed-fraction {max_failed_fraction})"
+        ));
+    }
+    if !report.resampled.is_empty() {
+        printer.info(format!(
+            "{name}: {} frames placed on another draw ({} with fewer objects)",
+            report.resampled.len(),
+            report
+                .resampled
+                .iter()
+                .filter(|r| !r.dropped.is_empty())
+                .count()
         ));
     }
     printer.info(format!(

@@ -39,13 +39,27 @@ pub struct Baseline {
     pub objects: BTreeMap<String, Metrics>,
 }
 
-/// `report.json`: the schema scripts depend on (`all`, `objects`, `baselines`), then the
-/// rows in full, the settings and the timing.
+/// The result beside the naive centroid on the same instances: mean centre error, cm.
+#[derive(Debug, Clone, Serialize)]
+pub struct VsNaive {
+    pub n: usize,
+    pub model_cm: f64,
+    pub naive_cm: f64,
+}
+
+/// `report.json`: the schema scripts depend on (`all`, `objects`, `scenes`, `baselines`,
+/// `vs_naive`, `skipped_frames`), then the rows in full, the settings and the timing.
 #[derive(Debug, Clone, Serialize)]
 pub struct Report {
     pub all: Option<Metrics>,
     pub objects: BTreeMap<String, Metrics>,
+    /// The result per test scene.
+    pub scenes: BTreeMap<String, Metrics>,
     pub baselines: BTreeMap<String, Baseline>,
+    /// The result against the naive centroid, per object and per scene.
+    pub vs_naive: BTreeMap<String, BTreeMap<String, VsNaive>>,
+    /// Per synthetic set, the frames that failed to render and were left out.
+    pub skipped_frames: BTreeMap<String, Vec<u64>>,
     pub rows: Vec<RowRecord>,
     pub settings: Settings,
     pub timing: Timing,
@@ -58,11 +72,38 @@ impl Report {
         rows: Vec<RowRecord>,
         timing: Timing,
         notes: Vec<String>,
+        skipped_frames: BTreeMap<String, Vec<u64>>,
     ) -> Report {
         let main = rows.iter().find(|r| r.name == MAIN_ROW);
+        let naive = rows.iter().find(|r| r.name == NAIVE);
+        let beside = |m: &BTreeMap<String, Metrics>, n: &BTreeMap<String, Metrics>| {
+            m.iter()
+                .filter_map(|(k, a)| {
+                    let b = n.get(k)?;
+                    Some((
+                        k.clone(),
+                        VsNaive {
+                            n: a.n,
+                            model_cm: a.mean_centre_error_cm,
+                            naive_cm: b.mean_centre_error_cm,
+                        },
+                    ))
+                })
+                .collect::<BTreeMap<_, _>>()
+        };
+        let vs_naive = match (main, naive) {
+            (Some(m), Some(n)) => BTreeMap::from([
+                ("objects".to_string(), beside(&m.objects, &n.objects)),
+                ("scenes".to_string(), beside(&m.scenes, &n.scenes)),
+            ]),
+            _ => BTreeMap::new(),
+        };
         Report {
             all: main.map(|r| r.all.clone()),
             objects: main.map(|r| r.objects.clone()).unwrap_or_default(),
+            scenes: main.map(|r| r.scenes.clone()).unwrap_or_default(),
+            vs_naive,
+            skipped_frames,
             baselines: rows
                 .iter()
                 .filter(|r| r.name != MAIN_ROW)
@@ -204,6 +245,59 @@ impl Report {
                 }
             }
             let _ = writeln!(o);
+        }
+        // Per test scene, when there are several.
+        let scene_ids: Vec<String> = self
+            .rows
+            .iter()
+            .flat_map(|r| r.scenes.keys().cloned())
+            .collect::<std::collections::BTreeSet<_>>()
+            .into_iter()
+            .collect();
+        if scene_ids.len() > 1 {
+            let _ = writeln!(o, "\nMean centre error (cm) per test scene:\n");
+            let _ = write!(o, "| scene | n |");
+            for r in &self.rows {
+                let _ = write!(o, " {} |", r.name);
+            }
+            let _ = writeln!(o);
+            let _ = write!(o, "|---|---:|");
+            for _ in &self.rows {
+                let _ = write!(o, "---:|");
+            }
+            let _ = writeln!(o);
+            for id in &scene_ids {
+                let n = self
+                    .rows
+                    .iter()
+                    .find_map(|r| r.scenes.get(id).map(|m| m.n))
+                    .unwrap_or(0);
+                let _ = write!(o, "| {id} | {n} |");
+                for r in &self.rows {
+                    match r.scenes.get(id) {
+                        Some(m) => {
+                            let _ = write!(o, " {:.2} |", m.mean_centre_error_cm);
+                        }
+                        None => {
+                            let _ = write!(o, " — |");
+                        }
+                    }
+                }
+                let _ = writeln!(o);
+            }
+        }
+        let skipped: usize = self.skipped_frames.values().map(Vec::len).sum();
+        if skipped > 0 {
+            let _ = writeln!(
+                o,
+                "\n{skipped} synthetic frames failed to render and were left out: {}.",
+                self.skipped_frames
+                    .iter()
+                    .filter(|(_, v)| !v.is_empty())
+                    .map(|(k, v)| format!("{k} {}", v.len()))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
         }
         let t = &self.timing;
         let join = |m: &BTreeMap<String, f64>| {

@@ -59,6 +59,9 @@ pub struct RowRecord {
     pub all: Metrics,
     /// Per object id.
     pub objects: BTreeMap<String, Metrics>,
+    /// Per test scene id (centre errors).
+    #[serde(default)]
+    pub scenes: BTreeMap<String, Metrics>,
     pub last_epoch: Option<EpochMetrics>,
     pub seconds_train: f64,
     pub seconds_eval: f64,
@@ -167,6 +170,8 @@ pub struct TrainSpec<'a> {
     /// Epochs, or `None` for as many optimizer steps as `steps` gives.
     pub epochs: Option<usize>,
     pub steps: Option<usize>,
+    /// Perturbations of the training instances (the synthetic sets').
+    pub augment: synthgen_train::data::Augment,
 }
 
 /// Trains a model on `spec.data` and scores it on `test` (a row from scratch; `row.json`
@@ -185,7 +190,11 @@ pub fn train_row(
     }
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let t0 = Instant::now();
-    let set = load_source_instances(spec.data, &data_options(s, s.seed, None), &NoProgress)
+    let opts = DataOptions {
+        augment: spec.augment,
+        ..data_options(s, s.seed, None)
+    };
+    let set = load_source_instances(spec.data, &opts, &NoProgress)
         .with_context(|| format!("cannot load {}", spec.data.root().display()))?;
     let mut set = set;
     if !spec.scenes.is_empty() {
@@ -250,7 +259,7 @@ pub fn train_row(
     let net = load_model(&run_dir.join(MODEL_FILE), &cfg, &device)?;
     let tested: Vec<&Instance> = test.instances.iter().collect();
     let preds = net.predict(&tested, test.objects.as_ref(), 64)?;
-    let (all, objects_m) = score(&tested, &preds, test)?;
+    let (all, objects_m, scenes) = score(&tested, &preds, test)?;
     let record = RowRecord {
         name: spec.name.to_string(),
         what: spec.what.clone(),
@@ -259,6 +268,7 @@ pub fn train_row(
         epochs,
         all,
         objects: objects_m,
+        scenes,
         last_epoch: outcome.history.last().cloned(),
         seconds_train,
         seconds_eval: t1.elapsed().as_secs_f64(),
@@ -276,6 +286,12 @@ pub fn naive_row(out: &Path, test: &TestSet) -> Result<RowRecord> {
         .iter()
         .map(|i| (i.obj_id, centre_error_m(centroid(&i.points_m), i)))
         .collect();
+    let by_scene: Vec<(u32, f64)> = test
+        .instances
+        .iter()
+        .zip(&errors)
+        .map(|(i, e)| (i.scene_id, e.1))
+        .collect();
     let record = RowRecord {
         name: NAIVE.into(),
         what: "the mean of the masked real depth points as the centre (no training)".into(),
@@ -284,6 +300,10 @@ pub fn naive_row(out: &Path, test: &TestSet) -> Result<RowRecord> {
         epochs: 0,
         all: centre_metrics(errors.iter().map(|e| e.1)),
         objects: per_object(&errors)
+            .into_iter()
+            .map(|(id, v)| (id.to_string(), centre_metrics(v.into_iter())))
+            .collect(),
+        scenes: per_object(&by_scene)
             .into_iter()
             .map(|(id, v)| (id.to_string(), centre_metrics(v.into_iter())))
             .collect(),
@@ -308,6 +328,7 @@ fn centroid(points: &[[f32; 3]]) -> [f32; 3] {
     [(c[0] / n) as f32, (c[1] / n) as f32, (c[2] / n) as f32]
 }
 
+/// Errors grouped by their key (object or scene id).
 fn per_object(errors: &[(u32, f64)]) -> BTreeMap<u32, Vec<f64>> {
     let mut m: BTreeMap<u32, Vec<f64>> = BTreeMap::new();
     for &(id, e) in errors {
@@ -346,16 +367,30 @@ fn centre_metrics(errors_m: impl Iterator<Item = f64>) -> Metrics {
 
 /// Centre errors (all models that predict a centre) and, for rotation models, the ADD(-S),
 /// 5cm5° and mean errors as `synthgen eval --checkpoint` scores them.
+#[allow(clippy::type_complexity)]
 fn score(
     tested: &[&Instance],
     preds: &[Prediction],
     test: &TestSet,
-) -> Result<(Metrics, BTreeMap<String, Metrics>)> {
-    let errors: Vec<(u32, f64)> = preds
+) -> Result<(
+    Metrics,
+    BTreeMap<String, Metrics>,
+    BTreeMap<String, Metrics>,
+)> {
+    let with_scene: Vec<(u32, u32, f64)> = preds
         .iter()
         .zip(tested)
-        .filter_map(|(p, i)| p.centre_m.map(|c| (i.obj_id, centre_error_m(c, i))))
+        .filter_map(|(p, i)| {
+            p.centre_m
+                .map(|c| (i.scene_id, i.obj_id, centre_error_m(c, i)))
+        })
         .collect();
+    let errors: Vec<(u32, f64)> = with_scene.iter().map(|e| (e.1, e.2)).collect();
+    let scenes: BTreeMap<String, Metrics> =
+        per_object(&with_scene.iter().map(|e| (e.0, e.2)).collect::<Vec<_>>())
+            .into_iter()
+            .map(|(id, v)| (id.to_string(), centre_metrics(v.into_iter())))
+            .collect();
     let mut all = centre_metrics(errors.iter().map(|e| e.1));
     let mut objects: BTreeMap<String, Metrics> = per_object(&errors)
         .into_iter()
@@ -382,5 +417,5 @@ fn score(
             }
         }
     }
-    Ok((all, objects))
+    Ok((all, objects, scenes))
 }
