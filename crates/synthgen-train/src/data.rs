@@ -51,6 +51,7 @@ pub struct DataOptions {
 /// readings. Drawn per instance from its own RNG stream (a pure function of the seed and the
 /// instance). The default changes nothing.
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
 pub struct Augment {
     /// The visible mask grows or shrinks by a whole number of pixels drawn uniformly in
     /// −k..=k (grown pixels take the depth there: the background behind an edge).
@@ -59,6 +60,9 @@ pub struct Augment {
     pub occlusion_prob: f64,
     /// Up to this share of the visible pixels is dropped at random (0..1).
     pub dropout: f64,
+    /// The visible mask moves by whole pixels drawn uniformly in −k..=k along x and y (a mask
+    /// registered to the colour image, read against a depth image a few pixels off).
+    pub mask_shift_px: u32,
 }
 
 impl Augment {
@@ -367,6 +371,19 @@ fn augment_mask(mask: &mut [bool], width: usize, a: &Augment, rng: &mut ChaCha8R
             }
         }
     }
+    if a.mask_shift_px > 0 {
+        let k = a.mask_shift_px as i64;
+        let (dx, dy) = (rng.gen_range(-k..=k), rng.gen_range(-k..=k));
+        let before = mask.to_vec();
+        for y in 0..h as i64 {
+            for x in 0..width as i64 {
+                let (sx, sy) = (x - dx, y - dy);
+                mask[(y as usize) * width + x as usize] = (0..width as i64).contains(&sx)
+                    && (0..h as i64).contains(&sy)
+                    && before[(sy as usize) * width + sx as usize];
+            }
+        }
+    }
     if a.occlusion_prob > 0.0 && rng.gen::<f64>() < a.occlusion_prob {
         let pts: Vec<(f64, f64)> = (0..mask.len())
             .filter(|&i| mask[i])
@@ -482,5 +499,66 @@ mod tests {
         let c = crop_resize(&rgb, w, h, [3.5, 2.5, 2.0, 1.5], 4);
         assert_eq!(c.len(), 4 * 4 * 3);
         assert!(c.chunks(3).all(|p| p == [200, 100, 50]), "{c:?}");
+    }
+
+    /// The training-time mask perturbations: jitter grows or shrinks by whole pixels, the
+    /// shift moves the mask, occlusion cuts a share beyond a line, dropout thins it; the
+    /// default changes nothing.
+    #[test]
+    fn mask_augmentations_do_what_they_say() {
+        use rand::SeedableRng;
+        let (w, h) = (20usize, 20usize);
+        let square = || -> Vec<bool> {
+            (0..w * h)
+                .map(|i| (5..15).contains(&(i % w)) && (5..15).contains(&(i / w)))
+                .collect()
+        };
+        let count = |m: &[bool]| m.iter().filter(|&&v| v).count();
+        let mut rng = ChaCha8Rng::seed_from_u64(1);
+        let mut m = square();
+        augment_mask(&mut m, w, &Augment::default(), &mut rng);
+        assert_eq!(m, square());
+        let mut sizes = std::collections::BTreeSet::new();
+        for _ in 0..40 {
+            let mut m = square();
+            let a = Augment {
+                mask_jitter_px: 1,
+                ..Augment::default()
+            };
+            augment_mask(&mut m, w, &a, &mut rng);
+            sizes.insert(count(&m));
+        }
+        // Shrunk by one (8x8), as is, grown by one (a 12x12 cross-shaped dilation: 140).
+        assert_eq!(sizes.into_iter().collect::<Vec<_>>(), [64, 100, 140]);
+        for _ in 0..20 {
+            let mut m = square();
+            let a = Augment {
+                mask_shift_px: 3,
+                ..Augment::default()
+            };
+            augment_mask(&mut m, w, &a, &mut rng);
+            assert_eq!(
+                count(&m),
+                100,
+                "inside the image, a shift keeps every pixel"
+            );
+            let xs: Vec<usize> = (0..w * h).filter(|&i| m[i]).map(|i| i % w).collect();
+            let x0 = *xs.iter().min().unwrap();
+            assert!((2..=8).contains(&x0), "{x0}");
+        }
+        let mut m = square();
+        let a = Augment {
+            occlusion_prob: 1.0,
+            ..Augment::default()
+        };
+        augment_mask(&mut m, w, &a, &mut rng);
+        assert!((45..=92).contains(&count(&m)), "{}", count(&m));
+        let mut m = square();
+        let a = Augment {
+            dropout: 0.5,
+            ..Augment::default()
+        };
+        augment_mask(&mut m, w, &a, &mut rng);
+        assert!(count(&m) >= 40 && m.iter().zip(square()).all(|(a, b)| !*a || b));
     }
 }

@@ -76,8 +76,8 @@ pub struct ExperimentSim2realArgs {
     /// Also the ablation rows: the fitted set without the scene fit (synthgen's default
     /// scene, all objects standing on +z), with primitive distractors, with textured
     /// ground and walls, with physics placement, with unseen objects on +z; and
-    /// synth_fitted's frames trained without the mask jitter, with occlusion cuts, with
-    /// point dropout.
+    /// synth_fitted's frames trained without the mask jitter, with shifted masks, with
+    /// occlusion cuts, with point dropout.
     #[arg(long)]
     pub ablation: bool,
 
@@ -94,6 +94,12 @@ pub struct ExperimentSim2realArgs {
     /// chosen on validation scenes (docs/experiments.md).
     #[arg(long, value_name = "PX", default_value_t = 3)]
     pub mask_jitter_px: u32,
+
+    /// Training on the synthetic sets: each instance's visible mask moves by up to this many
+    /// pixels along x and y (a mask registered to the colour image over a depth image a few
+    /// pixels off). 0: in place.
+    #[arg(long, value_name = "PX", default_value_t = 0)]
+    pub mask_shift_px: u32,
 
     /// Training on the synthetic sets: the probability that an instance loses the pixels
     /// beyond a random line (10-50 % of them: occluders the renders lack).

@@ -152,6 +152,16 @@ const VARIANTS: &[Variant] = &[
         },
     },
     Variant {
+        name: "ablation_mask_shift",
+        what: "synth_fitted's frames, trained with masks shifted by up to 2 px",
+        ablation: true,
+        uses_set: Some("synth_fitted"),
+        augment: |a| Augment {
+            mask_shift_px: 2,
+            ..a
+        },
+    },
+    Variant {
         name: "ablation_occlusion",
         what: "synth_fitted's frames, trained with random occlusion cuts (p 0.3)",
         ablation: true,
@@ -284,6 +294,7 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
             mask_jitter_px: args.mask_jitter_px,
             occlusion_prob: args.occlusion_prob,
             dropout: args.point_dropout,
+            mask_shift_px: args.mask_shift_px,
         },
         seed: args.seed,
         quick: args.quick,
