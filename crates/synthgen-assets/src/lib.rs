@@ -32,6 +32,7 @@ use std::path::Path;
 use synthgen_core::{Model, Progress};
 
 pub use error::Error;
+pub use obj::write_moved_obj;
 pub use texture::{load_images_in_dir, load_images_in_dir_strict, TextureCache};
 pub use units::{Units, AUTO_MM_THRESHOLD};
 pub use write::{write_obj, write_ply};

@@ -6,6 +6,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use synthgen_dataset::mix::SceneRef;
 
 mod experiment;
+mod model;
 mod rgb;
 mod scale;
 mod scene;
@@ -13,6 +14,7 @@ mod sensor;
 mod sim2real;
 mod train;
 pub use experiment::{ExperimentCommand, ExperimentMixArgs, TrainBudget, TrainBudgetArgs};
+pub use model::{ModelAlignArgs, ModelCommand};
 pub use rgb::ExperimentRgbArgs;
 pub use scale::{MergeArgs, Shard, MERGE_EXAMPLES};
 pub use scene::{SceneCommand, SceneFitArgs};
@@ -104,6 +106,9 @@ pub enum Command {
     /// Derive a scene spec from real frames with GT poses and depth.
     #[command(subcommand)]
     Scene(SceneCommand),
+    /// Work on object models: align a textured scan to the model a dataset's poses refer to.
+    #[command(subcommand)]
+    Model(ModelCommand),
 }
 
 const ANNOTATE_EXAMPLES: &str = "Examples:

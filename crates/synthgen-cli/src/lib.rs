@@ -87,6 +87,9 @@ pub fn main() -> ExitCode {
         cli::Command::Sensor(cli::SensorCommand::Compare(args)) => {
             commands::sensor::run_compare(args, &printer)
         }
+        cli::Command::Model(cli::ModelCommand::Align(args)) => {
+            commands::model::run_align(args, &printer)
+        }
         cli::Command::Scene(cli::SceneCommand::Fit(args)) => {
             commands::scene::run_fit(args, &printer)
         }

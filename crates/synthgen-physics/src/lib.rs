@@ -24,6 +24,7 @@
 
 use std::collections::BTreeMap;
 
+pub mod align;
 mod rest;
 pub use rest::stable_rest_poses;
 

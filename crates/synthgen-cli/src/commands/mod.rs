@@ -7,6 +7,7 @@ pub mod experiment;
 pub mod export;
 pub mod merge;
 pub mod mix;
+pub mod model;
 mod object_models;
 pub mod preview;
 pub mod render;

@@ -110,3 +110,8 @@ fn view_help() {
 fn experiment_rgb_help() {
     check_snapshot("experiment_rgb_help.txt", &["experiment", "rgb", "--help"]);
 }
+
+#[test]
+fn model_align_help() {
+    check_snapshot("model_align_help.txt", &["model", "align", "--help"]);
+}

@@ -19,6 +19,7 @@ mod help;
 mod inspect;
 mod linemod;
 mod mix;
+mod model_align;
 mod real_rotations;
 mod render;
 mod replay;
