@@ -665,6 +665,13 @@ pub struct RenderArgs {
     )]
     pub scenes: Vec<u32>,
 
+    /// With --replay: models to render instead of the dataset's own, one folder per object
+    /// named as the dataset names it (YCB-Video's class, `003_cracker_box`; BOP's file stem,
+    /// `obj_000005`) holding one mesh, e.g. textured scans that `synthgen model align` put in
+    /// the dataset's model frame. Objects without a folder keep the dataset's model.
+    #[arg(long, value_name = "DIR", requires = "replay")]
+    pub replay_models: Option<PathBuf>,
+
     /// Camera preset: linemod, d455, d455-720, ycbv (YCB-Video's UW rig, scenes 0-59),
     /// ycbv-cmu (its CMU rig, scenes 60-91).
     #[arg(long)]

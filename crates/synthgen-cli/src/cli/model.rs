@@ -15,7 +15,15 @@ pub enum ModelCommand {
 pub const ALIGN_EXAMPLES: &str = "Examples:
   # The YCB google_16k scan of the cracker box onto the YCB-Video model its poses refer to:
   synthgen model align --scan ../shared/data/ycb_textured/003_cracker_box/textured.obj \\
-      --to ../shared/data/ycbv_real/models/003_cracker_box/textured_simple.obj --out models_tex/003_cracker_box
+      --to ../shared/data/ycbv_real/models/003_cracker_box/textured_simple.obj \\
+      --out models_tex/003_cracker_box
+
+  # Every scan of a folder onto a dataset's models (one subfolder per class), then a
+  # textured replay of the real frames:
+  synthgen model align --scans ../shared/data/ycb_textured \\
+      --to-dataset ../shared/data/ycbv_real --out models_tex
+  synthgen render --replay ../shared/data/ycbv_real --replay-models models_tex \\
+      --format ycbv --out out/ycbv_tex
 
   # Files whose axes differ: also try the 24 axis-aligned rotations:
   synthgen model align --scan scan.obj --to obj_000005.ply --rotation-search --out aligned/
@@ -30,19 +38,37 @@ are different shapes and nothing is written (exit 1).
 
 Writes OUT/<the scan's file name> (positions and normals moved, UVs, faces and materials as
 they were), its .mtl and the textures it names, and OUT/align.json (the motion, the
-residuals). Only OBJ scans are written; any supported format can be --to.";
+residuals). Only OBJ scans are written; any supported format can be --to. With --scans, a
+table of every object; the exit status is 1 when any scan was refused (the others are
+written).";
 
 #[derive(Debug, Args)]
 pub struct ModelAlignArgs {
     /// The scan to move (OBJ with its .mtl and textures).
-    #[arg(long, value_name = "FILE")]
-    pub scan: PathBuf,
+    #[arg(
+        long,
+        value_name = "FILE",
+        requires = "to",
+        required_unless_present = "scans"
+    )]
+    pub scan: Option<PathBuf>,
 
     /// The model the annotations refer to (.ply, .obj, .gltf, .glb).
-    #[arg(long, value_name = "FILE")]
-    pub to: PathBuf,
+    #[arg(long, value_name = "FILE", requires = "scan")]
+    pub to: Option<PathBuf>,
 
-    /// Output folder for the moved scan, its materials and textures, and align.json.
+    /// A folder of scans, one subfolder per object named as --to-dataset names it (YCB-Video's
+    /// class, `003_cracker_box`; BOP's `obj_000005`) with one OBJ in it: each is aligned to
+    /// that dataset's model into OUT/<name>/, a folder `render --replay-models` takes.
+    #[arg(long, value_name = "DIR", requires = "to_dataset", conflicts_with_all = ["scan", "to"])]
+    pub scans: Option<PathBuf>,
+
+    /// The dataset (BOP, Linemod or YCB-Video) whose models the --scans are aligned to.
+    #[arg(long, value_name = "DIR", requires = "scans")]
+    pub to_dataset: Option<PathBuf>,
+
+    /// Output folder for the moved scan, its materials and textures, and align.json (with
+    /// --scans: one such folder per object).
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
 

@@ -3,8 +3,13 @@
 
 use anyhow::{Context, Result};
 use serde_json::json;
+use std::path::{Path, PathBuf};
 use synthgen_assets::{load_model, Units};
+
+use synthgen_dataset::source::open_source;
 use synthgen_physics::align::{align, AlignOptions, Alignment};
+
+use crate::commands::object_models::model_name;
 
 use crate::cli::ModelAlignArgs;
 use crate::commands::user_error;
@@ -23,21 +28,74 @@ pub fn run_align(args: ModelAlignArgs, printer: &Printer) -> Result<ExitStatus> 
             "e.g. --max-median-mm 2",
         ));
     }
-    let is_obj = args
-        .scan
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("obj"));
-    if !is_obj {
-        return Err(user_error(
-            format!("the scan must be an OBJ file: {}", args.scan.display()),
-            "convert it to OBJ (with its .mtl and textures) first",
-        ));
+    let opts = AlignOptions {
+        rotation_search: args.rotation_search,
+        samples: args.samples.max(100),
+        ..AlignOptions::default()
+    };
+    if let (Some(scans), Some(data)) = (&args.scans, &args.to_dataset) {
+        return align_dataset(&args, scans, data, &opts, printer);
     }
-    let written_before = args.out.join(REPORT_FILE).is_file();
-    let non_empty = std::fs::read_dir(&args.out).is_ok_and(|mut d| d.next().is_some());
-    if non_empty && !(args.force && written_before) {
+    let (Some(scan), Some(to)) = (&args.scan, &args.to) else {
         return Err(user_error(
-            format!("{} is not empty", args.out.display()),
+            "give --scan FILE --to FILE, or --scans DIR --to-dataset DIR",
+            "see synthgen model align --help",
+        ));
+    };
+    check_out(&args.out, args.force)?;
+    let done = align_one(&args, scan, to, &args.out, &opts, printer)?;
+    if args.json {
+        printer.data_line(serde_json::to_string_pretty(&done.report)?)?;
+    } else {
+        printer.data_line(done.line())?;
+    }
+    printer.info(format!(
+        "wrote {} files to {} ({})",
+        done.files,
+        args.out.display(),
+        REPORT_FILE
+    ));
+    Ok(ExitStatus::Success)
+}
+
+/// One scan aligned and written.
+struct Done {
+    report: serde_json::Value,
+    scan: PathBuf,
+    to: PathBuf,
+    translation_mm: [f64; 3],
+    angle_deg: f64,
+    median_mm: f64,
+    p95_mm: f64,
+    iterations: usize,
+    files: usize,
+}
+
+impl Done {
+    fn line(&self) -> String {
+        let t = self.translation_mm;
+        format!(
+            "{} onto {}: translation ({:.1}, {:.1}, {:.1}) mm, rotation {:.2}°; surface distance median {:.2} mm, p95 {:.2} mm ({} ICP iterations)",
+            self.scan.display(),
+            self.to.display(),
+            t[0],
+            t[1],
+            t[2],
+            self.angle_deg,
+            self.median_mm,
+            self.p95_mm,
+            self.iterations
+        )
+    }
+}
+
+/// `out` must be new, empty, or an earlier alignment's folder with --force.
+fn check_out(out: &Path, force: bool) -> Result<()> {
+    let written_before = out.join(REPORT_FILE).is_file();
+    let non_empty = std::fs::read_dir(out).is_ok_and(|mut d| d.next().is_some());
+    if non_empty && !(force && written_before) {
+        return Err(user_error(
+            format!("{} is not empty", out.display()),
             if written_before {
                 "pass --force to replace the earlier alignment there"
             } else {
@@ -45,17 +103,32 @@ pub fn run_align(args: ModelAlignArgs, printer: &Printer) -> Result<ExitStatus> 
             },
         ));
     }
-    let scan = load_model(&args.scan, Units::Auto, printer)
-        .with_context(|| format!("cannot read the scan {}", args.scan.display()))?;
-    let target = load_model(&args.to, Units::Auto, printer)
-        .with_context(|| format!("cannot read the model {}", args.to.display()))?;
-    let opts = AlignOptions {
-        rotation_search: args.rotation_search,
-        samples: args.samples.max(100),
-        ..AlignOptions::default()
-    };
-    let a = align(&scan.model, &target.model, &opts)?;
-    let report = report_json(&args, &a, scan.units_used);
+    Ok(())
+}
+
+fn align_one(
+    args: &ModelAlignArgs,
+    scan_path: &Path,
+    to: &Path,
+    out: &Path,
+    opts: &AlignOptions,
+    printer: &Printer,
+) -> Result<Done> {
+    let is_obj = scan_path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("obj"));
+    if !is_obj {
+        return Err(user_error(
+            format!("the scan must be an OBJ file: {}", scan_path.display()),
+            "convert it to OBJ (with its .mtl and textures) first",
+        ));
+    }
+    let scan = load_model(scan_path, Units::Auto, printer)
+        .with_context(|| format!("cannot read the scan {}", scan_path.display()))?;
+    let target = load_model(to, Units::Auto, printer)
+        .with_context(|| format!("cannot read the model {}", to.display()))?;
+    let a = align(&scan.model, &target.model, opts)?;
+    let report = report_json(args, scan_path, to, &a, scan.units_used);
     let (median_mm, p95_mm) = (a.median_m() * 1e3, a.p95_m() * 1e3);
     if median_mm > args.max_median_mm {
         if args.json {
@@ -67,8 +140,8 @@ pub fn run_align(args: ModelAlignArgs, printer: &Printer) -> Result<ExitStatus> 
                  and the 95th percentile {p95_mm:.2} mm (over --max-median-mm {}): {} is not the same \
                  shape as {}; nothing written",
                 args.max_median_mm,
-                args.scan.display(),
-                args.to.display()
+                scan_path.display(),
+                to.display()
             ),
             if args.rotation_search {
                 "check that the two files are the same object (a remeshed or rescaled model differs)"
@@ -86,8 +159,18 @@ pub fn run_align(args: ModelAlignArgs, printer: &Printer) -> Result<ExitStatus> 
     m.w_axis.x *= scale;
     m.w_axis.y *= scale;
     m.w_axis.z *= scale;
-    if args.out.exists() {
-        for e in std::fs::read_dir(&args.out)? {
+    let angle_deg = synthgen_core::glam::DQuat::from_mat3(&a.rotation)
+        .to_axis_angle()
+        .1
+        .to_degrees();
+    if angle_deg > 1.0 {
+        printer.warning(format!(
+            "{}: the scan needed a {angle_deg:.1}° rotation as well as a shift to lie on the model (surfaces then {median_mm:.2} mm apart): the files' axes differ; look at a render before trusting it",
+            scan_path.display()
+        ));
+    }
+    if out.exists() {
+        for e in std::fs::read_dir(out)? {
             let p = e?.path();
             if p.is_file() {
                 std::fs::remove_file(&p)
@@ -95,44 +178,149 @@ pub fn run_align(args: ModelAlignArgs, printer: &Printer) -> Result<ExitStatus> 
             }
         }
     }
-    let angle_deg = synthgen_core::glam::DQuat::from_mat3(&a.rotation)
-        .to_axis_angle()
-        .1
-        .to_degrees();
-    if angle_deg > 1.0 {
-        printer.warning(format!(
-            "the scan needed a {angle_deg:.1}° rotation as well as a shift to lie on the model (surfaces then {median_mm:.2} mm apart): the files' axes differ; look at a render before trusting it"
-        ));
-    }
-    let written = synthgen_assets::write_moved_obj(&args.scan, &args.out, m)?;
-    let report_path = args.out.join(REPORT_FILE);
+    let written = synthgen_assets::write_moved_obj(scan_path, out, m)?;
+    let report_path = out.join(REPORT_FILE);
     std::fs::write(&report_path, serde_json::to_string_pretty(&report)? + "\n")
         .with_context(|| format!("cannot write {}", report_path.display()))?;
+    let t = a.translation_m * 1e3;
+    Ok(Done {
+        report,
+        scan: scan_path.to_path_buf(),
+        to: to.to_path_buf(),
+        translation_mm: t.to_array(),
+        angle_deg,
+        median_mm,
+        p95_mm,
+        iterations: a.iterations,
+        files: written.len() + 1,
+    })
+}
+
+/// `--scans DIR --to-dataset DATA`: each object of DATA with a scan folder `DIR/<name>/`.
+fn align_dataset(
+    args: &ModelAlignArgs,
+    scans: &Path,
+    data: &Path,
+    opts: &AlignOptions,
+    printer: &Printer,
+) -> Result<ExitStatus> {
+    let source = open_source(data).with_context(|| format!("cannot open {}", data.display()))?;
+    let ids: Vec<u32> = match source.models_info() {
+        Some(info) if !info.is_empty() => info.keys().copied().collect(),
+        _ => (1..=999)
+            .filter(|&id| source.model_path(id).is_some())
+            .collect(),
+    };
+    if ids.is_empty() {
+        return Err(user_error(
+            format!("{} has no object models", data.display()),
+            "give a BOP, Linemod or YCB-Video dataset with its models/",
+        ));
+    }
+    if args.out.exists() && !args.force {
+        let non_empty = std::fs::read_dir(&args.out).is_ok_and(|mut d| d.next().is_some());
+        if non_empty {
+            return Err(user_error(
+                format!("{} is not empty", args.out.display()),
+                "choose a new --out, or pass --force to replace the alignments there",
+            ));
+        }
+    }
+    let mut rows = Vec::new();
+    let mut reports = Vec::new();
+    let mut refused = 0usize;
+    for id in ids {
+        let name = model_name(source.as_ref(), id);
+        let folder = scans.join(&name);
+        let Some(model) = source.model_path(id) else {
+            continue;
+        };
+        let objs: Vec<PathBuf> = std::fs::read_dir(&folder)
+            .map(|d| {
+                let mut v: Vec<PathBuf> = d
+                    .filter_map(|e| e.ok().map(|e| e.path()))
+                    .filter(|p| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj")))
+                    .collect();
+                v.sort();
+                v
+            })
+            .unwrap_or_default();
+        let [scan] = objs.as_slice() else {
+            rows.push(format!(
+                "| {id} | {name} | — | — | — | {} |",
+                if objs.is_empty() {
+                    "no scan".to_string()
+                } else {
+                    format!("{} OBJ files: skipped", objs.len())
+                }
+            ));
+            continue;
+        };
+        let out = args.out.join(&name);
+        if out.exists() && !out.join(REPORT_FILE).is_file() {
+            check_out(&out, args.force)?;
+        }
+        match align_one(args, scan, &model, &out, opts, printer) {
+            Ok(d) => {
+                rows.push(format!(
+                    "| {id} | {name} | {:.3} | {:.2} | {:.2} | written |",
+                    d.median_mm, d.p95_mm, d.angle_deg
+                ));
+                reports.push(d.report);
+            }
+            Err(e) => {
+                refused += 1;
+                printer.warning(format!("{name}: {e:#}"));
+                rows.push(format!("| {id} | {name} | — | — | — | refused |"));
+            }
+        }
+    }
     if args.json {
-        printer.data_line(serde_json::to_string_pretty(&report)?)?;
+        printer.data_line(serde_json::to_string_pretty(&reports)?)?;
     } else {
-        let t = a.translation_m * 1e3;
-        printer.data_line(format!(
-            "{} onto {}: translation ({:.1}, {:.1}, {:.1}) mm, rotation {:.2}°; surface distance median {median_mm:.2} mm, p95 {p95_mm:.2} mm ({} ICP iterations)",
-            args.scan.display(),
-            args.to.display(),
-            t.x,
-            t.y,
-            t.z,
-            angle_deg,
-            a.iterations
-        ))?;
+        let mut t = String::from(
+            "| obj_id | name | median mm | p95 mm | rotation ° | |\n|---:|---|---:|---:|---:|---|\n",
+        );
+        for r in &rows {
+            t.push_str(r);
+            t.push('\n');
+        }
+        printer.data(t)?;
     }
     printer.info(format!(
-        "wrote {} files to {} ({})",
-        written.len() + 1,
-        args.out.display(),
-        REPORT_FILE
+        "{} aligned into {}, {refused} refused",
+        reports.len(),
+        args.out.display()
+    ));
+    if reports.is_empty() && refused == 0 {
+        return Err(user_error(
+            format!("no scan folder in {} matches an object of {}", scans.display(), data.display()),
+            "name each scan's folder as the dataset names the object (e.g. 003_cracker_box, obj_000005)",
+        ));
+    }
+    if refused > 0 {
+        printer.hint(format!(
+            "render --replay {} --replay-models {} uses the aligned ones and the dataset's models for the rest",
+            data.display(),
+            args.out.display()
+        ));
+        return Ok(ExitStatus::Failure);
+    }
+    printer.hint(format!(
+        "a textured replay: synthgen render --replay {} --replay-models {} --out OUT",
+        data.display(),
+        args.out.display()
     ));
     Ok(ExitStatus::Success)
 }
 
-fn report_json(args: &ModelAlignArgs, a: &Alignment, scan_units: Units) -> serde_json::Value {
+fn report_json(
+    args: &ModelAlignArgs,
+    scan: &Path,
+    to: &Path,
+    a: &Alignment,
+    scan_units: Units,
+) -> serde_json::Value {
     let r = a.rotation.transpose().to_cols_array(); // row-major
     let res = |x: &synthgen_physics::align::Residual| {
         json!({
@@ -143,8 +331,8 @@ fn report_json(args: &ModelAlignArgs, a: &Alignment, scan_units: Units) -> serde
         })
     };
     json!({
-        "scan": args.scan,
-        "model": args.to,
+        "scan": scan,
+        "model": to,
         "scan_units": format!("{scan_units:?}").to_lowercase(),
         "rotation": [[r[0], r[1], r[2]], [r[3], r[4], r[5]], [r[6], r[7], r[8]]],
         "translation_m": a.translation_m.to_array(),

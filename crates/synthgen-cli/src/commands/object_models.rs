@@ -41,3 +41,15 @@ pub fn frame_obj_ids(frames: &[synthgen_dataset::source::SourceFrame]) -> Vec<u3
     ids.dedup();
     ids
 }
+
+/// How the dataset names object `id`'s model: YCB-Video's class folder
+/// (`models/<class>/textured_simple.obj`), else the file stem (`obj_000005`).
+pub fn model_name(source: &dyn FrameSource, id: u32) -> String {
+    let file = source.model_file(id);
+    let stem = file.file_stem().map(|s| s.to_string_lossy().into_owned());
+    match (stem.as_deref(), file.parent().and_then(|p| p.file_name())) {
+        (Some("textured_simple" | "textured"), Some(class)) => class.to_string_lossy().into_owned(),
+        (Some(stem), _) => stem.to_string(),
+        _ => format!("obj_{id:06}"),
+    }
+}

@@ -5,7 +5,7 @@
 //! ids.
 
 use std::collections::{BTreeMap, BTreeSet};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
@@ -70,7 +70,10 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
         ));
     }
     let obj_ids = frame_obj_ids(&frames);
-    let loaded = load_models(source.as_ref(), &obj_ids, printer)?;
+    let mut loaded = load_models(source.as_ref(), &obj_ids, printer)?;
+    if let Some(dir) = &args.replay_models {
+        replace_models(source.as_ref(), dir, &mut loaded, printer)?;
+    }
     let index: BTreeMap<u32, usize> = obj_ids.iter().enumerate().map(|(i, &id)| (id, i)).collect();
     let models: Vec<_> = loaded.into_iter().map(|(_, m)| m).collect();
     let symmetries: Vec<Option<Symmetries>> = obj_ids
@@ -274,6 +277,63 @@ fn check_args(args: &RenderArgs) -> Result<()> {
         return Err(user_error(
             "--replay renders with the embedded CPU renderer; --backend blender does not apply",
             "drop --backend blender",
+        ));
+    }
+    Ok(())
+}
+
+/// `--replay-models DIR`: each object with a folder `DIR/<its name>/` holding one mesh gets
+/// that mesh (units decided per file) instead of the dataset's model.
+fn replace_models(
+    source: &dyn FrameSource,
+    dir: &Path,
+    loaded: &mut [(u32, synthgen_core::Model)],
+    printer: &Printer,
+) -> Result<()> {
+    if !dir.is_dir() {
+        return Err(user_error(
+            format!("--replay-models is not a folder: {}", dir.display()),
+            "give a folder with one subfolder per object (`synthgen model align --scans` writes one)",
+        ));
+    }
+    let mut kept = Vec::new();
+    for (id, model) in loaded.iter_mut() {
+        let name = crate::commands::object_models::model_name(source, *id);
+        let folder = dir.join(&name);
+        if !folder.is_dir() {
+            kept.push(name);
+            continue;
+        }
+        let mut meshes: Vec<PathBuf> = std::fs::read_dir(&folder)
+            .with_context(|| format!("cannot read {}", folder.display()))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| {
+                p.extension().is_some_and(|e| {
+                    synthgen_assets::SUPPORTED_EXTENSIONS
+                        .contains(&e.to_string_lossy().to_ascii_lowercase().as_str())
+                })
+            })
+            .collect();
+        meshes.sort();
+        let [mesh] = meshes.as_slice() else {
+            return Err(user_error(
+                format!(
+                    "{} holds {} meshes; --replay-models needs exactly one per object folder",
+                    folder.display(),
+                    meshes.len()
+                ),
+                "keep one mesh (.obj, .ply, .gltf, .glb) in each object's folder",
+            ));
+        };
+        let l = synthgen_assets::load_model(mesh, synthgen_assets::Units::Auto, printer)
+            .with_context(|| format!("cannot load the replacement model of object {id}"))?;
+        *model = l.model;
+    }
+    if !kept.is_empty() {
+        printer.warning(format!(
+            "--replay-models: no folder for {} in {}; their dataset models are rendered",
+            kept.join(", "),
+            dir.display()
         ));
     }
     Ok(())

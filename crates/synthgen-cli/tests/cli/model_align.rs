@@ -119,3 +119,85 @@ fn real_scans_nan_normals_turned_axes_and_other_objects() {
     );
     assert!(!d.join("wrong").exists(), "nothing written");
 }
+
+/// The dataset form: a folder of scans named by class, aligned onto a dataset's models in one
+/// command (a wrong scan refused, the others written, exit 1), then `render --replay
+/// --replay-models` renders the real frames with the textured scans: the pudding box, one
+/// flat colour in the YCB-Video model, shows its printed texture.
+#[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
+fn a_folder_of_scans_aligned_to_a_dataset_and_replayed_textured() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scans = d.join("scans");
+    let copy = |from: &str, to: &str| {
+        let (s, t) = (
+            shared_data().join("ycb_textured").join(from),
+            scans.join(to),
+        );
+        std::fs::create_dir_all(&t).unwrap();
+        for f in ["textured.obj", "textured.mtl", "texture_map.jpg"] {
+            std::fs::copy(s.join(f), t.join(f)).unwrap();
+        }
+    };
+    copy("008_pudding_box", "008_pudding_box");
+    copy("011_banana", "025_mug"); // the wrong object under the mug's name
+    let o = run(synthgen()
+        .args(["model", "align", "--scans"])
+        .arg(&scans)
+        .arg("--to-dataset")
+        .arg(crate::common::ycbv_real())
+        .arg("--out")
+        .arg(d.join("tex")));
+    let out = String::from_utf8_lossy(&o.stdout).to_string();
+    assert_eq!(o.status.code(), Some(1), "{out}{}", stderr(&o));
+    assert!(out.contains("| 7 | 008_pudding_box | 0.0"), "{out}");
+    assert!(
+        out.contains("| 14 | 025_mug | — | — | — | refused |"),
+        "{out}"
+    );
+    assert!(
+        out.contains("| 1 | 002_master_chef_can | — | — | — | no scan |"),
+        "{out}"
+    );
+    assert!(d.join("tex/008_pudding_box/textured.obj").is_file());
+    assert!(!d.join("tex/025_mug").exists());
+
+    let spread = |data: &Path| -> f64 {
+        // The colour spread inside the pudding box (class 7) of frame 1 of scene 2.
+        let rgb = image::open(data.join("data/0002/000001-color.png"))
+            .unwrap()
+            .to_rgb8();
+        let label = image::open(data.join("data/0002/000001-label.png"))
+            .unwrap()
+            .to_luma8();
+        let px: Vec<f64> = rgb
+            .pixels()
+            .zip(label.pixels())
+            .filter(|(_, l)| l.0[0] == 7)
+            .map(|(p, _)| f64::from(p.0[0]) + f64::from(p.0[1]) + f64::from(p.0[2]))
+            .collect();
+        assert!(px.len() > 500, "{} pixels", px.len());
+        let m = px.iter().sum::<f64>() / px.len() as f64;
+        (px.iter().map(|v| (v - m).powi(2)).sum::<f64>() / px.len() as f64).sqrt()
+    };
+    let replay = |name: &str, extra: &[&str]| {
+        let out = d.join(name);
+        let o = run(synthgen()
+            .args(["render", "-q", "--replay"])
+            .arg(crate::common::ycbv_real())
+            .args(["--scenes", "2", "--format", "ycbv", "--out"])
+            .arg(&out)
+            .args(extra));
+        assert!(o.status.success(), "{}", stderr(&o));
+        out
+    };
+    let plain = replay("plain", &[]);
+    let tex_dir = d.join("tex").display().to_string();
+    let textured = replay("textured", &["--replay-models", &tex_dir]);
+    let (a, b) = (spread(&plain), spread(&textured));
+    assert!(b > 3.0 * a.max(1.0), "colour spread {a} flat, {b} textured");
+}
