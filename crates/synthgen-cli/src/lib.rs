@@ -87,6 +87,9 @@ pub fn main() -> ExitCode {
         cli::Command::Sensor(cli::SensorCommand::Compare(args)) => {
             commands::sensor::run_compare(args, &printer)
         }
+        cli::Command::Sensor(cli::SensorCommand::CompareRgb(args)) => {
+            commands::sensor::run_compare_rgb(args, &printer)
+        }
         cli::Command::Model(cli::ModelCommand::Align(args)) => {
             commands::model::run_align(args, &printer)
         }

@@ -42,6 +42,7 @@ pub mod manifest;
 pub mod mix;
 pub mod output;
 pub mod preview;
+pub mod rgb_compare;
 pub mod scene_fit;
 pub mod sensor;
 pub mod shared_frames;

@@ -13,6 +13,51 @@ pub enum SensorCommand {
     /// aspect.
     #[command(after_long_help = COMPARE_EXAMPLES)]
     Compare(SensorCompareArgs),
+    /// Compare two datasets' colour images inside the real visible masks (real photographs
+    /// and their replay, usually), per object.
+    #[command(after_long_help = COMPARE_RGB_EXAMPLES)]
+    CompareRgb(SensorCompareRgbArgs),
+}
+
+pub const COMPARE_RGB_EXAMPLES: &str = "Examples:
+  # How close the embedded renderer's replay of the real YCB-Video frames comes to the
+  # photographs, with the dataset's plain models and with aligned textured scans:
+  synthgen render --replay ../shared/data/ycbv_real --format ycbv --out out/plain
+  synthgen model align --scans ../shared/data/ycb_textured \\
+      --to-dataset ../shared/data/ycbv_real --out models_tex
+  synthgen render --replay ../shared/data/ycbv_real --replay-models models_tex \\
+      --format ycbv --out out/tex
+  synthgen sensor compare-rgb --real ../shared/data/ycbv_real --synth out/plain
+  synthgen sensor compare-rgb --real ../shared/data/ycbv_real --synth out/tex
+
+Frames are matched by scene and image id. Per frame, one gain per channel (exposure and white
+balance) is fitted to the photograph over the compared pixels. Per instance, over the real
+visible mask eroded by one pixel where the render is not black: the normalized
+cross-correlation of the grey levels (ncc_int) and of their Sobel gradient magnitudes
+(ncc_grad; edges, print, texture), and the Hellinger distance of the 16-bin colour
+histograms (hist; 0 the same colours, 1 disjoint). Higher NCC and lower hist are closer.";
+
+#[derive(Debug, Args)]
+pub struct SensorCompareRgbArgs {
+    /// The real photographs (BOP, Linemod or YCB-Video, with visible masks).
+    #[arg(long, value_name = "DIR")]
+    pub real: PathBuf,
+
+    /// Their synthetic twins (`synthgen render --replay REAL`).
+    #[arg(long, value_name = "DIR")]
+    pub synth: PathBuf,
+
+    /// Only these scene ids.
+    #[arg(long, value_delimiter = ',', value_name = "ID,...")]
+    pub scenes: Vec<u32>,
+
+    /// Instances with fewer compared pixels are left out.
+    #[arg(long, default_value_t = 200)]
+    pub min_pixels: usize,
+
+    /// Print the comparison as JSON on stdout (with every instance) instead of the table.
+    #[arg(long)]
+    pub json: bool,
 }
 
 pub const FIT_EXAMPLES: &str = "Examples:

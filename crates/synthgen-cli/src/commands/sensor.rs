@@ -14,7 +14,7 @@ use synthgen_dataset::sensor::{
 };
 use synthgen_dataset::source::{open_source, FrameSource};
 
-use crate::cli::{SensorCompareArgs, SensorFitArgs};
+use crate::cli::{SensorCompareArgs, SensorCompareRgbArgs, SensorFitArgs};
 use crate::commands::object_models::{frame_obj_ids, object_renderer};
 use crate::commands::user_error;
 use crate::{ExitStatus, Printer};
@@ -368,4 +368,63 @@ fn format_compare(c: &Comparison, a: &Path, b: &Path) -> String {
         }
     }
     o
+}
+
+/// `synthgen sensor compare-rgb`: a thin skin over `synthgen_dataset::rgb_compare`.
+pub fn run_compare_rgb(args: SensorCompareRgbArgs, printer: &Printer) -> Result<ExitStatus> {
+    let real =
+        open_source(&args.real).with_context(|| format!("cannot open {}", args.real.display()))?;
+    let synth = open_source(&args.synth)
+        .with_context(|| format!("cannot open {}", args.synth.display()))?;
+    let opts = synthgen_dataset::rgb_compare::RgbCompareOptions {
+        scenes: args.scenes.clone(),
+        min_pixels: args.min_pixels,
+    };
+    let c = synthgen_dataset::rgb_compare::compare_rgb(real.as_ref(), synth.as_ref(), &opts)?;
+    if c.frames == 0 {
+        return Err(user_error(
+            format!(
+                "no frame of {} has a twin in {} (frames are matched by scene and image id)",
+                args.real.display(),
+                args.synth.display()
+            ),
+            format!(
+                "make the twins with `synthgen render --replay {} --out DIR`",
+                args.real.display()
+            ),
+        ));
+    }
+    if c.frames_without_twin > 0 {
+        printer.warning(format!(
+            "{} real frames have no twin in {} and are not compared",
+            c.frames_without_twin,
+            args.synth.display()
+        ));
+    }
+    if args.json {
+        printer.data_line(serde_json::to_string_pretty(&c)?)?;
+        return Ok(ExitStatus::Success);
+    }
+    let mut t = String::new();
+    let _ = writeln!(
+        t,
+        "{} frames, {} instances (real visible masks eroded by 1 px, render not black; gains fitted per frame)",
+        c.frames, c.all.instances
+    );
+    let _ = writeln!(t, "| object | n | ncc_int | ncc_grad | hist |");
+    let _ = writeln!(t, "|---:|---:|---:|---:|---:|");
+    for (id, m) in &c.objects {
+        let _ = writeln!(
+            t,
+            "| {id} | {} | {:.3} | {:.3} | {:.3} |",
+            m.instances, m.ncc_intensity, m.ncc_gradient, m.hist_distance
+        );
+    }
+    let _ = writeln!(
+        t,
+        "| all | {} | {:.3} | {:.3} | {:.3} |",
+        c.all.instances, c.all.ncc_intensity, c.all.ncc_gradient, c.all.hist_distance
+    );
+    printer.data(t)?;
+    Ok(ExitStatus::Success)
 }

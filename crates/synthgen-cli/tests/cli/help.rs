@@ -115,3 +115,11 @@ fn experiment_rgb_help() {
 fn model_align_help() {
     check_snapshot("model_align_help.txt", &["model", "align", "--help"]);
 }
+
+#[test]
+fn sensor_compare_rgb_help() {
+    check_snapshot(
+        "sensor_compare_rgb_help.txt",
+        &["sensor", "compare-rgb", "--help"],
+    );
+}

@@ -200,4 +200,33 @@ fn a_folder_of_scans_aligned_to_a_dataset_and_replayed_textured() {
     let textured = replay("textured", &["--replay-models", &tex_dir]);
     let (a, b) = (spread(&plain), spread(&textured));
     assert!(b > 3.0 * a.max(1.0), "colour spread {a} flat, {b} textured");
+
+    // `sensor compare-rgb` measures it: the textured pudding box is closer to the photographs
+    // on every score; the flat one has no shading to correlate.
+    let compare = |synth: &Path| {
+        stdout_json(&run(synthgen()
+            .args(["sensor", "compare-rgb", "--json", "--scenes", "2", "--real"])
+            .arg(crate::common::ycbv_real())
+            .arg("--synth")
+            .arg(synth)))
+    };
+    let (p, t) = (compare(&plain), compare(&textured));
+    assert_eq!(p["frames"], 20);
+    let score = |r: &serde_json::Value, k: &str| r["objects"]["7"][k].as_f64().unwrap();
+    assert_eq!(score(&p, "ncc_intensity"), 0.0, "{}", p["objects"]["7"]);
+    for k in ["ncc_intensity", "ncc_gradient"] {
+        assert!(
+            score(&t, k) > score(&p, k) + 0.1,
+            "{k}: {} vs {}",
+            t["objects"]["7"],
+            p["objects"]["7"]
+        );
+    }
+    assert!(score(&t, "hist_distance") < score(&p, "hist_distance") - 0.1);
+    // The mustard bottle (5) keeps its flat dataset model in both: no shading, about the same
+    // colours (the frame's gains are fitted over every object, so they move a little).
+    let s5 = |r: &serde_json::Value| r["objects"]["5"]["ncc_intensity"].as_f64().unwrap();
+    assert_eq!((s5(&p), s5(&t)), (0.0, 0.0));
+    let m = |r: &serde_json::Value| r["objects"]["5"]["hist_distance"].as_f64().unwrap();
+    assert!((m(&p) - m(&t)).abs() < 0.05, "{} vs {}", m(&p), m(&t));
 }
