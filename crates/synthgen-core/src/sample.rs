@@ -209,6 +209,9 @@ pub struct FrameScene {
     pub distractors: Vec<ObjectInstance>,
     pub lights: Vec<PointLight>,
     pub ambient: f32,
+    /// The lights cast shadows (`[lights] shadows`; the embedded renderer's shadow maps).
+    #[serde(default)]
+    pub shadows: bool,
     pub ground: Option<GroundInstance>,
     /// Vertical planes around the scene (`[walls]`), those the camera is inside of.
     #[serde(default)]
@@ -229,6 +232,7 @@ impl FrameScene {
             distractors: vec![],
             lights: vec![],
             ambient: 1.0,
+            shadows: false,
             ground: None,
             walls: vec![],
             background: BackgroundSample {
@@ -619,6 +623,7 @@ impl SceneSampler {
                     })
                     .collect(),
                 ambient,
+                shadows: self.spec.lights.shadows,
                 ground: ground.as_ref().map(|g| GroundInstance {
                     cam_from_plane: cam_from_world.compose(&g.cam_from_plane),
                     ..g.clone()

@@ -336,6 +336,9 @@ pub struct LightSpec {
     pub temperature_k: Option<Range>,
     /// Ambient light level. Default 0.15..0.35.
     pub ambient: Range,
+    /// The lights cast shadows onto the objects, the ground and the walls (the embedded
+    /// renderer's shadow maps, soft-edged; Cycles always shadows). Default false.
+    pub shadows: bool,
 }
 
 impl Default for LightSpec {
@@ -348,6 +351,7 @@ impl Default for LightSpec {
             color_jitter: 0.15,
             temperature_k: None,
             ambient: [0.15, 0.35],
+            shadows: false,
         }
     }
 }

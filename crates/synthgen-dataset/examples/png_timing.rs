@@ -260,6 +260,7 @@ fn full_frames(
             distractors: vec![],
             lights: vec![],
             ambient: 0.3,
+            shadows: false,
             ground: None,
             walls: vec![],
             background: BackgroundSample {

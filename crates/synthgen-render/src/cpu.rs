@@ -58,6 +58,7 @@ struct Scratch {
     cam_lights: Vec<Light>,
     batch: ShadeBatch,
     ground_row: GroundRow,
+    shadow: crate::shadow::ShadowScratch,
 }
 
 thread_local! {
@@ -454,6 +455,16 @@ impl CpuRenderer {
                 &self.luts,
                 &mut scratch.batch,
                 out,
+            );
+        }
+        if scene.shadows {
+            crate::shadow::apply(
+                &self.models,
+                scene,
+                &proj,
+                &out.depth_m,
+                &mut out.rgb,
+                &mut scratch.shadow,
             );
         }
         if n_all > n_obj {

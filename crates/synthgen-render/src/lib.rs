@@ -81,6 +81,9 @@
 //!   exposure does not depend on the sampled light distance. Normals are the interpolated
 //!   vertex normals when the model has them, else the face normal. All maths in linear
 //!   light; sRGB conversion in both directions goes through lookup tables.
+//! - **Shadows** (`FrameScene::shadows`, `[lights] shadows`): after shading, one shadow map
+//!   per light (`shadow.rs`: the casters rasterized from the light, 3x3 PCF); a pixel loses
+//!   the Lambert share of each blocked light's contribution (normal from the depth buffer).
 //! - **Background** where nothing is hit: `Color`, `Noise` (uniform per-pixel RGB noise from
 //!   the background seed) or `Images` (an image picked by the seed, cropped at a random
 //!   50-100% scale and offset with the output's aspect ratio, maybe mirrored, nearest
@@ -122,6 +125,7 @@ pub mod procedural;
 mod raster;
 pub mod sensor;
 mod shade;
+mod shadow;
 mod surface;
 mod view_check;
 

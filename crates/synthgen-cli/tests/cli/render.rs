@@ -511,3 +511,71 @@ fn a_few_failed_frames_stay_within_max_failed_fraction() {
     .unwrap();
     assert_eq!(gt.as_object().unwrap().len(), 12 - failed);
 }
+
+/// Issue 28: `[lights] shadows = true` casts the objects' shadows. The same frames with and
+/// without: only colours change, never brighter, and a share of the ground darkens visibly.
+#[test]
+fn shadows_only_darken_and_do_darken_the_ground() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_box_ply(&d.join("box.ply"));
+    let spec = |shadows: bool| {
+        format!(
+            "[camera_pose]\ndistance_m = [0.5, 0.6]\nelevation_deg = [50.0, 60.0]\n[lights]\ncount = [1, 1]\nelevation_deg = [35.0, 40.0]\ndistance_m = [1.0, 1.0]\nshadows = {shadows}\n[background]\nkind = \"color\"\n"
+        )
+    };
+    for (name, on) in [("off", false), ("on", true)] {
+        std::fs::write(d.join(format!("{name}.toml")), spec(on)).unwrap();
+        let o = run(synthgen()
+            .current_dir(d)
+            .args([
+                "render",
+                "-q",
+                "--objects",
+                "box.ply",
+                "box.ply",
+                "--units",
+                "m",
+            ])
+            .args([
+                "--scene",
+                &format!("{name}.toml"),
+                "--image-size",
+                "160,120",
+            ])
+            .args(["--frames", "3", "--seed", "5", "--out", name]));
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let read = |p: &Path| image::open(p).unwrap().to_rgb8();
+    let mut darker = 0usize;
+    let mut pixels = 0usize;
+    for i in 0..3 {
+        let f = |set: &str, kind: &str, ext: &str| {
+            d.join(format!("{set}/train_pbr/000000/{kind}/{i:06}.{ext}"))
+        };
+        assert_eq!(
+            std::fs::read(f("off", "depth", "png")).unwrap(),
+            std::fs::read(f("on", "depth", "png")).unwrap(),
+            "depth is the same"
+        );
+        let (a, b) = (read(&f("off", "rgb", "png")), read(&f("on", "rgb", "png")));
+        for (p, q) in a.pixels().zip(b.pixels()) {
+            pixels += 1;
+            let (sp, sq): (u32, u32) = (
+                p.0.iter().map(|&v| u32::from(v)).sum(),
+                q.0.iter().map(|&v| u32::from(v)).sum(),
+            );
+            assert!(sq <= sp + 3, "a shadow never brightens: {p:?} -> {q:?}");
+            darker += usize::from(sq * 10 < sp * 9);
+        }
+    }
+    assert!(
+        darker * 100 > pixels,
+        "{darker} of {pixels} pixels darker by 10 %"
+    );
+    let manifest = std::fs::read_to_string(d.join("on/synthgen.json")).unwrap();
+    assert!(
+        manifest.contains("\"shadows\": true"),
+        "the manifest records it"
+    );
+}

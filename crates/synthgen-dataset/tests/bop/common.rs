@@ -57,6 +57,7 @@ pub fn scene(frame_index: u64, objects: Vec<ObjectInstance>) -> FrameScene {
         distractors: vec![],
         lights: vec![],
         ambient: 0.3,
+        shadows: false,
         ground: None,
         walls: vec![],
         background: BackgroundSample {

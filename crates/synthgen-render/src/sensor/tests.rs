@@ -243,6 +243,7 @@ fn sensor_model_touches_only_rgb_and_depth_and_is_deterministic() {
         distractors: vec![],
         lights: vec![],
         ambient: 0.8,
+        shadows: false,
         ground: None,
         walls: vec![],
         background: BackgroundSample {

@@ -33,6 +33,7 @@ pub fn scene(intrinsics: Intrinsics, objects: Vec<ObjectInstance>) -> FrameScene
             intensity: 0.9,
         }],
         ambient: 0.25,
+        shadows: false,
         ground: None,
         walls: vec![],
         background: BackgroundSample {

@@ -1,0 +1,256 @@
+//! Cast shadows for the embedded rasterizer (`[lights] shadows = true`): one shadow map per
+//! point light, rendered with the same rasterizer from the light towards the objects (the
+//! casters: targets and distractors), then every shaded pixel (objects, ground, walls) is
+//! tested against it with 3x3 percentage-closer filtering (soft edges) and darkened by the
+//! share of its light it loses: with the normal from the depth buffer, the pixel received
+//! `ambient + Σ I_l max(0, n·l_l)` (Lambert, as it was shaded), so a blocked light `l` takes
+//! `I_l max(0, n·l_l)` of it away (a face turned away from the light loses nothing it had);
+//! applied in linear space.
+
+use synthgen_core::glam::{Mat3, Vec3};
+use synthgen_core::{FrameScene, ObjectInstance};
+
+use crate::prepare::PreparedModel;
+use crate::raster::{raster_object, ObjScratch, Projection, Rect};
+
+/// Shadow-map side, texels.
+pub(crate) const MAP: usize = 1024;
+
+/// Buffers reused from frame to frame.
+#[derive(Default)]
+pub(crate) struct ShadowScratch {
+    map: Vec<f32>,
+    alone: Vec<f32>,
+    os: ObjScratch,
+    /// Per pixel: the share of the light lost, summed over lights.
+    lost: Vec<f32>,
+}
+
+/// Darkens `rgb` (sRGB, 8 bits) where the scene's lights are blocked by its objects.
+/// `depth_m` is the frame's z-depth (0: nothing there), `proj` its camera.
+pub(crate) fn apply(
+    models: &[PreparedModel],
+    scene: &FrameScene,
+    proj: &Projection,
+    depth_m: &[f32],
+    rgb: &mut [u8],
+    s: &mut ShadowScratch,
+) {
+    let casters: Vec<&ObjectInstance> = scene.objects.iter().chain(&scene.distractors).collect();
+    if casters.is_empty() || scene.lights.is_empty() {
+        return;
+    }
+    let w = scene.intrinsics.width as usize;
+    s.lost.clear();
+    s.lost.resize(depth_m.len(), 0.0);
+    let centre = casters
+        .iter()
+        .map(|c| c.cam_from_obj.translation_m.as_vec3())
+        .sum::<Vec3>()
+        / casters.len() as f32;
+    for light in &scene.lights {
+        if light.intensity <= 0.0 {
+            continue;
+        }
+        let p = light.position_cam_m.as_vec3();
+        let Some(fwd) = (centre - p).try_normalize() else {
+            continue;
+        };
+        let hint = if fwd.y.abs() < 0.9 { Vec3::Y } else { Vec3::X };
+        let x = hint.cross(fwd).normalize();
+        let y = fwd.cross(x);
+        // light_from_cam: rows x, y, fwd.
+        let lc = Mat3::from_cols(x, y, fwd).transpose();
+        // A field of view holding every caster's bounding sphere.
+        let mut tan_max = 0.0f32;
+        for c in &casters {
+            let m = &models[c.model_index];
+            let r =
+                m.xs.iter()
+                    .zip(&m.ys)
+                    .zip(&m.zs)
+                    .map(|((x, y), z)| x * x + y * y + z * z)
+                    .fold(0.0f32, f32::max)
+                    .sqrt();
+            let q = lc * (c.cam_from_obj.translation_m.as_vec3() - p);
+            if q.z - r <= 0.02 {
+                continue; // the light is inside or behind this caster: no map for it
+            }
+            let lateral = (q.x * q.x + q.y * q.y).sqrt();
+            tan_max = tan_max.max((lateral + r) / (q.z - r));
+        }
+        if tan_max <= 0.0 {
+            continue;
+        }
+        let half = MAP as f32 / 2.0;
+        let f = half / tan_max.min(6.0);
+        let lp = Projection {
+            fx: f,
+            fy: f,
+            cx: half,
+            cy: half,
+            near_m: 0.01,
+        };
+        let canvas = Rect {
+            x0: 0,
+            y0: 0,
+            x1: MAP as i32,
+            y1: MAP as i32,
+        };
+        s.map.clear();
+        s.map.resize(MAP * MAP, 0.0);
+        for c in &casters {
+            let rot = lc * c.cam_from_obj.rotation.as_mat3();
+            let t = lc * (c.cam_from_obj.translation_m.as_vec3() - p);
+            let win = raster_object(
+                &models[c.model_index],
+                true,
+                &rot,
+                t,
+                &lp,
+                canvas,
+                &mut s.os,
+                &mut s.alone,
+            );
+            let ww = win.width();
+            for (row, y) in (win.y0..win.y1).enumerate() {
+                if y < 0 || y >= MAP as i32 {
+                    continue;
+                }
+                for (col, x) in (win.x0..win.x1).enumerate() {
+                    if x < 0 || x >= MAP as i32 {
+                        continue;
+                    }
+                    let z = s.alone[row * ww + col];
+                    let d = &mut s.map[y as usize * MAP + x as usize];
+                    if z > 0.0 && (*d == 0.0 || z < *d) {
+                        *d = z;
+                    }
+                }
+            }
+        }
+        for (i, &z) in depth_m.iter().enumerate() {
+            if z <= 0.0 {
+                continue;
+            }
+            let (u, v) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
+            let xc = Vec3::new((u - proj.cx) / proj.fx * z, (v - proj.cy) / proj.fy * z, z);
+            let q = lc * (xc - p);
+            if q.z <= 0.01 {
+                continue;
+            }
+            let (mu, mv) = (f * q.x / q.z + half, f * q.y / q.z + half);
+            if !(1.0..MAP as f32 - 1.0).contains(&mu) || !(1.0..MAP as f32 - 1.0).contains(&mv) {
+                continue;
+            }
+            // A texel spans q.z / f metres: a surface may sit that far behind its own texel.
+            let bias = 2.5 * q.z / f + 0.004;
+            let (cu, cv) = (mu as usize, mv as usize);
+            let mut blocked = 0u32;
+            for dv in 0..3 {
+                for du in 0..3 {
+                    let d = s.map[(cv + dv - 1) * MAP + cu + du - 1];
+                    blocked += u32::from(d > 0.0 && q.z > d + bias);
+                }
+            }
+            if blocked == 0 {
+                continue;
+            }
+            // What this light gave the pixel (Lambert, the normal from the depth buffer), out
+            // of everything it received: a face turned away from the light loses nothing.
+            let Some(n) = normal_at(depth_m, w, i, proj) else {
+                continue;
+            };
+            let lambert = |pos: Vec3| n.dot((pos - xc).normalize_or_zero()).max(0.0);
+            let received = scene.ambient.max(0.0)
+                + scene
+                    .lights
+                    .iter()
+                    .map(|l| l.intensity.max(0.0) * lambert(l.position_cam_m.as_vec3()))
+                    .sum::<f32>();
+            let from_this = light.intensity.max(0.0) * lambert(p);
+            if received > 0.0 {
+                s.lost[i] += from_this / received * blocked as f32 / 9.0;
+            }
+        }
+    }
+    for (i, &lost) in s.lost.iter().enumerate() {
+        if lost <= 0.0 {
+            continue;
+        }
+        let keep = (1.0 - lost).max(0.0);
+        for c in &mut rgb[3 * i..3 * i + 3] {
+            let lin = (f32::from(*c) / 255.0).powf(2.2) * keep;
+            *c = (lin.powf(1.0 / 2.2) * 255.0).round() as u8;
+        }
+    }
+}
+
+/// The surface normal at pixel `i` from the depth buffer (central differences of the
+/// back-projected neighbours on the pixel's own surface, turned towards the camera); None at
+/// the image border or where no neighbour lies on the same surface.
+fn normal_at(depth_m: &[f32], w: usize, i: usize, proj: &Projection) -> Option<Vec3> {
+    let (x, y) = (i % w, i / w);
+    let h = depth_m.len() / w;
+    if x == 0 || y == 0 || x + 1 >= w || y + 1 >= h {
+        return None;
+    }
+    let at = |x: usize, y: usize| -> Option<Vec3> {
+        let z = depth_m[y * w + x];
+        (z > 0.0).then(|| {
+            Vec3::new(
+                (x as f32 + 0.5 - proj.cx) / proj.fx * z,
+                (y as f32 + 0.5 - proj.cy) / proj.fy * z,
+                z,
+            )
+        })
+    };
+    let c = at(x, y)?;
+    // Per axis the neighbour on the same surface (the nearer in depth): silhouettes keep a
+    // normal from their own side.
+    let side = |a: Option<Vec3>, b: Option<Vec3>, sign_a: f32| -> Option<Vec3> {
+        let pick = match (a, b) {
+            (Some(a), Some(b)) if (a.z - c.z).abs() <= (b.z - c.z).abs() => (a, sign_a),
+            (Some(_), Some(b)) | (None, Some(b)) => (b, -sign_a),
+            (Some(a), None) => (a, sign_a),
+            (None, None) => return None,
+        };
+        ((pick.0.z - c.z).abs() <= 0.05 * c.z).then(|| (pick.0 - c) * pick.1)
+    };
+    // Both differences point towards +x and +y of the image.
+    let dx = side(at(x + 1, y), at(x - 1, y), 1.0)?;
+    let dy = side(at(x, y + 1), at(x, y - 1), 1.0)?;
+    let n = dx.cross(dy).try_normalize()?;
+    Some(if n.dot(c) > 0.0 { -n } else { n })
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+
+    /// A tilted plane's depth gives its normal back, turned towards the camera.
+    #[test]
+    fn normals_from_depth() {
+        let (w, h) = (20usize, 20usize);
+        let proj = Projection {
+            fx: 50.0,
+            fy: 50.0,
+            cx: 10.0,
+            cy: 10.0,
+            near_m: 0.01,
+        };
+        // The plane z = 1 + 0.5 x (camera coordinates): normal ∝ (0.5, 0, −1).
+        let mut depth = vec![0.0f32; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let a = (x as f32 + 0.5 - 10.0) / 50.0;
+                depth[y * w + x] = 1.0 / (1.0 - 0.5 * a);
+            }
+        }
+        let n = normal_at(&depth, w, 10 * w + 10, &proj).unwrap();
+        let want = Vec3::new(0.5, 0.0, -1.0).normalize();
+        assert!(n.dot(want) > 0.999, "{n}");
+        assert!(normal_at(&depth, w, 0, &proj).is_none(), "border");
+    }
+}
