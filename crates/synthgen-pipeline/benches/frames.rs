@@ -2,7 +2,8 @@
 //! 1, 5, 6, 8, 9; 640x480, ToF depth noise), 8 frames per iteration through the whole
 //! pipeline (sample, render, annotate, sensor model): in memory with `frames()` and
 //! `frames_batch`, and written as BOP to a fresh temp folder with `write` (PNG encoding,
-//! masks, JSON, manifest). Throughput is in frames; threads: all cores (set
+//! masks, JSON, manifest); and `frames_batch_shadows`, the same frames with `[lights] shadows
+//! = true`. Throughput is in frames; threads: all cores (set
 //! `SYNTHGEN_BENCH_THREADS` to pin them).
 //!
 //! Models come from `$SYNTHGEN_LMO_DIR/models` (default `../shared/data/lmo/models` next to
@@ -21,7 +22,7 @@ use synthgen_pipeline::{Format, ObjectSource, PreparedJob, RenderJob, SinkOption
 const IDS: [u32; 5] = [1, 5, 6, 8, 9];
 const FRAMES: u64 = 8;
 
-fn job() -> PreparedJob {
+fn job(shadows: bool) -> PreparedJob {
     let manifest_dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let root = std::env::var_os("SYNTHGEN_LMO_DIR")
         .map(PathBuf::from)
@@ -30,8 +31,9 @@ fn job() -> PreparedJob {
         .iter()
         .map(|id| ObjectSource::new(root.join(format!("models/obj_{id:06}.ply")), Units::Mm))
         .collect();
-    let spec = SceneSpec::from_toml_file(&manifest_dir.join("../../scenes/linemod_like.toml"))
+    let mut spec = SceneSpec::from_toml_file(&manifest_dir.join("../../scenes/linemod_like.toml"))
         .expect("scenes/linemod_like.toml");
+    spec.lights.shadows = shadows;
     let threads = std::env::var("SYNTHGEN_BENCH_THREADS")
         .ok()
         .and_then(|t| t.parse().ok())
@@ -46,7 +48,8 @@ fn job() -> PreparedJob {
 }
 
 fn bench(c: &mut Criterion) {
-    let job = job();
+    let shadowed = job(true);
+    let job = job(false);
     let k = job.intrinsics();
     assert_eq!((k.width, k.height), (640, 480));
     let indices: Vec<u64> = job.frame_range().collect();
@@ -58,6 +61,10 @@ fn bench(c: &mut Criterion) {
     });
     g.bench_function("frames_batch", |b| {
         b.iter(|| job.frames_batch(&indices).unwrap().len())
+    });
+    // The same frames with `[lights] shadows = true` (a shadow map per light).
+    g.bench_function("frames_batch_shadows", |b| {
+        b.iter(|| shadowed.frames_batch(&indices).unwrap().len())
     });
     g.bench_function("write_bop", |b| {
         b.iter_batched(
