@@ -24,6 +24,8 @@ pub(crate) struct ShadowScratch {
     os: ObjScratch,
     /// Per pixel: the share of the light lost, summed over lights.
     lost: Vec<f32>,
+    to_lin: Vec<f32>,
+    to_srgb: Vec<u8>,
 }
 
 /// Darkens `rgb` (sRGB, 8 bits) where the scene's lights are blocked by its objects.
@@ -102,9 +104,11 @@ pub(crate) fn apply(
         for c in &casters {
             let rot = lc * c.cam_from_obj.rotation.as_mat3();
             let t = lc * (c.cam_from_obj.translation_m.as_vec3() - p);
+            // The faces towards the light (culled as the camera culls): a closed surface's
+            // first hit, at half the triangles.
             let win = raster_object(
                 &models[c.model_index],
-                true,
+                false,
                 &rot,
                 t,
                 &lp,
@@ -129,50 +133,71 @@ pub(crate) fn apply(
                 }
             }
         }
-        for (i, &z) in depth_m.iter().enumerate() {
-            if z <= 0.0 {
-                continue;
-            }
-            let (u, v) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
-            let xc = Vec3::new((u - proj.cx) / proj.fx * z, (v - proj.cy) / proj.fy * z, z);
-            let q = lc * (xc - p);
-            if q.z <= 0.01 {
-                continue;
-            }
-            let (mu, mv) = (f * q.x / q.z + half, f * q.y / q.z + half);
-            if !(1.0..MAP as f32 - 1.0).contains(&mu) || !(1.0..MAP as f32 - 1.0).contains(&mv) {
-                continue;
-            }
-            // A texel spans q.z / f metres: a surface may sit that far behind its own texel.
-            let bias = 2.5 * q.z / f + 0.004;
-            let (cu, cv) = (mu as usize, mv as usize);
-            let mut blocked = 0u32;
-            for dv in 0..3 {
-                for du in 0..3 {
-                    let d = s.map[(cv + dv - 1) * MAP + cu + du - 1];
-                    blocked += u32::from(d > 0.0 && q.z > d + bias);
+        // q = lc (xc − p) with xc = z (a_u, b_v, 1): per column lc (a_u, 0, 0), per row
+        // lc (0, b_v, 1), so a pixel costs a multiply-add.
+        let cols: Vec<Vec3> = (0..w)
+            .map(|x| lc * Vec3::new((x as f32 + 0.5 - proj.cx) / proj.fx, 0.0, 0.0))
+            .collect();
+        let lp = lc * p;
+        for (py, zrow) in depth_m.chunks_exact(w).enumerate() {
+            let row_term = lc * Vec3::new(0.0, (py as f32 + 0.5 - proj.cy) / proj.fy, 1.0);
+            for (px, &z) in zrow.iter().enumerate() {
+                if z <= 0.0 {
+                    continue;
+                }
+                let i = py * w + px;
+                let q = z * (cols[px] + row_term) - lp;
+                if q.z <= 0.01 {
+                    continue;
+                }
+                let (mu, mv) = (f * q.x / q.z + half, f * q.y / q.z + half);
+                if !(1.0..MAP as f32 - 1.0).contains(&mu) || !(1.0..MAP as f32 - 1.0).contains(&mv)
+                {
+                    continue;
+                }
+                // A texel spans q.z / f metres: a surface may sit that far behind its own texel.
+                let bias = 2.5 * q.z / f + 0.004;
+                let (cu, cv) = (mu as usize, mv as usize);
+                let mut blocked = 0u32;
+                for dv in 0..3 {
+                    for du in 0..3 {
+                        let d = s.map[(cv + dv - 1) * MAP + cu + du - 1];
+                        blocked += u32::from(d > 0.0 && q.z > d + bias);
+                    }
+                }
+                if blocked == 0 {
+                    continue;
+                }
+                // What this light gave the pixel (Lambert, the normal from the depth buffer), out
+                // of everything it received: a face turned away from the light loses nothing.
+                let Some(n) = normal_at(depth_m, w, i, proj) else {
+                    continue;
+                };
+                let xc = Vec3::new(
+                    (px as f32 + 0.5 - proj.cx) / proj.fx * z,
+                    (py as f32 + 0.5 - proj.cy) / proj.fy * z,
+                    z,
+                );
+                let lambert = |pos: Vec3| n.dot((pos - xc).normalize_or_zero()).max(0.0);
+                let received = scene.ambient.max(0.0)
+                    + scene
+                        .lights
+                        .iter()
+                        .map(|l| l.intensity.max(0.0) * lambert(l.position_cam_m.as_vec3()))
+                        .sum::<f32>();
+                let from_this = light.intensity.max(0.0) * lambert(p);
+                if received > 0.0 {
+                    s.lost[i] += from_this / received * blocked as f32 / 9.0;
                 }
             }
-            if blocked == 0 {
-                continue;
-            }
-            // What this light gave the pixel (Lambert, the normal from the depth buffer), out
-            // of everything it received: a face turned away from the light loses nothing.
-            let Some(n) = normal_at(depth_m, w, i, proj) else {
-                continue;
-            };
-            let lambert = |pos: Vec3| n.dot((pos - xc).normalize_or_zero()).max(0.0);
-            let received = scene.ambient.max(0.0)
-                + scene
-                    .lights
-                    .iter()
-                    .map(|l| l.intensity.max(0.0) * lambert(l.position_cam_m.as_vec3()))
-                    .sum::<f32>();
-            let from_this = light.intensity.max(0.0) * lambert(p);
-            if received > 0.0 {
-                s.lost[i] += from_this / received * blocked as f32 / 9.0;
-            }
         }
+    }
+    // In linear light: sRGB → linear by table, scaled, back by a 4096-step table.
+    if s.to_lin.is_empty() {
+        s.to_lin = (0..256).map(|v| (v as f32 / 255.0).powf(2.2)).collect();
+        s.to_srgb = (0..4096)
+            .map(|i| ((i as f32 / 4095.0).powf(1.0 / 2.2) * 255.0).round() as u8)
+            .collect();
     }
     for (i, &lost) in s.lost.iter().enumerate() {
         if lost <= 0.0 {
@@ -180,8 +205,8 @@ pub(crate) fn apply(
         }
         let keep = (1.0 - lost).max(0.0);
         for c in &mut rgb[3 * i..3 * i + 3] {
-            let lin = (f32::from(*c) / 255.0).powf(2.2) * keep;
-            *c = (lin.powf(1.0 / 2.2) * 255.0).round() as u8;
+            let lin = s.to_lin[*c as usize] * keep;
+            *c = s.to_srgb[((lin * 4095.0).round() as usize).min(4095)];
         }
     }
 }
