@@ -369,6 +369,12 @@ pub struct RgbNoiseSpec {
     pub shot_noise: f64,
     /// Read noise σ, linear units. Default 0.003.
     pub read_noise: f64,
+    /// White balance error per frame: the red and blue gains are drawn uniformly in
+    /// 1 ± this, relative to green. Default 0 (none).
+    pub white_balance: f64,
+    /// Vignetting per frame: the image darkens by `k · r²` towards the corners (r = 1 at the
+    /// half diagonal), k uniform in this range. Default [0, 0] (none).
+    pub vignetting: Range,
 }
 
 impl Default for RgbNoiseSpec {
@@ -379,6 +385,8 @@ impl Default for RgbNoiseSpec {
             blur_sigma_px: [0.0, 0.7],
             shot_noise: 0.0004,
             read_noise: 0.003,
+            white_balance: 0.0,
+            vignetting: [0.0, 0.0],
         }
     }
 }
@@ -474,6 +482,9 @@ impl SensorSpec {
         check_value("sensor.rgb.blur_sigma_px", r.blur_sigma_px[1], 0.0, 10.0)?;
         check_value("sensor.rgb.shot_noise", r.shot_noise, 0.0, 1.0)?;
         check_value("sensor.rgb.read_noise", r.read_noise, 0.0, 1.0)?;
+        check_value("sensor.rgb.white_balance", r.white_balance, 0.0, 0.5)?;
+        check_range("sensor.rgb.vignetting", r.vignetting, 0.0)?;
+        check_value("sensor.rgb.vignetting", r.vignetting[1], 0.0, 1.0)?;
         Ok(())
     }
 

@@ -1,5 +1,6 @@
-//! RGB sensor effects in linear light: exposure jitter, Gaussian blur (optics / motion),
-//! shot noise (variance proportional to the signal) and read noise.
+//! RGB sensor effects in linear light: exposure jitter, white balance error, vignetting,
+//! Gaussian blur (optics / motion), shot noise (variance proportional to the signal) and read
+//! noise.
 
 use rand::{Rng, RngCore};
 use rand_chacha::ChaCha8Rng;
@@ -22,10 +23,37 @@ pub(crate) fn apply_rgb(
     let stops = uniform(rng, spec.exposure_stops);
     let sigma = uniform(rng, spec.blur_sigma_px);
     let gain = 2f64.powf(stops) as f32;
+    // Drawn only when asked for, so other specs keep their noise.
+    let wb = if spec.white_balance > 0.0 {
+        let d = spec.white_balance;
+        [
+            rng.gen_range(1.0 - d..=1.0 + d) as f32,
+            1.0,
+            rng.gen_range(1.0 - d..=1.0 + d) as f32,
+        ]
+    } else {
+        [1.0; 3]
+    };
+    let vig = if spec.vignetting[1] > 0.0 {
+        uniform(rng, spec.vignetting) as f32
+    } else {
+        0.0
+    };
     let mut lin: Vec<f32> = rgb
         .iter()
         .map(|&b| luts.to_linear[b as usize] * gain)
         .collect();
+    if wb != [1.0; 3] || vig > 0.0 {
+        let (cx, cy) = (w as f32 / 2.0, h as f32 / 2.0);
+        let r2_max = cx * cx + cy * cy;
+        for (i, px) in lin.chunks_exact_mut(3).enumerate() {
+            let (dx, dy) = ((i % w) as f32 + 0.5 - cx, (i / w) as f32 + 0.5 - cy);
+            let v = 1.0 - vig * (dx * dx + dy * dy) / r2_max;
+            for (c, g) in px.iter_mut().zip(wb) {
+                *c *= g * v;
+            }
+        }
+    }
     if sigma > 0.05 {
         blur(&mut lin, w, h, sigma as f32);
     }
@@ -100,6 +128,62 @@ fn blur(img: &mut [f32], w: usize, h: usize, sigma: f32) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// White balance scales red and blue against green; vignetting darkens the corners and
+    /// not the centre; with both at 0 (the defaults) nothing is drawn or changed.
+    #[test]
+    fn white_balance_and_vignetting() {
+        let luts = ColorLuts::new();
+        let (w, h) = (32usize, 24usize);
+        let quiet = RgbNoiseSpec {
+            enabled: true,
+            exposure_stops: [0.0, 0.0],
+            blur_sigma_px: [0.0, 0.0],
+            shot_noise: 0.0,
+            read_noise: 0.0,
+            white_balance: 0.0,
+            vignetting: [0.0, 0.0],
+        };
+        let grey = vec![128u8; w * h * 3];
+        let run = |spec: &RgbNoiseSpec, seed: u64| {
+            let mut img = grey.clone();
+            let mut rng = <ChaCha8Rng as rand::SeedableRng>::seed_from_u64(seed);
+            apply_rgb(spec, &luts, w, h, &mut img, &mut rng);
+            img
+        };
+        assert_eq!(run(&quiet, 1), grey);
+        let wb = RgbNoiseSpec {
+            white_balance: 0.2,
+            ..quiet.clone()
+        };
+        let mut moved = false;
+        for seed in 0..8 {
+            let img = run(&wb, seed);
+            assert!(
+                img.chunks_exact(3).all(|p| p[1] == 128),
+                "green is the reference"
+            );
+            let (r, b) = (img[0], img[2]);
+            assert!(
+                img.chunks_exact(3).all(|p| p[0] == r && p[2] == b),
+                "one gain per frame"
+            );
+            moved |= r != 128 || b != 128;
+        }
+        assert!(moved);
+        let vig = RgbNoiseSpec {
+            vignetting: [0.5, 0.5],
+            ..quiet
+        };
+        let img = run(&vig, 2);
+        let at = |x: usize, y: usize| img[(y * w + x) * 3];
+        assert!(at(w / 2, h / 2) >= 127, "the centre keeps its value");
+        assert!(
+            at(0, 0) < 110 && at(w - 1, h - 1) < 110,
+            "the corners darken: {}",
+            at(0, 0)
+        );
+    }
 
     #[test]
     fn approx_normal_has_unit_variance() {
