@@ -151,11 +151,42 @@ pub fn incidence(d: &[f32], rel: f64, k: &Intrinsics, x: usize, y: usize) -> f64
 /// structured-light model and its fit use.
 #[inline]
 pub fn incidence_cos(d: &[f32], rel: f32, k: &Intrinsics, x: usize, y: usize) -> f32 {
+    let Some(NormalTerms { a, b, c, rx, ry }) = normal_terms(d, rel, k, x, y) else {
+        return 1.0;
+    };
+    let nz = a * rx + b * ry + c;
+    let nn = (a * a + b * b + nz * nz).sqrt();
+    let rn = (rx * rx + ry * ry + 1.0).sqrt();
+    if nn <= 0.0 {
+        return 1.0;
+    }
+    (c / (nn * rn)).clamp(0.0, 1.0)
+}
+
+/// The unit surface normal at pixel (x, y) in camera coordinates, turned towards the camera:
+/// [`incidence_cos`]'s n = (−A, −B, A r_x + B r_y + C), negated. None for an empty pixel.
+#[inline]
+pub fn normal_cam(d: &[f32], rel: f32, k: &Intrinsics, x: usize, y: usize) -> Option<glam::Vec3> {
+    let NormalTerms { a, b, c, rx, ry } = normal_terms(d, rel, k, x, y)?;
+    glam::Vec3::new(a, b, -(a * rx + b * ry + c)).try_normalize()
+}
+
+/// The terms of the normal from the depth's derivatives at (x, y) (see [`incidence_cos`]).
+struct NormalTerms {
+    a: f32,
+    b: f32,
+    c: f32,
+    rx: f32,
+    ry: f32,
+}
+
+#[inline(always)]
+fn normal_terms(d: &[f32], rel: f32, k: &Intrinsics, x: usize, y: usize) -> Option<NormalTerms> {
     let (w, h) = (k.width as usize, k.height as usize);
     let i = y * w + x;
     let z = d[i];
     if z <= 0.0 {
-        return 1.0;
+        return None;
     }
     let lim = rel * z;
     let same = |j: usize| {
@@ -181,18 +212,13 @@ pub fn incidence_cos(d: &[f32], rel: f32, k: &Intrinsics, x: usize, y: usize) ->
         if y + 1 < h { same(i + w) } else { None },
     );
     let (fx, fy) = (k.fx as f32, k.fy as f32);
-    let rx = (x as f32 - k.cx as f32) / fx;
-    let ry = (y as f32 - k.cy as f32) / fy;
-    let a = z * zu / fy;
-    let b = z * zv / fx;
-    let c = z * z / (fx * fy);
-    let nz = a * rx + b * ry + c;
-    let nn = (a * a + b * b + nz * nz).sqrt();
-    let rn = (rx * rx + ry * ry + 1.0).sqrt();
-    if nn <= 0.0 {
-        return 1.0;
-    }
-    (c / (nn * rn)).clamp(0.0, 1.0)
+    Some(NormalTerms {
+        a: z * zu / fy,
+        b: z * zv / fx,
+        c: z * z / (fx * fy),
+        rx: (x as f32 - k.cx as f32) / fx,
+        ry: (y as f32 - k.cy as f32) / fy,
+    })
 }
 
 /// Angle of incidence, degrees, of every pixel (0 where empty): [`incidence_cos`] over the
@@ -438,6 +464,33 @@ pub fn luminance_map(rgb: &[u8]) -> Vec<f32> {
 
 #[cfg(test)]
 mod tests {
+
+    /// A tilted plane's depth gives its normal back, turned towards the camera; an empty
+    /// pixel has none.
+    #[test]
+    fn normal_cam_of_a_tilted_plane() {
+        let k = Intrinsics {
+            width: 20,
+            height: 20,
+            fx: 50.0,
+            fy: 50.0,
+            cx: 10.0,
+            cy: 10.0,
+        };
+        // The plane z = 1 + 0.5 x (camera coordinates): normal ∝ (0.5, 0, −1).
+        let mut d = vec![0.0f32; 400];
+        for y in 0..20 {
+            for x in 0..20 {
+                d[y * 20 + x] = 1.0 / (1.0 - 0.5 * (x as f32 - 10.0) / 50.0);
+            }
+        }
+        let n = normal_cam(&d, 0.05, &k, 10, 10).unwrap();
+        let want = glam::Vec3::new(0.5, 0.0, -1.0).normalize();
+        assert!(n.dot(want) > 0.999, "{n}");
+        d[0] = 0.0;
+        assert!(normal_cam(&d, 0.05, &k, 0, 0).is_none());
+    }
+
     use super::*;
 
     #[test]

@@ -2,19 +2,22 @@
 //! point light, rendered with the same rasterizer from the light towards the objects (the
 //! casters: targets and distractors), then every shaded pixel (objects, ground, walls) is
 //! tested against it with 3x3 percentage-closer filtering (soft edges) and darkened by the
-//! share of its light it loses: with the normal from the depth buffer, the pixel received
+//! share of its light it loses: with the normal from the depth buffer
+//! (`depth_features::normal_cam`, as the sensor models compute it), the pixel received
 //! `ambient + Σ I_l max(0, n·l_l)` (Lambert, as it was shaded), so a blocked light `l` takes
 //! `I_l max(0, n·l_l)` of it away (a face turned away from the light loses nothing it had);
 //! applied in linear space.
 
 use synthgen_core::glam::{Mat3, Vec3};
-use synthgen_core::{FrameScene, ObjectInstance};
+use synthgen_core::{depth_features, FrameScene, ObjectInstance};
 
 use crate::prepare::PreparedModel;
 use crate::raster::{raster_object, ObjScratch, Projection, Rect};
 
 /// Shadow-map side, texels.
 pub(crate) const MAP: usize = 1024;
+/// Neighbours within this share of a pixel's depth lie on its surface (for its normal).
+const SAME_SURFACE: f32 = 0.05;
 
 /// Buffers reused from frame to frame.
 #[derive(Default)]
@@ -42,7 +45,21 @@ pub(crate) fn apply(
     if casters.is_empty() || scene.lights.is_empty() {
         return;
     }
-    let w = scene.intrinsics.width as usize;
+    let k = &scene.intrinsics;
+    let w = k.width as usize;
+    // Each caster's bounding-sphere radius about its origin, for the lights' fields of view.
+    let radii: Vec<f32> = casters
+        .iter()
+        .map(|c| {
+            let m = &models[c.model_index];
+            m.xs.iter()
+                .zip(&m.ys)
+                .zip(&m.zs)
+                .map(|((x, y), z)| x * x + y * y + z * z)
+                .fold(0.0f32, f32::max)
+                .sqrt()
+        })
+        .collect();
     s.lost.clear();
     s.lost.resize(depth_m.len(), 0.0);
     let centre = casters
@@ -65,15 +82,7 @@ pub(crate) fn apply(
         let lc = Mat3::from_cols(x, y, fwd).transpose();
         // A field of view holding every caster's bounding sphere.
         let mut tan_max = 0.0f32;
-        for c in &casters {
-            let m = &models[c.model_index];
-            let r =
-                m.xs.iter()
-                    .zip(&m.ys)
-                    .zip(&m.zs)
-                    .map(|((x, y), z)| x * x + y * y + z * z)
-                    .fold(0.0f32, f32::max)
-                    .sqrt();
+        for (c, &r) in casters.iter().zip(&radii) {
             let q = lc * (c.cam_from_obj.translation_m.as_vec3() - p);
             if q.z - r <= 0.02 {
                 continue; // the light is inside or behind this caster: no map for it
@@ -170,7 +179,7 @@ pub(crate) fn apply(
                 }
                 // What this light gave the pixel (Lambert, the normal from the depth buffer), out
                 // of everything it received: a face turned away from the light loses nothing.
-                let Some(n) = normal_at(depth_m, w, i, proj) else {
+                let Some(n) = depth_features::normal_cam(depth_m, SAME_SURFACE, k, px, py) else {
                     continue;
                 };
                 let xc = Vec3::new(
@@ -208,74 +217,5 @@ pub(crate) fn apply(
             let lin = s.to_lin[*c as usize] * keep;
             *c = s.to_srgb[((lin * 4095.0).round() as usize).min(4095)];
         }
-    }
-}
-
-/// The surface normal at pixel `i` from the depth buffer (central differences of the
-/// back-projected neighbours on the pixel's own surface, turned towards the camera); None at
-/// the image border or where no neighbour lies on the same surface.
-fn normal_at(depth_m: &[f32], w: usize, i: usize, proj: &Projection) -> Option<Vec3> {
-    let (x, y) = (i % w, i / w);
-    let h = depth_m.len() / w;
-    if x == 0 || y == 0 || x + 1 >= w || y + 1 >= h {
-        return None;
-    }
-    let at = |x: usize, y: usize| -> Option<Vec3> {
-        let z = depth_m[y * w + x];
-        (z > 0.0).then(|| {
-            Vec3::new(
-                (x as f32 + 0.5 - proj.cx) / proj.fx * z,
-                (y as f32 + 0.5 - proj.cy) / proj.fy * z,
-                z,
-            )
-        })
-    };
-    let c = at(x, y)?;
-    // Per axis the neighbour on the same surface (the nearer in depth): silhouettes keep a
-    // normal from their own side.
-    let side = |a: Option<Vec3>, b: Option<Vec3>, sign_a: f32| -> Option<Vec3> {
-        let pick = match (a, b) {
-            (Some(a), Some(b)) if (a.z - c.z).abs() <= (b.z - c.z).abs() => (a, sign_a),
-            (Some(_), Some(b)) | (None, Some(b)) => (b, -sign_a),
-            (Some(a), None) => (a, sign_a),
-            (None, None) => return None,
-        };
-        ((pick.0.z - c.z).abs() <= 0.05 * c.z).then(|| (pick.0 - c) * pick.1)
-    };
-    // Both differences point towards +x and +y of the image.
-    let dx = side(at(x + 1, y), at(x - 1, y), 1.0)?;
-    let dy = side(at(x, y + 1), at(x, y - 1), 1.0)?;
-    let n = dx.cross(dy).try_normalize()?;
-    Some(if n.dot(c) > 0.0 { -n } else { n })
-}
-
-#[cfg(test)]
-#[allow(clippy::unwrap_used, clippy::expect_used)]
-mod tests {
-    use super::*;
-
-    /// A tilted plane's depth gives its normal back, turned towards the camera.
-    #[test]
-    fn normals_from_depth() {
-        let (w, h) = (20usize, 20usize);
-        let proj = Projection {
-            fx: 50.0,
-            fy: 50.0,
-            cx: 10.0,
-            cy: 10.0,
-            near_m: 0.01,
-        };
-        // The plane z = 1 + 0.5 x (camera coordinates): normal ∝ (0.5, 0, −1).
-        let mut depth = vec![0.0f32; w * h];
-        for y in 0..h {
-            for x in 0..w {
-                let a = (x as f32 + 0.5 - 10.0) / 50.0;
-                depth[y * w + x] = 1.0 / (1.0 - 0.5 * a);
-            }
-        }
-        let n = normal_at(&depth, w, 10 * w + 10, &proj).unwrap();
-        let want = Vec3::new(0.5, 0.0, -1.0).normalize();
-        assert!(n.dot(want) > 0.999, "{n}");
-        assert!(normal_at(&depth, w, 0, &proj).is_none(), "border");
     }
 }

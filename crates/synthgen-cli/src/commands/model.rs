@@ -9,7 +9,7 @@ use synthgen_assets::{load_model, Units};
 use synthgen_dataset::source::open_source;
 use synthgen_physics::align::{align, AlignOptions, Alignment};
 
-use crate::commands::object_models::model_name;
+use crate::commands::object_models::{files_with_extensions, model_name};
 
 use crate::cli::ModelAlignArgs;
 use crate::commands::user_error;
@@ -235,16 +235,8 @@ fn align_dataset(
         let Some(model) = source.model_path(id) else {
             continue;
         };
-        let objs: Vec<PathBuf> = std::fs::read_dir(&folder)
-            .map(|d| {
-                let mut v: Vec<PathBuf> = d
-                    .filter_map(|e| e.ok().map(|e| e.path()))
-                    .filter(|p| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj")))
-                    .collect();
-                v.sort();
-                v
-            })
-            .unwrap_or_default();
+        // A missing folder: no scan for this object.
+        let objs = files_with_extensions(&folder, &["obj"]).unwrap_or_default();
         let [scan] = objs.as_slice() else {
             rows.push(format!(
                 "| {id} | {name} | — | — | — | {} |",

@@ -53,3 +53,22 @@ pub fn model_name(source: &dyn FrameSource, id: u32) -> String {
         _ => format!("obj_{id:06}"),
     }
 }
+
+/// The files of `folder` whose extension is one of `extensions` (any case), sorted.
+pub fn files_with_extensions(
+    folder: &std::path::Path,
+    extensions: &[&str],
+) -> std::io::Result<Vec<std::path::PathBuf>> {
+    let mut v: Vec<std::path::PathBuf> = std::fs::read_dir(folder)?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.extension().is_some_and(|e| {
+                extensions
+                    .iter()
+                    .any(|x| e.to_string_lossy().eq_ignore_ascii_case(x))
+            })
+        })
+        .collect();
+    v.sort();
+    Ok(v)
+}

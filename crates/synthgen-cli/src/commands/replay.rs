@@ -5,7 +5,7 @@
 //! ids.
 
 use std::collections::{BTreeMap, BTreeSet};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
@@ -21,7 +21,7 @@ use synthgen_pipeline::{render_annotated, ycbv_class_index, Layout, Sink};
 use synthgen_render::{CpuRenderer, SensorModel};
 
 use crate::cli::{Backend, FormatArg, RenderArgs};
-use crate::commands::object_models::{frame_obj_ids, load_models};
+use crate::commands::object_models::{files_with_extensions, frame_obj_ids, load_models};
 use crate::commands::render_sink::sink_options;
 use crate::commands::{render_extras, user_error};
 use crate::{ExitStatus, Printer};
@@ -304,17 +304,8 @@ fn replace_models(
             kept.push(name);
             continue;
         }
-        let mut meshes: Vec<PathBuf> = std::fs::read_dir(&folder)
-            .with_context(|| format!("cannot read {}", folder.display()))?
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| {
-                p.extension().is_some_and(|e| {
-                    synthgen_assets::SUPPORTED_EXTENSIONS
-                        .contains(&e.to_string_lossy().to_ascii_lowercase().as_str())
-                })
-            })
-            .collect();
-        meshes.sort();
+        let meshes = files_with_extensions(&folder, synthgen_assets::SUPPORTED_EXTENSIONS)
+            .with_context(|| format!("cannot read {}", folder.display()))?;
         let [mesh] = meshes.as_slice() else {
             return Err(user_error(
                 format!(

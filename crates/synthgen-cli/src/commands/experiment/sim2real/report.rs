@@ -217,35 +217,7 @@ impl Report {
             v
         };
         let _ = writeln!(o, "\nMean centre error (cm) per object:\n");
-        let _ = write!(o, "| object | n |");
-        for r in &self.rows {
-            let _ = write!(o, " {} |", r.name);
-        }
-        let _ = writeln!(o);
-        let _ = write!(o, "|---|---:|");
-        for _ in &self.rows {
-            let _ = write!(o, "---:|");
-        }
-        let _ = writeln!(o);
-        for id in &ids {
-            let n = self
-                .rows
-                .iter()
-                .find_map(|r| r.objects.get(id).map(|m| m.n))
-                .unwrap_or(0);
-            let _ = write!(o, "| {id} | {n} |");
-            for r in &self.rows {
-                match r.objects.get(id) {
-                    Some(m) => {
-                        let _ = write!(o, " {:.2} |", m.mean_centre_error_cm);
-                    }
-                    None => {
-                        let _ = write!(o, " — |");
-                    }
-                }
-            }
-            let _ = writeln!(o);
-        }
+        row_table(&mut o, "object", &self.rows, &ids, |r| &r.objects);
         // Per test scene, when there are several.
         let scene_ids: Vec<String> = self
             .rows
@@ -256,35 +228,7 @@ impl Report {
             .collect();
         if scene_ids.len() > 1 {
             let _ = writeln!(o, "\nMean centre error (cm) per test scene:\n");
-            let _ = write!(o, "| scene | n |");
-            for r in &self.rows {
-                let _ = write!(o, " {} |", r.name);
-            }
-            let _ = writeln!(o);
-            let _ = write!(o, "|---|---:|");
-            for _ in &self.rows {
-                let _ = write!(o, "---:|");
-            }
-            let _ = writeln!(o);
-            for id in &scene_ids {
-                let n = self
-                    .rows
-                    .iter()
-                    .find_map(|r| r.scenes.get(id).map(|m| m.n))
-                    .unwrap_or(0);
-                let _ = write!(o, "| {id} | {n} |");
-                for r in &self.rows {
-                    match r.scenes.get(id) {
-                        Some(m) => {
-                            let _ = write!(o, " {:.2} |", m.mean_centre_error_cm);
-                        }
-                        None => {
-                            let _ = write!(o, " — |");
-                        }
-                    }
-                }
-                let _ = writeln!(o);
-            }
+            row_table(&mut o, "scene", &self.rows, &scene_ids, |r| &r.scenes);
         }
         let skipped: usize = self.skipped_frames.values().map(Vec::len).sum();
         if skipped > 0 {
@@ -370,5 +314,44 @@ impl Report {
             2,
         );
         c
+    }
+}
+
+/// A markdown table of each row's mean centre error per key (an object or a scene id), with
+/// the first row's instance count that has the key; "—" where a row lacks it.
+fn row_table(
+    o: &mut String,
+    what: &str,
+    rows: &[RowRecord],
+    keys: &[String],
+    by: impl Fn(&RowRecord) -> &BTreeMap<String, Metrics>,
+) {
+    let _ = write!(o, "| {what} | n |");
+    for r in rows {
+        let _ = write!(o, " {} |", r.name);
+    }
+    let _ = writeln!(o);
+    let _ = write!(o, "|---|---:|");
+    for _ in rows {
+        let _ = write!(o, "---:|");
+    }
+    let _ = writeln!(o);
+    for key in keys {
+        let n = rows
+            .iter()
+            .find_map(|r| by(r).get(key).map(|m| m.n))
+            .unwrap_or(0);
+        let _ = write!(o, "| {key} | {n} |");
+        for r in rows {
+            match by(r).get(key) {
+                Some(m) => {
+                    let _ = write!(o, " {:.2} |", m.mean_centre_error_cm);
+                }
+                None => {
+                    let _ = write!(o, " — |");
+                }
+            }
+        }
+        let _ = writeln!(o);
     }
 }
