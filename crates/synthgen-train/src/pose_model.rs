@@ -141,6 +141,37 @@ impl Prediction {
     }
 }
 
+/// How often a training step hides an instance's class from a per-object TNet, so that the
+/// class-free prediction (an object the model has no class for) stays a trained one.
+pub const CLASS_DROPOUT: f64 = 0.15;
+
+/// (B, classes) one-hot rows of the batch's object ids; an id outside `classes` is an all-zero
+/// row, and so (with `jitter_seed`, training) is a [`CLASS_DROPOUT`] share of the instances,
+/// drawn from (seed, scene, image, gt).
+fn class_one_hot(
+    batch: &[&Instance],
+    classes: &[u32],
+    jitter_seed: Option<u64>,
+    device: &Device,
+) -> Result<Tensor> {
+    let n = classes.len();
+    let mut v = vec![0f32; batch.len() * n];
+    for (row, i) in batch.iter().enumerate() {
+        let dropped = jitter_seed.is_some_and(|seed| {
+            let h = synthgen_core::rng::splitmix64(
+                synthgen_core::rng::splitmix64(
+                    synthgen_core::rng::splitmix64(seed ^ 0x636c_6173_73) ^ u64::from(i.scene_id),
+                ) ^ (u64::from(i.im_id) << 20 | i.gt_id as u64),
+            );
+            ((h >> 11) as f64 / (1u64 << 53) as f64) < CLASS_DROPOUT
+        });
+        if let (false, Some(k)) = (dropped, classes.iter().position(|c| *c == i.obj_id)) {
+            v[row * n + k] = 1.0;
+        }
+    }
+    Ok(Tensor::from_vec(v, (batch.len(), n), device)?)
+}
+
 /// The GT rotation as a quaternion (w, x, y, z) with w ≥ 0.
 pub fn quaternion_wxyz(r: &DMat3) -> [f64; 4] {
     let q = DQuat::from_mat3(r).normalize();
@@ -187,7 +218,7 @@ impl PoseModel {
         let varmap = VarMap::new();
         let vb = seeded_var_builder(&varmap, seed, device);
         let net = match kind {
-            ModelKind::Tnet => Net::T(TNet::new(width, vb)?),
+            ModelKind::Tnet => Net::T(TNet::new(width, 0, vb)?),
             ModelKind::Rnet => Net::R(RNet::new(width, vb)?),
             ModelKind::Full => Net::F(Full::new(width, vb)?),
             ModelKind::Rgb => unreachable!("returned above"),
@@ -200,6 +231,38 @@ impl PoseModel {
             crop_size,
             translation: None,
             classes: Vec::new(),
+            device: device.clone(),
+        })
+    }
+
+    /// A TNet conditioned on the object class (`classes`: object ids, sorted and deduplicated
+    /// here); objects outside `classes` are predicted without a class.
+    pub fn tnet_per_object(
+        width: usize,
+        scale: f32,
+        classes: &[u32],
+        seed: u64,
+        device: &Device,
+    ) -> Result<PoseModel> {
+        let mut classes = classes.to_vec();
+        classes.sort_unstable();
+        classes.dedup();
+        if classes.is_empty() {
+            return Err(Error::InvalidOption(
+                "a per-object tnet needs at least one object class".into(),
+            ));
+        }
+        let varmap = VarMap::new();
+        let vb = seeded_var_builder(&varmap, seed, device);
+        let net = Net::T(TNet::new(width, classes.len(), vb)?);
+        Ok(PoseModel {
+            kind: ModelKind::Tnet,
+            varmap,
+            net,
+            scale,
+            crop_size: 0,
+            translation: None,
+            classes,
             device: device.clone(),
         })
     }
@@ -345,7 +408,10 @@ impl PoseModel {
         };
         match &self.net {
             Net::T(net) => {
-                let pred = net.forward(&b.points)?;
+                let class = (net.n_classes() > 0)
+                    .then(|| class_one_hot(batch, &self.classes, jitter_seed, &self.device))
+                    .transpose()?;
+                let pred = net.forward(&b.points, class.as_ref())?;
                 let loss = offset_l1_loss(&pred, &b.offsets)?;
                 let preds = if predict {
                     centres_from_offsets(&b, &pred, self.scale)?

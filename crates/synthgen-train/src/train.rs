@@ -75,7 +75,7 @@ pub struct TrainConfig {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub translation: Option<Translation>,
     /// The RGB model's object classes (ids, sorted), one head each: the training set's
-    /// objects.
+    /// objects. For TNet (`--per-object`): the classes it is conditioned on (empty: none).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub classes: Vec<u32>,
 }
@@ -244,6 +244,15 @@ pub fn new_model(cfg: &TrainConfig, device: &Device) -> Result<PoseModel> {
             &cfg.classes,
             cfg.width,
             cfg.crop_size,
+            cfg.seed,
+            device,
+        );
+    }
+    if cfg.model == ModelKind::Tnet && !cfg.classes.is_empty() {
+        return PoseModel::tnet_per_object(
+            cfg.width,
+            cfg.normalization_scale,
+            &cfg.classes,
             cfg.seed,
             device,
         );

@@ -111,6 +111,11 @@ pub struct ExperimentSim2realArgs {
     #[arg(long, value_name = "P", default_value_t = 0.0)]
     pub point_dropout: f64,
 
+    /// TNet conditioned on the object class (a learned vector per object in its global
+    /// feature): where the centre lies behind the visible surface depends on the object.
+    #[arg(long)]
+    pub per_object: bool,
+
     /// Seeds the renders and the training.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,

@@ -114,6 +114,12 @@ pub struct TrainArgs {
     #[arg(long, value_enum, default_value_t = TranslationArg::CentreTz)]
     pub translation: TranslationArg,
 
+    /// TNet: condition on the object class (a learned vector per object of the training
+    /// data; objects it lacks are predicted without one). `eval` reads the classes from the
+    /// run's config.json.
+    #[arg(long)]
+    pub per_object: bool,
+
     #[arg(long, default_value_t = 30)]
     pub epochs: usize,
 

@@ -168,6 +168,15 @@ pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
     };
     // Before any data is read: a bad --lr must not cost a dataset load.
     cfg.validate()?;
+    if args.per_object && cfg.model != ModelKind::Tnet {
+        return Err(user_error(
+            format!(
+                "--per-object is a TNet option; the {} model has no class input",
+                cfg.model.name()
+            ),
+            "drop --per-object, or train --model tnet",
+        ));
+    }
     if cfg.model.needs_rgb()
         && cfg.model != ModelKind::Rgb
         && (cfg.crop_size < 2 || cfg.crop_size % 2 != 0)
@@ -219,7 +228,9 @@ pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
             "check that the dataset has depth/ and mask_visib/ images, or lower --min-visib-fract",
         ));
     }
-    let classes = if cfg.model == ModelKind::Rgb && cfg.classes.is_empty() {
+    let wants_classes =
+        cfg.model == ModelKind::Rgb || (cfg.model == ModelKind::Tnet && args.per_object);
+    let classes = if wants_classes && cfg.classes.is_empty() {
         set.obj_ids().into_iter().collect()
     } else {
         cfg.classes.clone()

@@ -143,6 +143,45 @@ fn train_resume_and_eval_checkpoint() {
         .is_finite());
 }
 
+#[test]
+fn per_object_tnet_records_its_classes_and_evaluates() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = tiny_dataset(dir.path());
+    let out = dir.path().join("run");
+    let o = train(&data, &out, "1", &["--per-object"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let cfg: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("config.json")).unwrap()).unwrap();
+    assert_eq!(cfg["classes"], serde_json::json!([8]));
+    // The class vector is a variable of the checkpoint.
+    let tensors = std::fs::read(out.join("model.safetensors")).unwrap();
+    assert!(
+        String::from_utf8_lossy(&tensors[..4096.min(tensors.len())]).contains("h1_class"),
+        "no class weights in the checkpoint"
+    );
+    let o = run(synthgen()
+        .args(["eval", "-q", "--checkpoint"])
+        .arg(out.join("model.safetensors"))
+        .arg("--data")
+        .arg(&data));
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("| all |"));
+    // Resuming keeps the classes without the flag.
+    let o = train(&data, &out, "2", &["--resume"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let cfg: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("config.json")).unwrap()).unwrap();
+    assert_eq!(cfg["classes"], serde_json::json!([8]));
+    // Other models have no class input.
+    let o = train(
+        &data,
+        &dir.path().join("rnet"),
+        "1",
+        &["--model", "rnet", "--crop-size", "16", "--per-object"],
+    );
+    refused(&o, &["--per-object is a TNet option"]);
+}
+
 /// Writes the dataset's GT as a results CSV, optionally moving every estimate along x.
 /// The GT of `data`'s train_pbr split as a results CSV, shifted `dx_mm` along x.
 pub(crate) fn gt_as_results(data: &Path, dx_mm: f64) -> String {

@@ -10,7 +10,7 @@ use synthgen_train::models::tnet::{make_batch, offset_l1_loss, TNet, DEFAULT_SCA
 pub fn tnet_step(c: &mut Criterion) {
     let dev = Device::Cpu;
     let varmap = VarMap::new();
-    let net = TNet::new(128, VarBuilder::from_varmap(&varmap, DType::F32, &dev)).unwrap();
+    let net = TNet::new(128, 0, VarBuilder::from_varmap(&varmap, DType::F32, &dev)).unwrap();
     let mut opt = AdamW::new(varmap.all_vars(), ParamsAdamW::default()).unwrap();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
     let clouds: Vec<Vec<[f32; 3]>> = (0..32)
@@ -31,11 +31,11 @@ pub fn tnet_step(c: &mut Criterion) {
     let batch = make_batch(&refs, Some(&centres), DEFAULT_SCALE, &dev).unwrap();
     // The step's parts, to see where candle's time goes (forward; forward + loss + backward).
     c.bench_function("tnet_forward_32x500_w128", |b| {
-        b.iter(|| net.forward(&batch.points).unwrap())
+        b.iter(|| net.forward(&batch.points, None).unwrap())
     });
     c.bench_function("tnet_forward_backward_32x500_w128", |b| {
         b.iter(|| {
-            offset_l1_loss(&net.forward(&batch.points).unwrap(), &batch.offsets)
+            offset_l1_loss(&net.forward(&batch.points, None).unwrap(), &batch.offsets)
                 .unwrap()
                 .backward()
                 .unwrap()
@@ -44,7 +44,7 @@ pub fn tnet_step(c: &mut Criterion) {
     c.bench_function("tnet_step_32x500_w128", |b| {
         b.iter(|| {
             let loss =
-                offset_l1_loss(&net.forward(&batch.points).unwrap(), &batch.offsets).unwrap();
+                offset_l1_loss(&net.forward(&batch.points, None).unwrap(), &batch.offsets).unwrap();
             opt.backward_step(&loss).unwrap();
             loss.to_scalar::<f32>().unwrap()
         })

@@ -29,7 +29,7 @@ pub struct FullOut {
 impl Full {
     pub fn new(width: usize, vb: VarBuilder) -> Result<Full> {
         Ok(Full {
-            tnet: TNet::new(width, vb.clone())?,
+            tnet: TNet::new(width, 0, vb.clone())?,
             rot: RotationBranch::new(width, vb.pp("rot"))?,
         })
     }
@@ -37,7 +37,7 @@ impl Full {
     /// `points`: (B, N, 3) normalized; `crops`: (B, 3, S, S); `pixels`: (B·N) u32.
     pub fn forward(&self, points: &Tensor, crops: &Tensor, pixels: &Tensor) -> Result<FullOut> {
         let (b, n, _) = points.dims3()?;
-        let (offsets, feat) = self.tnet.forward_with_features(points)?;
+        let (offsets, feat) = self.tnet.forward_with_features(points, None)?;
         let rotation = self.rot.forward(&feat, crops, pixels, b, n)?;
         Ok(FullOut { offsets, rotation })
     }

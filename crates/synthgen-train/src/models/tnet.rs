@@ -4,6 +4,12 @@
 //! max-pooled over the points, and a per-point head on [point feature, global feature] →
 //! 128 → 64 → 3. The concatenation is computed as `W_p f_i + W_g g`: the global term is one
 //! matmul per cloud instead of one per point.
+//!
+//! With object classes (`TNet::new` with `n_classes > 0`, DenseFusion's per-object idea at its
+//! cheapest) the global term also gets a learned vector per class, `W_c · onehot(class)`: where
+//! the centre lies behind the visible surface depends on the object (a banana's centre is ~1 cm
+//! behind it, a bowl's ~5 cm). An all-zero one-hot (an object the model has no class for) adds
+//! nothing, and training drops the class now and then so that this stays a usable prediction.
 
 use candle_core::{DType, Device, Module, Result, Tensor, D};
 use candle_nn::VarBuilder;
@@ -21,13 +27,23 @@ pub struct TNet {
     l3: Linear,
     h1_point: Linear,
     h1_global: Linear,
+    /// One learned 128-vector per object class, added to the global term.
+    h1_class: Option<Linear>,
+    n_classes: usize,
     h2: Linear,
     h3: Linear,
 }
 
 impl TNet {
-    pub fn new(width: usize, vb: VarBuilder) -> Result<TNet> {
+    /// A TNet of global feature `width`; with `n_classes > 0`, conditioned on the object class.
+    pub fn new(width: usize, n_classes: usize, vb: VarBuilder) -> Result<TNet> {
         Ok(TNet {
+            h1_class: if n_classes > 0 {
+                Some(linear_no_bias(n_classes, 128, vb.pp("h1_class"))?)
+            } else {
+                None
+            },
+            n_classes,
             stem: PointStem::new(&vb)?,
             l3: linear(128, width, vb.pp("l3"))?,
             h1_point: linear(128, 128, vb.pp("h1_point"))?,
@@ -38,18 +54,34 @@ impl TNet {
     }
 
     /// `x`: (B, N, 3) normalized points → (B, N, 3) predicted offsets (normalized units).
-    pub fn forward(&self, x: &Tensor) -> Result<Tensor> {
-        Ok(self.forward_with_features(x)?.0)
+    /// `class`: (B, n_classes) one-hot rows (all zero: unknown), for a class-conditioned TNet.
+    pub fn forward(&self, x: &Tensor, class: Option<&Tensor>) -> Result<Tensor> {
+        Ok(self.forward_with_features(x, class)?.0)
+    }
+
+    /// How many object classes the model is conditioned on (0: none).
+    pub fn n_classes(&self) -> usize {
+        self.n_classes
     }
 
     /// The offsets and the shared per-point features (B·N, 128) of TNet's first layers.
-    pub fn forward_with_features(&self, x: &Tensor) -> Result<(Tensor, Tensor)> {
+    pub fn forward_with_features(
+        &self,
+        x: &Tensor,
+        class: Option<&Tensor>,
+    ) -> Result<(Tensor, Tensor)> {
         let (b, n, _) = x.dims3()?;
         let x = x.reshape((b * n, 3))?;
         let f2 = self.stem.forward(&x)?;
         let f3 = self.l3.forward_relu(&f2)?;
         let g = group_max(&f3, b)?; // (B, width)
-        let hg = self.h1_global.forward(&g)?; // (B, 128)
+        let mut hg = self.h1_global.forward(&g)?; // (B, 128)
+        match (&self.h1_class, class) {
+            (Some(l), Some(c)) => hg = (hg + l.forward(c)?)?,
+            (Some(_), None) => candle_core::bail!("this TNet needs the object classes"),
+            (None, Some(_)) => candle_core::bail!("this TNet has no object classes"),
+            (None, None) => {}
+        }
         let h = self.h1_point.forward_relu_grouped(&f2, Some(&hg))?; // (B·N, 128)
         let h = self.h2.forward_relu(&h)?;
         Ok((self.h3.forward(&h)?.reshape((b, n, 3))?, f2))
@@ -172,7 +204,7 @@ mod tests {
         let dev = Device::Cpu;
         let varmap = VarMap::new();
         let vb = VarBuilder::from_varmap(&varmap, DType::F32, &dev);
-        let net = TNet::new(32, vb).unwrap();
+        let net = TNet::new(32, 0, vb).unwrap();
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2);
         let centres: Vec<[f32; 3]> = (0..8)
             .map(|_| {
@@ -194,16 +226,16 @@ mod tests {
             },
         )
         .unwrap();
-        let first = offset_l1_loss(&net.forward(&batch.points).unwrap(), &batch.offsets)
+        let first = offset_l1_loss(&net.forward(&batch.points, None).unwrap(), &batch.offsets)
             .unwrap()
             .to_scalar::<f32>()
             .unwrap();
         for _ in 0..150 {
             let loss =
-                offset_l1_loss(&net.forward(&batch.points).unwrap(), &batch.offsets).unwrap();
+                offset_l1_loss(&net.forward(&batch.points, None).unwrap(), &batch.offsets).unwrap();
             opt.backward_step(&loss).unwrap();
         }
-        let pred = net.forward(&batch.points).unwrap();
+        let pred = net.forward(&batch.points, None).unwrap();
         let last = offset_l1_loss(&pred, &batch.offsets)
             .unwrap()
             .to_scalar::<f32>()
@@ -219,5 +251,80 @@ mod tests {
             .sum::<f32>()
             / 8.0;
         assert!(err < 0.02, "mean centre error {err} m");
+    }
+
+    /// Two objects whose visible surfaces are the same cap, with centres 4 cm apart behind it:
+    /// without the class no TNet can tell them apart (it learns the middle, 2 cm off); with
+    /// it, both centres are learnt, on caps it did not train on.
+    #[test]
+    fn the_class_separates_objects_with_the_same_surface() {
+        let dev = Device::Cpu;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        // `n` caps, every other one of class 1 (its centre 4 cm further behind the surface).
+        let mut make = |n: usize| {
+            let mut clouds = Vec::new();
+            let mut centres = Vec::new();
+            let mut onehot = Vec::new();
+            for k in 0..n {
+                let c = [
+                    rng.gen_range(-0.1f32..0.1),
+                    rng.gen_range(-0.1f32..0.1),
+                    rng.gen_range(0.6f32..0.9),
+                ];
+                clouds.push(cap(&mut rng, c, 64));
+                let behind = if k % 2 == 0 { 0.0 } else { 0.04 };
+                centres.push([c[0], c[1], c[2] + behind]);
+                onehot.extend(if k % 2 == 0 { [1f32, 0.0] } else { [0.0, 1.0] });
+            }
+            let refs: Vec<&[[f32; 3]]> = clouds.iter().map(Vec::as_slice).collect();
+            let batch = make_batch(&refs, Some(&centres), DEFAULT_SCALE, &dev).unwrap();
+            let class = Tensor::from_vec(onehot, (n, 2), &dev).unwrap();
+            (batch, centres, class)
+        };
+        let train = make(32);
+        // Unseen caps: what is learnt must be the class's offset, not the training clouds.
+        let test = make(16);
+        let error = |net: &TNet, class: Option<&Tensor>| {
+            let pred = net.forward(&test.0.points, class).unwrap();
+            let got = centres_from_offsets(&test.0, &pred, DEFAULT_SCALE).unwrap();
+            got.iter()
+                .zip(&test.1)
+                .map(|(g, c)| {
+                    ((g[0] - c[0]).powi(2) + (g[1] - c[1]).powi(2) + (g[2] - c[2]).powi(2)).sqrt()
+                })
+                .sum::<f32>()
+                / 16.0
+        };
+        let fit = |n_classes: usize| {
+            let varmap = VarMap::new();
+            let vb = VarBuilder::from_varmap(&varmap, DType::F32, &dev);
+            let net = TNet::new(32, n_classes, vb).unwrap();
+            let c = (n_classes > 0).then_some(&train.2);
+            let mut opt = AdamW::new(
+                varmap.all_vars(),
+                ParamsAdamW {
+                    lr: 3e-3,
+                    ..Default::default()
+                },
+            )
+            .unwrap();
+            for _ in 0..200 {
+                let pred = net.forward(&train.0.points, c).unwrap();
+                opt.backward_step(&offset_l1_loss(&pred, &train.0.offsets).unwrap())
+                    .unwrap();
+            }
+            net
+        };
+        // Measured: 2.7 cm without the class, 0.3 cm with it.
+        let plain = error(&fit(0), None);
+        let per_class = error(&fit(2), Some(&test.2));
+        assert!(
+            plain > 0.015,
+            "a class-free TNet cannot separate them: {plain} m"
+        );
+        assert!(
+            per_class < 0.008,
+            "with the class: {per_class} m (without: {plain} m)"
+        );
     }
 }

@@ -64,6 +64,9 @@ pub struct Settings {
     /// Perturbations of the synthetic training instances (not the real ones).
     #[serde(default)]
     pub augment: synthgen_train::data::Augment,
+    /// TNet conditioned on the object class (`--per-object`).
+    #[serde(default)]
+    pub per_object: bool,
     pub seed: u64,
     pub quick: bool,
 }
@@ -78,6 +81,8 @@ struct Variant {
     uses_set: Option<&'static str>,
     /// Its training instances' perturbations, from the settings'.
     augment: fn(Augment) -> Augment,
+    /// Trains a TNet without the object class even when the settings condition on it.
+    class_free: bool,
 }
 
 fn as_set(a: Augment) -> Augment {
@@ -91,6 +96,7 @@ const VARIANTS: &[Variant] = &[
         ablation: false,
         uses_set: None,
         augment: as_set,
+        class_free: false,
     },
     Variant {
         name: "synth_no_sensor",
@@ -98,6 +104,7 @@ const VARIANTS: &[Variant] = &[
         ablation: false,
         uses_set: None,
         augment: as_set,
+        class_free: false,
     },
     Variant {
         name: "synth_d455",
@@ -105,6 +112,7 @@ const VARIANTS: &[Variant] = &[
         ablation: false,
         uses_set: None,
         augment: as_set,
+        class_free: false,
     },
     Variant {
         name: "ablation_no_scene_fit",
@@ -112,6 +120,7 @@ const VARIANTS: &[Variant] = &[
         ablation: true,
         uses_set: None,
         augment: as_set,
+        class_free: false,
     },
     Variant {
         name: "ablation_distractors",
@@ -119,6 +128,7 @@ const VARIANTS: &[Variant] = &[
         ablation: true,
         uses_set: None,
         augment: as_set,
+        class_free: false,
     },
     Variant {
         name: "ablation_textures",
@@ -126,6 +136,7 @@ const VARIANTS: &[Variant] = &[
         ablation: true,
         uses_set: None,
         augment: as_set,
+        class_free: false,
     },
     Variant {
         name: "ablation_physics",
@@ -133,6 +144,7 @@ const VARIANTS: &[Variant] = &[
         ablation: true,
         uses_set: None,
         augment: as_set,
+        class_free: false,
     },
     Variant {
         name: "ablation_unseen_on_z",
@@ -140,6 +152,7 @@ const VARIANTS: &[Variant] = &[
         ablation: true,
         uses_set: None,
         augment: as_set,
+        class_free: false,
     },
     Variant {
         name: "ablation_no_mask_jitter",
@@ -150,6 +163,7 @@ const VARIANTS: &[Variant] = &[
             mask_jitter_px: 0,
             ..a
         },
+        class_free: false,
     },
     Variant {
         name: "ablation_mask_shift",
@@ -160,6 +174,7 @@ const VARIANTS: &[Variant] = &[
             mask_shift_px: 2,
             ..a
         },
+        class_free: false,
     },
     Variant {
         name: "ablation_occlusion",
@@ -170,6 +185,7 @@ const VARIANTS: &[Variant] = &[
             occlusion_prob: 0.3,
             ..a
         },
+        class_free: false,
     },
     Variant {
         name: "ablation_dropout",
@@ -177,6 +193,7 @@ const VARIANTS: &[Variant] = &[
         ablation: true,
         uses_set: Some("synth_fitted"),
         augment: |a| Augment { dropout: 0.2, ..a },
+        class_free: false,
     },
 ];
 
@@ -296,6 +313,7 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
             dropout: args.point_dropout,
             mask_shift_px: args.mask_shift_px,
         },
+        per_object: args.per_object,
         seed: args.seed,
         quick: args.quick,
     };
@@ -408,6 +426,7 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
                         epochs: Some(settings.epochs),
                         steps: None,
                         augment: (v.augment)(settings.augment),
+                        per_object: settings.per_object && !v.class_free,
                     },
                     &test,
                     printer,
@@ -456,6 +475,7 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
                     epochs: None,
                     steps: synth_steps,
                     augment: Default::default(),
+                    per_object: settings.per_object,
                 },
                 &test,
                 printer,

@@ -172,6 +172,8 @@ pub struct TrainSpec<'a> {
     pub steps: Option<usize>,
     /// Perturbations of the training instances (the synthetic sets').
     pub augment: synthgen_train::data::Augment,
+    /// TNet conditioned on the object class (the training set's objects).
+    pub per_object: bool,
 }
 
 /// Trains a model on `spec.data` and scores it on `test` (a row from scratch; `row.json`
@@ -238,7 +240,11 @@ pub fn train_row(
         init: Vec::new(),
         plain_add_loss: false,
         translation: None,
-        classes: Vec::new(),
+        classes: if spec.per_object && model == ModelKind::Tnet {
+            set.obj_ids().into_iter().collect()
+        } else {
+            Vec::new()
+        },
     };
     let run_dir = dir.join("train");
     let device = train::device(false)?;
