@@ -77,7 +77,7 @@ pub struct ExperimentSim2realArgs {
     /// scene, all objects standing on +z), with primitive distractors, with textured
     /// ground and walls, with physics placement, with unseen objects on +z; and
     /// synth_fitted's frames trained without the mask jitter, with shifted masks, with
-    /// occlusion cuts, with point dropout.
+    /// occlusion cuts, with point dropout, with the other --per-object choice.
     #[arg(long)]
     pub ablation: bool,
 

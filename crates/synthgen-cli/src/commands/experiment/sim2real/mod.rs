@@ -81,8 +81,8 @@ struct Variant {
     uses_set: Option<&'static str>,
     /// Its training instances' perturbations, from the settings'.
     augment: fn(Augment) -> Augment,
-    /// Trains a TNet without the object class even when the settings condition on it.
-    class_free: bool,
+    /// Trains TNet with the other choice of `--per-object` than the settings'.
+    flip_per_object: bool,
 }
 
 fn as_set(a: Augment) -> Augment {
@@ -96,7 +96,7 @@ const VARIANTS: &[Variant] = &[
         ablation: false,
         uses_set: None,
         augment: as_set,
-        class_free: false,
+        flip_per_object: false,
     },
     Variant {
         name: "synth_no_sensor",
@@ -104,7 +104,7 @@ const VARIANTS: &[Variant] = &[
         ablation: false,
         uses_set: None,
         augment: as_set,
-        class_free: false,
+        flip_per_object: false,
     },
     Variant {
         name: "synth_d455",
@@ -112,7 +112,7 @@ const VARIANTS: &[Variant] = &[
         ablation: false,
         uses_set: None,
         augment: as_set,
-        class_free: false,
+        flip_per_object: false,
     },
     Variant {
         name: "ablation_no_scene_fit",
@@ -120,7 +120,7 @@ const VARIANTS: &[Variant] = &[
         ablation: true,
         uses_set: None,
         augment: as_set,
-        class_free: false,
+        flip_per_object: false,
     },
     Variant {
         name: "ablation_distractors",
@@ -128,7 +128,7 @@ const VARIANTS: &[Variant] = &[
         ablation: true,
         uses_set: None,
         augment: as_set,
-        class_free: false,
+        flip_per_object: false,
     },
     Variant {
         name: "ablation_textures",
@@ -136,7 +136,7 @@ const VARIANTS: &[Variant] = &[
         ablation: true,
         uses_set: None,
         augment: as_set,
-        class_free: false,
+        flip_per_object: false,
     },
     Variant {
         name: "ablation_physics",
@@ -144,7 +144,7 @@ const VARIANTS: &[Variant] = &[
         ablation: true,
         uses_set: None,
         augment: as_set,
-        class_free: false,
+        flip_per_object: false,
     },
     Variant {
         name: "ablation_unseen_on_z",
@@ -152,7 +152,7 @@ const VARIANTS: &[Variant] = &[
         ablation: true,
         uses_set: None,
         augment: as_set,
-        class_free: false,
+        flip_per_object: false,
     },
     Variant {
         name: "ablation_no_mask_jitter",
@@ -163,7 +163,7 @@ const VARIANTS: &[Variant] = &[
             mask_jitter_px: 0,
             ..a
         },
-        class_free: false,
+        flip_per_object: false,
     },
     Variant {
         name: "ablation_mask_shift",
@@ -174,7 +174,7 @@ const VARIANTS: &[Variant] = &[
             mask_shift_px: 2,
             ..a
         },
-        class_free: false,
+        flip_per_object: false,
     },
     Variant {
         name: "ablation_occlusion",
@@ -185,7 +185,7 @@ const VARIANTS: &[Variant] = &[
             occlusion_prob: 0.3,
             ..a
         },
-        class_free: false,
+        flip_per_object: false,
     },
     Variant {
         name: "ablation_dropout",
@@ -193,7 +193,7 @@ const VARIANTS: &[Variant] = &[
         ablation: true,
         uses_set: Some("synth_fitted"),
         augment: |a| Augment { dropout: 0.2, ..a },
-        class_free: false,
+        flip_per_object: false,
     },
 ];
 
@@ -426,7 +426,7 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
                         epochs: Some(settings.epochs),
                         steps: None,
                         augment: (v.augment)(settings.augment),
-                        per_object: settings.per_object && !v.class_free,
+                        per_object: settings.per_object != v.flip_per_object,
                     },
                     &test,
                     printer,
