@@ -331,6 +331,7 @@ def render_frame(frame_json, exr_path):
             bsdf = nt.nodes["Principled BSDF"]
             bsdf.inputs["Roughness"].default_value = o["roughness"]
             bsdf.inputs["Specular IOR Level"].default_value = o["specular_ior_level"]
+            bsdf.inputs["Metallic"].default_value = o.get("metallic", 0.0)
     for mi, slots in _state["instances"].items():
         for objs in slots[used.get(mi, 0):]:
             for obj in objs:

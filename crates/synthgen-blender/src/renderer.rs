@@ -471,6 +471,7 @@ pub fn frame_json_with(scene: &FrameScene, aspects: &SurfaceAspects) -> String {
     };
     // Distractors render with pass index 0: no instance id, like the background.
     let n = scene.objects.len();
+    let ggx = scene.shading == synthgen_core::scene::Shading::Ggx;
     let objects: Vec<String> = scene
         .objects
         .iter()
@@ -479,7 +480,7 @@ pub fn frame_json_with(scene: &FrameScene, aspects: &SurfaceAspects) -> String {
         .map(|(i, o)| {
             let (tint, hue) = (o.tint, synthgen_core::color::hue_rotation(f64::from(o.hue_deg)));
             format!(
-                "{{\"model_index\": {}, \"pass_index\": {}, \"matrix\": {}, \"brightness\": {}, \"tint\": [{}, {}, {}], \"hue_matrix\": {:?}, \"roughness\": {}, \"specular_ior_level\": {}}}",
+                "{{\"model_index\": {}, \"pass_index\": {}, \"matrix\": {}, \"brightness\": {}, \"tint\": [{}, {}, {}], \"hue_matrix\": {:?}, \"roughness\": {}, \"specular_ior_level\": {}, \"metallic\": {}}}",
                 o.model_index,
                 if i < n { i + 1 } else { 0 },
                 rows(&o.cam_from_obj.rotation, o.cam_from_obj.translation_m),
@@ -489,8 +490,14 @@ pub fn frame_json_with(scene: &FrameScene, aspects: &SurfaceAspects) -> String {
                 tint[2],
                 hue,
                 roughness(o.shininess),
-                // The raster default specular 0.2 maps to Blender's default 0.5 (F0 = 4 %).
-                (f64::from(o.specular) * 2.5).clamp(0.0, 1.0),
+                // Phong: the raster default specular 0.2 maps to Blender's default 0.5 (F0 =
+                // 4 %). GGX: the same convention on both sides (F0 = 0.08 × specular).
+                if ggx {
+                    f64::from(o.specular).clamp(0.0, 1.0)
+                } else {
+                    (f64::from(o.specular) * 2.5).clamp(0.0, 1.0)
+                },
+                if ggx { f64::from(o.metallic.clamp(0.0, 1.0)) } else { 0.0 },
             )
         })
         .collect();

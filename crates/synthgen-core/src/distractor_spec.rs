@@ -143,9 +143,10 @@ mod tests {
     #[test]
     fn new_sections_parse_and_bad_values_name_the_field() {
         let s = SceneSpec::from_toml_str(
-            "[camera]\nmin_visib_fract = 0.3\nallow_truncation = false\n[distractors]\ncount = [1, 3]\nshapes = [\"sphere\"]\n[lights]\ntemperature_k = [3000.0, 6500.0]\n[materials]\nroughness = [0.2, 0.6]\nhue_deg = [-20.0, 20.0]\n",
+            "[camera]\nmin_visib_fract = 0.3\nallow_truncation = false\n[distractors]\ncount = [1, 3]\nshapes = [\"sphere\"]\n[lights]\ntemperature_k = [3000.0, 6500.0]\n[materials]\nroughness = [0.2, 0.6]\nhue_deg = [-20.0, 20.0]\nshading = \"ggx\"\nmetallic = [0.0, 0.4]\n",
         )
         .unwrap();
+        assert_eq!(s.materials.shading, crate::scene::Shading::Ggx);
         assert_eq!(s.distractors.shapes, vec![DistractorShape::Sphere]);
         assert!(!s.camera.allow_truncation);
         assert_eq!(SceneSpec::from_toml_str(&s.to_toml()).unwrap(), s);
@@ -164,6 +165,14 @@ mod tests {
             (
                 "[materials]\nroughness = [0.5, 2.0]\n",
                 "materials.roughness",
+            ),
+            (
+                "[materials]\nshading = \"ggx\"\nmetallic = [0.0, 1.5]\n",
+                "materials.metallic",
+            ),
+            (
+                "[lights]\nambient_occlusion = -0.2\n",
+                "lights.ambient_occlusion",
             ),
             (
                 "[distractors]\ncount = [1, 2]\nshapes = []\n",

@@ -118,6 +118,10 @@ pub struct ObjectInstance {
     /// (`synthgen_core::color::hue_rotation`).
     #[serde(default)]
     pub hue_deg: f32,
+    /// Metalness 0..1 for GGX shading (`[materials] shading = "ggx"`): the specular colour
+    /// tends to the base colour and the diffuse part to black.
+    #[serde(default)]
+    pub metallic: f32,
 }
 
 fn white() -> [f32; 3] {
@@ -137,6 +141,7 @@ impl ObjectInstance {
             shininess: 32.0,
             tint: white(),
             hue_deg: 0.0,
+            metallic: 0.0,
         }
     }
 }
@@ -212,6 +217,13 @@ pub struct FrameScene {
     /// The lights cast shadows (`[lights] shadows`; the embedded renderer's shadow maps).
     #[serde(default)]
     pub shadows: bool,
+    /// Strength 0..1 of the screen-space ambient occlusion (`[lights] ambient_occlusion`):
+    /// the ambient light a pixel loses to nearby geometry (contact shadows). 0: none.
+    #[serde(default)]
+    pub ambient_occlusion: f32,
+    /// The objects' specular model (`[materials] shading`).
+    #[serde(default)]
+    pub shading: crate::scene::Shading,
     pub ground: Option<GroundInstance>,
     /// Vertical planes around the scene (`[walls]`), those the camera is inside of.
     #[serde(default)]
@@ -233,6 +245,8 @@ impl FrameScene {
             lights: vec![],
             ambient: 1.0,
             shadows: false,
+            ambient_occlusion: 0.0,
+            shading: crate::scene::Shading::Phong,
             ground: None,
             walls: vec![],
             background: BackgroundSample {
@@ -505,19 +519,26 @@ impl SceneSampler {
                 None => uniform(rng, m.shininess) as f32,
             };
             let hue_deg = uniform(rng, m.hue_deg) as f32;
-            (brightness, specular, shininess, hue_deg)
+            // Drawn only when asked for, so that specs without it keep their streams.
+            let metallic = if m.metallic[1] > 0.0 {
+                uniform(rng, m.metallic) as f32
+            } else {
+                0.0
+            };
+            (brightness, specular, shininess, hue_deg, metallic)
         };
         // World-frame instances: cam_from_obj holds world_from_obj until the camera is known.
         let world_objects: Vec<ObjectInstance> = objects
             .iter()
             .zip(world_from_objs)
             .map(|(o, w)| {
-                let (brightness, specular, shininess, hue_deg) = material(&mut mat_rng);
+                let (brightness, specular, shininess, hue_deg, metallic) = material(&mut mat_rng);
                 ObjectInstance {
                     brightness,
                     specular,
                     shininess,
                     hue_deg,
+                    metallic,
                     ..ObjectInstance::new(o.model_index, o.obj_id, *w)
                 }
             })
@@ -536,12 +557,13 @@ impl SceneSampler {
             .iter()
             .zip(world_from_distractors)
             .map(|(c, w)| {
-                let (brightness, specular, shininess, hue_deg) = material(&mut drng);
+                let (brightness, specular, shininess, hue_deg, metallic) = material(&mut drng);
                 ObjectInstance {
                     brightness,
                     specular,
                     shininess,
                     hue_deg,
+                    metallic,
                     tint: c.tint,
                     ..ObjectInstance::new(c.object.model_index, 0, *w)
                 }
@@ -624,6 +646,8 @@ impl SceneSampler {
                     .collect(),
                 ambient,
                 shadows: self.spec.lights.shadows,
+                ambient_occlusion: self.spec.lights.ambient_occlusion as f32,
+                shading: self.spec.materials.shading,
                 ground: ground.as_ref().map(|g| GroundInstance {
                     cam_from_plane: cam_from_world.compose(&g.cam_from_plane),
                     ..g.clone()

@@ -339,6 +339,10 @@ pub struct LightSpec {
     /// The lights cast shadows onto the objects, the ground and the walls (the embedded
     /// renderer's shadow maps, soft-edged; Cycles always shadows). Default false.
     pub shadows: bool,
+    /// Screen-space ambient occlusion strength 0..1 (the embedded renderer): each pixel
+    /// loses up to this share of its ambient light where nearby surfaces hide the sky
+    /// (contact shadows where objects touch the table and each other). Default 0 (off).
+    pub ambient_occlusion: f64,
 }
 
 impl Default for LightSpec {
@@ -352,6 +356,7 @@ impl Default for LightSpec {
             temperature_k: None,
             ambient: [0.15, 0.35],
             shadows: false,
+            ambient_occlusion: 0.0,
         }
     }
 }
@@ -405,6 +410,25 @@ pub struct MaterialSpec {
     pub roughness: Option<Range>,
     /// Hue rotation per object, degrees (about the grey axis in linear RGB). Default 0..0.
     pub hue_deg: Range,
+    /// The objects' specular model: `phong` (Blinn-Phong, the default) or `ggx`
+    /// (metallic-roughness: a GGX microfacet lobe with Smith shadowing and Schlick's Fresnel;
+    /// F0 = 0.08 × specular for dielectrics, as in Disney's convention where 0.5 gives 0.04,
+    /// and the base colour for metals). The embedded renderer's; Cycles' Principled BSDF is
+    /// always GGX.
+    pub shading: Shading,
+    /// Metalness range per object (GGX): 0 dielectric, 1 metal. Default 0..0.
+    pub metallic: Range,
+}
+
+/// The specular model of the embedded renderer (`[materials] shading`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Shading {
+    /// Lambert + Blinn-Phong (`specular`, `shininess`).
+    #[default]
+    Phong,
+    /// Lambert + GGX microfacet specular with Fresnel (`specular`, `roughness`, `metallic`).
+    Ggx,
 }
 
 impl Default for MaterialSpec {
@@ -415,6 +439,8 @@ impl Default for MaterialSpec {
             shininess: [8.0, 64.0],
             roughness: None,
             hue_deg: [0.0, 0.0],
+            shading: Shading::Phong,
+            metallic: [0.0, 0.0],
         }
     }
 }
@@ -588,6 +614,19 @@ impl SceneSpec {
                     "{name} must be finite with min <= max, got [{lo}, {hi}]"
                 )));
             }
+        }
+        for (name, [lo, hi]) in [("materials.metallic", self.materials.metallic)] {
+            if !(lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo <= hi && hi <= 1.0) {
+                return Err(Error::InvalidSpec(format!(
+                    "{name} must lie in 0..1 with min <= max, got [{lo}, {hi}]"
+                )));
+            }
+        }
+        let ao = self.lights.ambient_occlusion;
+        if !(0.0..=1.0).contains(&ao) {
+            return Err(Error::InvalidSpec(format!(
+                "lights.ambient_occlusion must lie in 0..1 (a strength), got {ao}"
+            )));
         }
         // area_m is a size (x, y), not a range: x may be larger than y.
         let [ax, ay] = self.placement.area_m;

@@ -226,6 +226,7 @@ fn full_frames(
             shininess: 1.0,
             tint: [1.0; 3],
             hue_deg: 0.0,
+            metallic: 0.0,
         })
         .collect();
     let ann: Vec<ObjectAnnotation> = (0..5)
@@ -261,6 +262,8 @@ fn full_frames(
             lights: vec![],
             ambient: 0.3,
             shadows: false,
+            ambient_occlusion: 0.0,
+            shading: Default::default(),
             ground: None,
             walls: vec![],
             background: BackgroundSample {

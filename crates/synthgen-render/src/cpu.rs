@@ -59,6 +59,7 @@ struct Scratch {
     batch: ShadeBatch,
     ground_row: GroundRow,
     shadow: crate::shadow::ShadowScratch,
+    ao: crate::ao::AoScratch,
 }
 
 thread_local! {
@@ -412,6 +413,7 @@ impl CpuRenderer {
 
         let params = ShadeParams {
             ambient: scene.ambient.max(0.0),
+            ggx: scene.shading == synthgen_core::scene::Shading::Ggx,
         };
         scratch.cam_lights.clear();
         scratch
@@ -455,6 +457,16 @@ impl CpuRenderer {
                 &self.luts,
                 &mut scratch.batch,
                 out,
+            );
+        }
+        if scene.ambient_occlusion > 0.0 {
+            crate::ao::apply(
+                scene,
+                &proj,
+                &out.depth_m,
+                scene.ambient_occlusion.min(1.0),
+                &mut out.rgb,
+                &mut scratch.ao,
             );
         }
         if scene.shadows {

@@ -114,6 +114,7 @@
 //! 1-pixel triangles 0.71, multi-pixel triangles 0.74, composite 0.03, ground + background
 //! 1.67, object shading 1.19, `synthgen_core::annotate` 0.31.
 
+mod ao;
 mod background;
 mod color;
 mod cpu;

@@ -62,6 +62,7 @@ impl PoseRenderer for ObjectRenderer {
                     shininess: 1.0,
                     tint: [1.0; 3],
                     hue_deg: 0.0,
+                    metallic: 0.0,
                 })
             })
             .collect::<Result<Vec<_>, String>>()?;

@@ -27,8 +27,35 @@ pub(crate) struct ShadowScratch {
     os: ObjScratch,
     /// Per pixel: the share of the light lost, summed over lights.
     lost: Vec<f32>,
+    tables: LinearTables,
+}
+
+/// sRGB ↔ linear tables for darkening 8-bit pixels in linear light.
+#[derive(Default)]
+pub(crate) struct LinearTables {
     to_lin: Vec<f32>,
     to_srgb: Vec<u8>,
+}
+
+/// Scales each pixel of `rgb` (sRGB, 8 bits) by `1 − lost` in linear light (sRGB → linear by
+/// a table, back by a 4096-step one); pixels with `lost <= 0` are left as they are.
+pub(crate) fn darken_linear(rgb: &mut [u8], lost: &[f32], t: &mut LinearTables) {
+    if t.to_lin.is_empty() {
+        t.to_lin = (0..256).map(|v| (v as f32 / 255.0).powf(2.2)).collect();
+        t.to_srgb = (0..4096)
+            .map(|i| ((i as f32 / 4095.0).powf(1.0 / 2.2) * 255.0).round() as u8)
+            .collect();
+    }
+    for (i, &lost) in lost.iter().enumerate() {
+        if lost <= 0.0 {
+            continue;
+        }
+        let keep = (1.0 - lost).max(0.0);
+        for c in &mut rgb[3 * i..3 * i + 3] {
+            let lin = t.to_lin[*c as usize] * keep;
+            *c = t.to_srgb[((lin * 4095.0).round() as usize).min(4095)];
+        }
+    }
 }
 
 /// Darkens `rgb` (sRGB, 8 bits) where the scene's lights are blocked by its objects.
@@ -201,21 +228,5 @@ pub(crate) fn apply(
             }
         }
     }
-    // In linear light: sRGB → linear by table, scaled, back by a 4096-step table.
-    if s.to_lin.is_empty() {
-        s.to_lin = (0..256).map(|v| (v as f32 / 255.0).powf(2.2)).collect();
-        s.to_srgb = (0..4096)
-            .map(|i| ((i as f32 / 4095.0).powf(1.0 / 2.2) * 255.0).round() as u8)
-            .collect();
-    }
-    for (i, &lost) in s.lost.iter().enumerate() {
-        if lost <= 0.0 {
-            continue;
-        }
-        let keep = (1.0 - lost).max(0.0);
-        for c in &mut rgb[3 * i..3 * i + 3] {
-            let lin = s.to_lin[*c as usize] * keep;
-            *c = s.to_srgb[((lin * 4095.0).round() as usize).min(4095)];
-        }
-    }
+    darken_linear(rgb, &s.lost, &mut s.tables);
 }

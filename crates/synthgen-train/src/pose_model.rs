@@ -160,7 +160,7 @@ fn class_one_hot(
         let dropped = jitter_seed.is_some_and(|seed| {
             let h = synthgen_core::rng::splitmix64(
                 synthgen_core::rng::splitmix64(
-                    synthgen_core::rng::splitmix64(seed ^ 0x636c_6173_73) ^ u64::from(i.scene_id),
+                    synthgen_core::rng::splitmix64(seed ^ 0x0063_6c61_7373) ^ u64::from(i.scene_id),
                 ) ^ (u64::from(i.im_id) << 20 | i.gt_id as u64),
             );
             ((h >> 11) as f64 / (1u64 << 53) as f64) < CLASS_DROPOUT

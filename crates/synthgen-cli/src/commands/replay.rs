@@ -503,6 +503,7 @@ fn frame_scene(job: &Job, index: &BTreeMap<u32, usize>, width: u32, height: u32)
                 shininess: 1.0,
                 tint: [1.0; 3],
                 hue_deg: 0.0,
+                metallic: 0.0,
             })
             .collect();
     let mut scene = FrameScene::bare(job.index, f.camera.intrinsics(width, height), objects);

@@ -579,3 +579,86 @@ fn shadows_only_darken_and_do_darken_the_ground() {
         "the manifest records it"
     );
 }
+
+/// Renders two boxes at 160x120 with `extra` appended to a fixed scene, 3 frames, into `d/name`.
+fn render_boxes(d: &Path, name: &str, extra: &str) {
+    let spec = format!(
+        "[camera_pose]\ndistance_m = [0.5, 0.6]\nelevation_deg = [50.0, 60.0]\n[background]\nkind = \"color\"\n{extra}"
+    );
+    std::fs::write(d.join(format!("{name}.toml")), spec).unwrap();
+    let o = run(synthgen()
+        .current_dir(d)
+        .args([
+            "render",
+            "-q",
+            "--objects",
+            "box.ply",
+            "box.ply",
+            "--units",
+            "m",
+        ])
+        .args([
+            "--scene",
+            &format!("{name}.toml"),
+            "--image-size",
+            "160,120",
+        ])
+        .args(["--frames", "3", "--seed", "5", "--out", name]));
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
+fn ambient_occlusion_darkens_contacts_only_and_ggx_metals_take_their_colour() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_box_ply(&d.join("box.ply"));
+    let lights = "[lights]\ncount = [1, 1]\nambient = [0.5, 0.5]\n";
+    render_boxes(d, "plain", lights);
+    render_boxes(d, "ao", &format!("{lights}ambient_occlusion = 1.0\n"));
+    render_boxes(
+        d,
+        "ggx",
+        &format!("{lights}[materials]\nshading = \"ggx\"\nmetallic = [1.0, 1.0]\nroughness = [0.3, 0.3]\n"),
+    );
+    let read = |p: &Path| image::open(p).unwrap().to_rgb8();
+    let f = |set: &str, kind: &str, i: usize| {
+        d.join(format!("{set}/train_pbr/000000/{kind}/{i:06}.png"))
+    };
+    let (mut darker, mut pixels, mut changed) = (0usize, 0usize, 0usize);
+    for i in 0..3 {
+        for set in ["ao", "ggx"] {
+            assert_eq!(
+                std::fs::read(f("plain", "depth", i)).unwrap(),
+                std::fs::read(f(set, "depth", i)).unwrap(),
+                "{set}: depth is the same"
+            );
+        }
+        let (a, b) = (read(&f("plain", "rgb", i)), read(&f("ao", "rgb", i)));
+        for (p, q) in a.pixels().zip(b.pixels()) {
+            pixels += 1;
+            let sum = |v: &image::Rgb<u8>| v.0.iter().map(|&c| u32::from(c)).sum::<u32>();
+            assert!(
+                sum(q) <= sum(p) + 3,
+                "occlusion never brightens: {p:?} -> {q:?}"
+            );
+            darker += usize::from(sum(q) * 20 < sum(p) * 19);
+        }
+        let g = read(&f("ggx", "rgb", i));
+        changed += a.pixels().zip(g.pixels()).filter(|(p, q)| p != q).count();
+    }
+    // Contacts and corners only: some pixels, far from all.
+    assert!(
+        darker * 200 > pixels,
+        "{darker} of {pixels} pixels darker by 5 %"
+    );
+    assert!(
+        darker * 4 < pixels,
+        "{darker} of {pixels}: more than contacts"
+    );
+    assert!(changed > 0, "GGX metals shade differently");
+    let manifest = std::fs::read_to_string(d.join("ggx/synthgen.json")).unwrap();
+    assert!(
+        manifest.contains("\"ggx\""),
+        "the manifest records the shading"
+    );
+}

@@ -58,6 +58,8 @@ pub fn scene(frame_index: u64, objects: Vec<ObjectInstance>) -> FrameScene {
         lights: vec![],
         ambient: 0.3,
         shadows: false,
+        ambient_occlusion: 0.0,
+        shading: Default::default(),
         ground: None,
         walls: vec![],
         background: BackgroundSample {
@@ -78,6 +80,7 @@ pub fn instance(obj_id: u32, cam_from_obj: Pose) -> ObjectInstance {
         shininess: 1.0,
         tint: [1.0; 3],
         hue_deg: 0.0,
+        metallic: 0.0,
     }
 }
 

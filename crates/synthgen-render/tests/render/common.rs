@@ -17,6 +17,7 @@ pub fn instance(model_index: usize, cam_from_obj: Pose) -> ObjectInstance {
         shininess: 24.0,
         tint: [1.0; 3],
         hue_deg: 0.0,
+        metallic: 0.0,
     }
 }
 
@@ -34,6 +35,8 @@ pub fn scene(intrinsics: Intrinsics, objects: Vec<ObjectInstance>) -> FrameScene
         }],
         ambient: 0.25,
         shadows: false,
+        ambient_occlusion: 0.0,
+        shading: Default::default(),
         ground: None,
         walls: vec![],
         background: BackgroundSample {
