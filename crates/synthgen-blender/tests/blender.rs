@@ -245,6 +245,7 @@ mod cycles {
                 shininess: 32.0,
                 tint: [1.0; 3],
                 hue_deg: 0.0,
+                metallic: 0.0,
             }],
         );
         let (b, r) = renderer.render_with_raster(&scene).unwrap();
