@@ -17,6 +17,7 @@
 //!     shininess: 32.0,
 //!     tint: [1.0; 3],
 //!     hue_deg: 0.0,
+//!     metallic: 0.0,
 //! };
 //! // Only the box, flat-lit, on black: no lights, ground or walls.
 //! let scene = FrameScene::bare(0, Intrinsics::LINEMOD, vec![box_at_half_a_metre]);
