@@ -375,6 +375,14 @@ pub struct RgbNoiseSpec {
     /// Vignetting per frame: the image darkens by `k · r²` towards the corners (r = 1 at the
     /// half diagonal), k uniform in this range. Default [0, 0] (none).
     pub vignetting: Range,
+    /// Defocus per frame: the blur radius, pixels, of a point at infinity (a thin lens's
+    /// circle of confusion c(z) = this × |1 − z_f / z|), uniform in this range; the focus
+    /// distance z_f is the median depth of the frame's object pixels (autofocus on the
+    /// objects). Default [0, 0] (none).
+    pub defocus_px: Range,
+    /// Motion blur per frame: a streak of this length, pixels, uniform in this range, in a
+    /// direction drawn uniformly (camera shake). Default [0, 0] (none).
+    pub motion_blur_px: Range,
 }
 
 impl Default for RgbNoiseSpec {
@@ -387,6 +395,8 @@ impl Default for RgbNoiseSpec {
             read_noise: 0.003,
             white_balance: 0.0,
             vignetting: [0.0, 0.0],
+            defocus_px: [0.0, 0.0],
+            motion_blur_px: [0.0, 0.0],
         }
     }
 }
@@ -485,6 +495,10 @@ impl SensorSpec {
         check_value("sensor.rgb.white_balance", r.white_balance, 0.0, 0.5)?;
         check_range("sensor.rgb.vignetting", r.vignetting, 0.0)?;
         check_value("sensor.rgb.vignetting", r.vignetting[1], 0.0, 1.0)?;
+        check_range("sensor.rgb.defocus_px", r.defocus_px, 0.0)?;
+        check_value("sensor.rgb.defocus_px", r.defocus_px[1], 0.0, 30.0)?;
+        check_range("sensor.rgb.motion_blur_px", r.motion_blur_px, 0.0)?;
+        check_value("sensor.rgb.motion_blur_px", r.motion_blur_px[1], 0.0, 40.0)?;
         Ok(())
     }
 

@@ -61,6 +61,10 @@ impl SensorModel {
     pub fn apply(&self, scene: &FrameScene, frame: &mut RenderedFrame) {
         let k = &scene.intrinsics;
         let (w, h) = (frame.width as usize, frame.height as usize);
+        // Defocus blurs by the rendered depth, before the depth model puts holes in it.
+        let rgb = &self.spec.rgb;
+        let clean_depth = (rgb.enabled && rgb.defocus_px[1] > 0.0 && frame.depth_m.len() == w * h)
+            .then(|| frame.depth_m.clone());
         if frame.depth_m.len() == w * h {
             let mut rng = self.rng(scene.frame_index, DEPTH_STREAM);
             match self.spec.depth {
@@ -80,7 +84,18 @@ impl SensorModel {
         }
         if self.spec.rgb.enabled && frame.rgb.len() == w * h * 3 {
             let mut rng = self.rng(scene.frame_index, RGB_STREAM);
-            apply_rgb(&self.spec.rgb, &self.luts, w, h, &mut frame.rgb, &mut rng);
+            let depth = clean_depth
+                .as_deref()
+                .map(|d| (d, frame.instance.as_slice()));
+            apply_rgb(
+                &self.spec.rgb,
+                &self.luts,
+                w,
+                h,
+                &mut frame.rgb,
+                depth,
+                &mut rng,
+            );
         }
     }
 

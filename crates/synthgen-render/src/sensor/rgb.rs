@@ -1,6 +1,6 @@
 //! RGB sensor effects in linear light: exposure jitter, white balance error, vignetting,
-//! Gaussian blur (optics / motion), shot noise (variance proportional to the signal) and read
-//! noise.
+//! defocus by depth (thin-lens circle of confusion), motion blur (a straight streak), Gaussian
+//! blur (optics), shot noise (variance proportional to the signal) and read noise.
 
 use rand::{Rng, RngCore};
 use rand_chacha::ChaCha8Rng;
@@ -12,12 +12,14 @@ use crate::color::{srgb_index, ColorLuts, TO_SRGB_MAX};
 /// exposure factor 2^s (s uniform in `exposure_stops`) and a blur σ (uniform in
 /// `blur_sigma_px`, separable Gaussian, radius ⌈3σ⌉, edges clamped); per value Gaussian noise
 /// of variance `shot_noise` · v + `read_noise`², clamped to 0..1.
+/// `depth`: the rendered depth (metres, 0 = nothing) and instance ids, for defocus.
 pub(crate) fn apply_rgb(
     spec: &RgbNoiseSpec,
     luts: &ColorLuts,
     w: usize,
     h: usize,
     rgb: &mut [u8],
+    depth: Option<(&[f32], &[u16])>,
     rng: &mut ChaCha8Rng,
 ) {
     let stops = uniform(rng, spec.exposure_stops);
@@ -54,6 +56,18 @@ pub(crate) fn apply_rgb(
             }
         }
     }
+    // Drawn only when asked for, so other specs keep their noise.
+    if spec.defocus_px[1] > 0.0 {
+        let c_inf = uniform(rng, spec.defocus_px) as f32;
+        if let Some((d, inst)) = depth {
+            defocus(&mut lin, w, h, d, inst, c_inf);
+        }
+    }
+    if spec.motion_blur_px[1] > 0.0 {
+        let len = uniform(rng, spec.motion_blur_px) as f32;
+        let angle = rng.gen_range(0.0..std::f32::consts::PI);
+        motion_blur(&mut lin, w, h, len, angle);
+    }
     if sigma > 0.05 {
         blur(&mut lin, w, h, sigma as f32);
     }
@@ -85,6 +99,99 @@ fn approx_normal(bits: u64) -> f32 {
     const MEAN: f32 = 4.0 * 32767.5;
     const SCALE: f32 = 1.732_050_8 / 65536.0; // √3 / 65536: unit variance for 4 parts
     (s as f32 - MEAN) * SCALE
+}
+
+/// Defocus: each pixel becomes the mean of the square of half-side round(c(z)) around it
+/// (a box standing in for the lens's disk; from a summed-area table, so any radius costs the
+/// same), c(z) = `c_inf` · |1 − z_f / z| with z_f the median depth of the object pixels
+/// (`inst` > 0; of all pixels with depth when no object shows) and c = `c_inf` where there is
+/// no depth (the far background). A gather: a blurred foreground does not spill over a sharp
+/// background (as a real lens's would, slightly).
+fn defocus(img: &mut [f32], w: usize, h: usize, depth: &[f32], inst: &[u16], c_inf: f32) {
+    if c_inf < 0.5 || depth.len() != w * h {
+        return;
+    }
+    let mut zs: Vec<f32> = depth
+        .iter()
+        .zip(inst)
+        .filter(|(z, i)| **z > 0.0 && **i > 0)
+        .map(|(z, _)| *z)
+        .collect();
+    if zs.is_empty() {
+        zs = depth.iter().copied().filter(|z| *z > 0.0).collect();
+    }
+    if zs.is_empty() {
+        return;
+    }
+    let mid = zs.len() / 2;
+    let zf = *zs.select_nth_unstable_by(mid, f32::total_cmp).1;
+    // Summed-area table with a zero row and column in front: (w + 1) x (h + 1) x 3, f64.
+    let sw = w + 1;
+    let mut sat = vec![0f64; sw * (h + 1) * 3];
+    for y in 0..h {
+        let mut row = [0f64; 3];
+        for x in 0..w {
+            for c in 0..3 {
+                row[c] += f64::from(img[(y * w + x) * 3 + c]);
+                sat[((y + 1) * sw + x + 1) * 3 + c] = sat[(y * sw + x + 1) * 3 + c] + row[c];
+            }
+        }
+    }
+    for y in 0..h {
+        for x in 0..w {
+            let z = depth[y * w + x];
+            let c = if z > 0.0 {
+                c_inf * (1.0 - zf / z).abs()
+            } else {
+                c_inf
+            };
+            let r = c.round() as usize;
+            if r == 0 {
+                continue;
+            }
+            let (x0, x1) = (x.saturating_sub(r), (x + r + 1).min(w));
+            let (y0, y1) = (y.saturating_sub(r), (y + r + 1).min(h));
+            let n = ((x1 - x0) * (y1 - y0)) as f64;
+            for ch in 0..3 {
+                let at = |yy: usize, xx: usize| sat[(yy * sw + xx) * 3 + ch];
+                let sum = at(y1, x1) - at(y0, x1) - at(y1, x0) + at(y0, x0);
+                img[(y * w + x) * 3 + ch] = (sum / n) as f32;
+            }
+        }
+    }
+}
+
+/// Motion blur: each pixel becomes the mean of ⌈len⌉ + 1 samples (nearest pixel, edges
+/// clamped) evenly spaced along a segment of `len` pixels centred on it at `angle` radians.
+fn motion_blur(img: &mut [f32], w: usize, h: usize, len: f32, angle: f32) {
+    if len < 0.5 {
+        return;
+    }
+    let n = len.ceil() as usize + 1;
+    let (dx, dy) = (angle.cos() * len, angle.sin() * len);
+    let offsets: Vec<(isize, isize)> = (0..n)
+        .map(|i| {
+            let t = i as f32 / (n - 1) as f32 - 0.5;
+            ((t * dx).round() as isize, (t * dy).round() as isize)
+        })
+        .collect();
+    let src = img.to_vec();
+    let (wi, hi) = (w as isize, h as isize);
+    for y in 0..hi {
+        for x in 0..wi {
+            let mut acc = [0f32; 3];
+            for &(ox, oy) in &offsets {
+                let s = (((y + oy).clamp(0, hi - 1) * wi + (x + ox).clamp(0, wi - 1)) * 3) as usize;
+                for c in 0..3 {
+                    acc[c] += src[s + c];
+                }
+            }
+            let o = ((y * wi + x) * 3) as usize;
+            for c in 0..3 {
+                img[o + c] = acc[c] / n as f32;
+            }
+        }
+    }
 }
 
 /// Separable Gaussian blur of an interleaved RGB float image, edges clamped.
@@ -143,12 +250,14 @@ mod tests {
             read_noise: 0.0,
             white_balance: 0.0,
             vignetting: [0.0, 0.0],
+            defocus_px: [0.0, 0.0],
+            motion_blur_px: [0.0, 0.0],
         };
         let grey = vec![128u8; w * h * 3];
         let run = |spec: &RgbNoiseSpec, seed: u64| {
             let mut img = grey.clone();
             let mut rng = <ChaCha8Rng as rand::SeedableRng>::seed_from_u64(seed);
-            apply_rgb(spec, &luts, w, h, &mut img, &mut rng);
+            apply_rgb(spec, &luts, w, h, &mut img, None, &mut rng);
             img
         };
         assert_eq!(run(&quiet, 1), grey);
@@ -210,5 +319,47 @@ mod tests {
         let total: f32 = dot.iter().step_by(3).sum();
         assert!((total - 1.0).abs() < 1e-4);
         assert!(dot[(3 * w + 4) * 3] < 0.2 && dot[(3 * w + 5) * 3] > 0.05);
+    }
+
+    /// Defocus leaves the focused object sharp and blurs what lies far behind it; motion blur
+    /// smears a dot into a streak along its direction, keeping its energy.
+    #[test]
+    fn defocus_by_depth_and_motion_streaks() {
+        let (w, h) = (40usize, 20usize);
+        // A checkerboard: an object (instance 1) at 0.5 m on the left half, a wall at 5 m.
+        let mut img = vec![0f32; w * h * 3];
+        let mut depth = vec![0f32; w * h];
+        let mut inst = vec![0u16; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let v = ((x + y) % 2) as f32;
+                img[(y * w + x) * 3..][..3].copy_from_slice(&[v; 3]);
+                depth[y * w + x] = if x < w / 2 { 0.5 } else { 5.0 };
+                inst[y * w + x] = u16::from(x < w / 2);
+            }
+        }
+        let orig = img.clone();
+        defocus(&mut img, w, h, &depth, &inst, 4.0);
+        let contrast =
+            |im: &[f32], x: usize| (im[(10 * w + x) * 3] - im[(10 * w + x + 1) * 3]).abs();
+        assert_eq!(contrast(&img, 5), contrast(&orig, 5), "in focus: untouched");
+        // At 5 m: c = 4 · |1 − 0.5 / 5| = 3.6 → a 9x9 box over a checkerboard: contrast ~1/81.
+        assert!(
+            contrast(&img, 30) < 0.05,
+            "far: blurred ({})",
+            contrast(&img, 30)
+        );
+        let mut dot = vec![0f32; w * h * 3];
+        dot[(10 * w + 20) * 3] = 1.0;
+        motion_blur(&mut dot, w, h, 8.0, 0.0);
+        let row: Vec<f32> = (0..w).map(|x| dot[(10 * w + x) * 3]).collect();
+        let lit = row.iter().filter(|v| **v > 0.0).count();
+        assert_eq!(lit, 9, "a horizontal streak of 9 samples: {row:?}");
+        let total: f32 = dot.iter().sum();
+        assert!((total - 1.0).abs() < 1e-5, "energy kept: {total}");
+        assert!(
+            (0..h).all(|y| y == 10 || dot[(y * w + 20) * 3] == 0.0),
+            "horizontal only"
+        );
     }
 }

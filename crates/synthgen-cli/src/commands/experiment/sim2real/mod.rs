@@ -67,8 +67,15 @@ pub struct Settings {
     /// TNet conditioned on the object class (`--per-object`).
     #[serde(default)]
     pub per_object: bool,
+    /// TNets per trained row, their centres averaged (`--ensemble`).
+    #[serde(default = "one")]
+    pub ensemble: usize,
     pub seed: u64,
     pub quick: bool,
+}
+
+fn one() -> usize {
+    1
 }
 
 /// A row trained on a synthetic set: how its scene differs from the fitted one, or which set
@@ -314,6 +321,7 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
             mask_shift_px: args.mask_shift_px,
         },
         per_object: args.per_object,
+        ensemble: args.ensemble,
         seed: args.seed,
         quick: args.quick,
     };

@@ -246,25 +246,62 @@ pub fn train_row(
             Vec::new()
         },
     };
-    let run_dir = dir.join("train");
     let device = train::device(false)?;
-    let outcome = train::train(
-        &cfg,
-        &set,
-        objects.as_ref(),
-        &run_dir,
-        false,
-        &device,
-        &Observer {
-            printer,
-            name: spec.name,
-        },
-    )?;
-    let seconds_train = t0.elapsed().as_secs_f64();
-    let t1 = Instant::now();
-    let net = load_model(&run_dir.join(MODEL_FILE), &cfg, &device)?;
+    // An ensemble of `s.ensemble` TNets on the same frames, each from its own training seed
+    // (member 0 is the single model's run, in train/), their centres averaged.
+    let members = if model == ModelKind::Tnet {
+        s.ensemble.max(1)
+    } else {
+        1
+    };
     let tested: Vec<&Instance> = test.instances.iter().collect();
-    let preds = net.predict(&tested, test.objects.as_ref(), 64)?;
+    let mut outcome = None;
+    let mut sums: Vec<[f64; 3]> = vec![[0.0; 3]; tested.len()];
+    let mut preds = Vec::new();
+    let mut seconds_eval = 0.0;
+    for k in 0..members {
+        let cfg = TrainConfig {
+            seed: member_seed(s.seed, k),
+            ..cfg.clone()
+        };
+        let run_dir = if k == 0 {
+            dir.join("train")
+        } else {
+            dir.join(format!("train_{k}"))
+        };
+        let o = train::train(
+            &cfg,
+            &set,
+            objects.as_ref(),
+            &run_dir,
+            false,
+            &device,
+            &Observer {
+                printer,
+                name: spec.name,
+            },
+        )?;
+        outcome.get_or_insert(o);
+        let t1 = Instant::now();
+        let net = load_model(&run_dir.join(MODEL_FILE), &cfg, &device)?;
+        preds = net.predict(&tested, test.objects.as_ref(), 64)?;
+        for (sum, p) in sums.iter_mut().zip(&preds) {
+            if let Some(c) = p.centre_m {
+                for (a, v) in sum.iter_mut().zip(c) {
+                    *a += f64::from(v);
+                }
+            }
+        }
+        seconds_eval += t1.elapsed().as_secs_f64();
+    }
+    if members > 1 {
+        for (p, sum) in preds.iter_mut().zip(&sums) {
+            p.centre_m = Some(sum.map(|v| (v / members as f64) as f32));
+        }
+    }
+    let outcome = outcome.context("no ensemble member trained")?;
+    let seconds_train = t0.elapsed().as_secs_f64() - seconds_eval;
+    let t1 = Instant::now();
     let (all, objects_m, scenes) = score(&tested, &preds, test)?;
     let record = RowRecord {
         name: spec.name.to_string(),
@@ -277,10 +314,15 @@ pub fn train_row(
         scenes,
         last_epoch: outcome.history.last().cloned(),
         seconds_train,
-        seconds_eval: t1.elapsed().as_secs_f64(),
+        seconds_eval: seconds_eval + t1.elapsed().as_secs_f64(),
     };
     write_record(out, &record)?;
     Ok(record)
+}
+
+/// The training seed of ensemble member `k` (member 0: the experiment's seed).
+fn member_seed(seed: u64, k: usize) -> u64 {
+    seed.wrapping_add(1_000_003 * k as u64)
 }
 
 /// The naive baseline: the centre is the mean of the instance's masked depth points.
