@@ -224,6 +224,10 @@ pub struct FrameScene {
     /// The objects' specular model (`[materials] shading`).
     #[serde(default)]
     pub shading: crate::scene::Shading,
+    /// Environment light: the ambient's colour from above (sky) and from below (ground),
+    /// linear multipliers (`[lights] sky_color`, `ground_color`); None: uniform ambient.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub environment: Option<[[f32; 3]; 2]>,
     pub ground: Option<GroundInstance>,
     /// Vertical planes around the scene (`[walls]`), those the camera is inside of.
     #[serde(default)]
@@ -247,6 +251,7 @@ impl FrameScene {
             shadows: false,
             ambient_occlusion: 0.0,
             shading: crate::scene::Shading::Phong,
+            environment: None,
             ground: None,
             walls: vec![],
             background: BackgroundSample {
@@ -648,6 +653,7 @@ impl SceneSampler {
                 shadows: self.spec.lights.shadows,
                 ambient_occlusion: self.spec.lights.ambient_occlusion as f32,
                 shading: self.spec.materials.shading,
+                environment: environment(&self.spec.lights),
                 ground: ground.as_ref().map(|g| GroundInstance {
                     cam_from_plane: cam_from_world.compose(&g.cam_from_plane),
                     ..g.clone()
@@ -1088,6 +1094,15 @@ fn scene_center(world_from_objs: &[Pose]) -> DVec3 {
         .map(|p| p.translation_m)
         .sum::<DVec3>()
         / world_from_objs.len() as f64
+}
+
+/// The frame's environment light from `[lights] sky_color` / `ground_color`.
+fn environment(l: &crate::scene::LightSpec) -> Option<[[f32; 3]; 2]> {
+    if l.sky_color.is_none() && l.ground_color.is_none() {
+        return None;
+    }
+    let c = |v: Option<[f64; 3]>| v.unwrap_or([1.0; 3]).map(|x| x as f32);
+    Some([c(l.sky_color), c(l.ground_color)])
 }
 
 #[cfg(test)]

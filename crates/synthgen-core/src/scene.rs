@@ -343,6 +343,14 @@ pub struct LightSpec {
     /// loses up to this share of its ambient light where nearby surfaces hide the sky
     /// (contact shadows where objects touch the table and each other). Default 0 (off).
     pub ambient_occlusion: f64,
+    /// Environment light (a two-colour hemisphere probe, the embedded renderer): the ambient
+    /// light comes from a sky of this colour above the table and from the room and floor of
+    /// `ground_color` below it, so a surface facing up gets `ambient × sky_color`, one facing
+    /// down `ambient × ground_color`, and in between the mix by (1 + n·up) / 2. Linear
+    /// multipliers of `ambient`. Both unset (default): the same ambient from everywhere.
+    pub sky_color: Option<[f64; 3]>,
+    /// See `sky_color`; defaults to [1, 1, 1] when only `sky_color` is set.
+    pub ground_color: Option<[f64; 3]>,
 }
 
 impl Default for LightSpec {
@@ -357,6 +365,8 @@ impl Default for LightSpec {
             ambient: [0.15, 0.35],
             shadows: false,
             ambient_occlusion: 0.0,
+            sky_color: None,
+            ground_color: None,
         }
     }
 }
@@ -620,6 +630,18 @@ impl SceneSpec {
                 return Err(Error::InvalidSpec(format!(
                     "{name} must lie in 0..1 with min <= max, got [{lo}, {hi}]"
                 )));
+            }
+        }
+        for (name, c) in [
+            ("lights.sky_color", self.lights.sky_color),
+            ("lights.ground_color", self.lights.ground_color),
+        ] {
+            if let Some(c) = c {
+                if !c.iter().all(|v| v.is_finite() && (0.0..=10.0).contains(v)) {
+                    return Err(Error::InvalidSpec(format!(
+                        "{name} must be three multipliers in 0..10, got {c:?}"
+                    )));
+                }
             }
         }
         let ao = self.lights.ambient_occlusion;

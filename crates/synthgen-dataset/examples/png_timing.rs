@@ -264,6 +264,7 @@ fn full_frames(
             shadows: false,
             ambient_occlusion: 0.0,
             shading: Default::default(),
+            environment: None,
             ground: None,
             walls: vec![],
             background: BackgroundSample {

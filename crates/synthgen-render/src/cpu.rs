@@ -414,6 +414,15 @@ impl CpuRenderer {
         let params = ShadeParams {
             ambient: scene.ambient.max(0.0),
             ggx: scene.shading == synthgen_core::scene::Shading::Ggx,
+            env: scene
+                .environment
+                .map(|[sky, ground]| crate::shade::Environment {
+                    sky,
+                    ground,
+                    up_cam: (scene.world_from_cam.rotation.transpose()
+                        * synthgen_core::glam::DVec3::Z)
+                        .as_vec3(),
+                }),
         };
         scratch.cam_lights.clear();
         scratch

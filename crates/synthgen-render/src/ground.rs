@@ -344,13 +344,16 @@ impl<'a> Ground<'a> {
         let ox = (x0 as f32 - proj.cx) * ifx;
         let scale = self.albedo_linear.map(|a| a * TO_SRGB_MAX as f32);
         let side = if self.num > 0.0 { -1.0 } else { 1.0 };
+        // The plane's face towards the camera takes the environment's light from its side.
+        let ambient =
+            params.ambient_towards(self.normal * side, params.env.map_or(Vec3::Z, |e| e.up_cam));
         let ns = (w - 1) / LIGHT_STEP + 2;
         samples.clear();
         for s in 0..ns {
             let i = (s * LIGHT_STEP).min(w - 1);
             let ti = t[i];
             let p = Vec3::new((ox + i as f32 * ifx) * ti, dy * ti, ti);
-            let mut es = [params.ambient; 3];
+            let mut es = ambient;
             for l in lights {
                 let height = side * (self.normal.dot(l.position) - self.num);
                 if height > 0.0 {
@@ -428,6 +431,9 @@ impl<'a> Ground<'a> {
         let dy = (y as f32 - proj.cy) * ify;
         let scale = self.albedo_linear.map(|a| a * TO_SRGB_MAX as f32);
         let side = if self.num > 0.0 { -1.0 } else { 1.0 };
+        // The plane's face towards the camera takes the environment's light from its side.
+        let ambient =
+            params.ambient_towards(self.normal * side, params.env.map_or(Vec3::Z, |e| e.up_cam));
         for x in s0..s1 {
             let xf = x as i32 as f32;
             let (tt, u, v) = self.eval(&c, proj.near_m, xf);
@@ -438,7 +444,7 @@ impl<'a> Ground<'a> {
             depth[x] = tt;
             instance[x] = 0;
             let p = Vec3::new((xf - proj.cx) * ifx * tt, dy * tt, tt);
-            let mut e = [params.ambient; 3];
+            let mut e = ambient;
             for l in lights {
                 // The light's height above the plane, on the camera's side.
                 let h = side * (self.normal.dot(l.position) - self.num);

@@ -33,6 +33,33 @@ impl Light {
 pub(crate) struct ShadeParams {
     pub ambient: f32,
     pub ggx: bool,
+    /// The environment light: sky and ground colours and the world's up in the camera frame.
+    pub env: Option<Environment>,
+}
+
+/// A two-colour hemisphere light probe (`[lights] sky_color`, `ground_color`).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Environment {
+    pub sky: [f32; 3],
+    pub ground: [f32; 3],
+    /// World +z in the camera frame.
+    pub up_cam: Vec3,
+}
+
+impl ShadeParams {
+    /// The ambient light (per channel) on a surface of unit normal `n` in the frame where
+    /// the world's up is `up`: uniform without an environment, else the sky and ground
+    /// colours mixed by (1 + n·up) / 2.
+    #[inline]
+    pub fn ambient_towards(&self, n: Vec3, up: Vec3) -> [f32; 3] {
+        match &self.env {
+            None => [self.ambient; 3],
+            Some(e) => {
+                let t = (0.5 + 0.5 * n.dot(up)).clamp(0.0, 1.0);
+                std::array::from_fn(|c| self.ambient * (e.ground[c] + (e.sky[c] - e.ground[c]) * t))
+            }
+        }
+    }
 }
 
 /// Per-object shading buffers (structure of arrays over the object's visible pixels),
@@ -240,6 +267,15 @@ pub(crate) fn shade_pixels(
         nx[k] = nv.x;
         ny[k] = nv.y;
         nz[k] = nv.z;
+    }
+    if let Some(e) = &params.env {
+        let up = obj_from_cam * e.up_cam;
+        for k in 0..n {
+            let a = params.ambient_towards(Vec3::new(nx[k], ny[k], nz[k]), up);
+            dr[k] = a[0];
+            dg[k] = a[1];
+            db[k] = a[2];
+        }
     }
     if params.ggx {
         // Metals: no diffuse part, a specular colour of the base colour.
@@ -517,6 +553,33 @@ mod tests {
             let n = 2.0 / r.powi(4) - 2.0;
             assert!((ggx_alpha(n) - r * r).abs() < 1e-5);
         }
+    }
+
+    /// The hemisphere probe: facing up gives sky × ambient, down ground × ambient, sideways
+    /// their mean; without it, the ambient from everywhere.
+    #[test]
+    fn environment_light_mixes_sky_and_ground_by_the_normal() {
+        let mut p = ShadeParams {
+            ambient: 0.5,
+            ggx: false,
+            env: None,
+        };
+        assert_eq!(p.ambient_towards(Vec3::X, Vec3::Z), [0.5; 3]);
+        p.env = Some(Environment {
+            sky: [1.2, 1.2, 1.4],
+            ground: [0.4, 0.3, 0.2],
+            up_cam: Vec3::Z,
+        });
+        let close = |a: [f32; 3], b: [f32; 3]| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-6);
+        assert!(close(p.ambient_towards(Vec3::Z, Vec3::Z), [0.6, 0.6, 0.7]));
+        assert!(close(
+            p.ambient_towards(-Vec3::Z, Vec3::Z),
+            [0.2, 0.15, 0.1]
+        ));
+        assert!(close(
+            p.ambient_towards(Vec3::Y, Vec3::Z),
+            [0.4, 0.375, 0.4]
+        ));
     }
 
     #[test]

@@ -608,7 +608,7 @@ fn render_boxes(d: &Path, name: &str, extra: &str) {
 }
 
 #[test]
-fn ambient_occlusion_darkens_contacts_only_and_ggx_metals_take_their_colour() {
+fn ambient_occlusion_darkens_contacts_ggx_metals_take_their_colour_and_the_sky_lights() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     write_box_ply(&d.join("box.ply"));
@@ -620,10 +620,29 @@ fn ambient_occlusion_darkens_contacts_only_and_ggx_metals_take_their_colour() {
         "ggx",
         &format!("{lights}[materials]\nshading = \"ggx\"\nmetallic = [1.0, 1.0]\nroughness = [0.3, 0.3]\n"),
     );
+    render_boxes(
+        d,
+        "env",
+        &format!("{lights}sky_color = [1.6, 1.6, 1.6]\nground_color = [0.2, 0.2, 0.2]\n"),
+    );
     let read = |p: &Path| image::open(p).unwrap().to_rgb8();
     let f = |set: &str, kind: &str, i: usize| {
         d.join(format!("{set}/train_pbr/000000/{kind}/{i:06}.png"))
     };
+    // The ground faces the sky: brighter under a bright sky (the mean over the image).
+    let mean = |set: &str| {
+        let img = read(&f(set, "rgb", 0));
+        img.pixels()
+            .map(|p| p.0.iter().map(|&c| f64::from(c)).sum::<f64>())
+            .sum::<f64>()
+            / img.pixels().len() as f64
+    };
+    assert!(
+        mean("env") > mean("plain") + 5.0,
+        "sky light: {} vs {}",
+        mean("env"),
+        mean("plain")
+    );
     let (mut darker, mut pixels, mut changed) = (0usize, 0usize, 0usize);
     for i in 0..3 {
         for set in ["ao", "ggx"] {

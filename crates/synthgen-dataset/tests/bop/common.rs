@@ -60,6 +60,7 @@ pub fn scene(frame_index: u64, objects: Vec<ObjectInstance>) -> FrameScene {
         shadows: false,
         ambient_occlusion: 0.0,
         shading: Default::default(),
+        environment: None,
         ground: None,
         walls: vec![],
         background: BackgroundSample {

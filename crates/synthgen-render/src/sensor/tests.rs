@@ -247,6 +247,7 @@ fn sensor_model_touches_only_rgb_and_depth_and_is_deterministic() {
         shadows: false,
         ambient_occlusion: 0.0,
         shading: Default::default(),
+        environment: None,
         ground: None,
         walls: vec![],
         background: BackgroundSample {

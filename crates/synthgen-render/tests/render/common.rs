@@ -37,6 +37,7 @@ pub fn scene(intrinsics: Intrinsics, objects: Vec<ObjectInstance>) -> FrameScene
         shadows: false,
         ambient_occlusion: 0.0,
         shading: Default::default(),
+        environment: None,
         ground: None,
         walls: vec![],
         background: BackgroundSample {
