@@ -2,8 +2,10 @@
 //! 1, 5, 6, 8, 9; 640x480, ToF depth noise), 8 frames per iteration through the whole
 //! pipeline (sample, render, annotate, sensor model): in memory with `frames()` and
 //! `frames_batch`, and written as BOP to a fresh temp folder with `write` (PNG encoding,
-//! masks, JSON, manifest); and `frames_batch_shadows`, the same frames with `[lights] shadows
-//! = true`. Throughput is in frames; threads: all cores (set
+//! masks, JSON, manifest); `frames_batch_shadows`, the same frames with `[lights] shadows
+//! = true`; and `frames_batch_realistic`, with every realism option of the embedded renderer
+//! on (shadows, ambient occlusion 0.6, GGX shading with metallic 0..0.3, the sky/ground
+//! environment light). Throughput is in frames; threads: all cores (set
 //! `SYNTHGEN_BENCH_THREADS` to pin them).
 //!
 //! Models come from `$SYNTHGEN_LMO_DIR/models` (default `../shared/data/lmo/models` next to
@@ -22,7 +24,15 @@ use synthgen_pipeline::{Format, ObjectSource, PreparedJob, RenderJob, SinkOption
 const IDS: [u32; 5] = [1, 5, 6, 8, 9];
 const FRAMES: u64 = 8;
 
-fn job(shadows: bool) -> PreparedJob {
+/// How much of the renderer's realism a bench job turns on.
+#[derive(Clone, Copy, PartialEq)]
+enum Look {
+    Plain,
+    Shadows,
+    Realistic,
+}
+
+fn job(look: Look) -> PreparedJob {
     let manifest_dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let root = std::env::var_os("SYNTHGEN_LMO_DIR")
         .map(PathBuf::from)
@@ -33,7 +43,14 @@ fn job(shadows: bool) -> PreparedJob {
         .collect();
     let mut spec = SceneSpec::from_toml_file(&manifest_dir.join("../../scenes/linemod_like.toml"))
         .expect("scenes/linemod_like.toml");
-    spec.lights.shadows = shadows;
+    spec.lights.shadows = look != Look::Plain;
+    if look == Look::Realistic {
+        spec.lights.ambient_occlusion = 0.6;
+        spec.lights.sky_color = Some([1.2, 1.2, 1.3]);
+        spec.lights.ground_color = Some([0.6, 0.55, 0.5]);
+        spec.materials.shading = synthgen_core::scene::Shading::Ggx;
+        spec.materials.metallic = [0.0, 0.3];
+    }
     let threads = std::env::var("SYNTHGEN_BENCH_THREADS")
         .ok()
         .and_then(|t| t.parse().ok())
@@ -48,8 +65,9 @@ fn job(shadows: bool) -> PreparedJob {
 }
 
 fn bench(c: &mut Criterion) {
-    let shadowed = job(true);
-    let job = job(false);
+    let shadowed = job(Look::Shadows);
+    let realistic = job(Look::Realistic);
+    let job = job(Look::Plain);
     let k = job.intrinsics();
     assert_eq!((k.width, k.height), (640, 480));
     let indices: Vec<u64> = job.frame_range().collect();
@@ -65,6 +83,9 @@ fn bench(c: &mut Criterion) {
     // The same frames with `[lights] shadows = true` (a shadow map per light).
     g.bench_function("frames_batch_shadows", |b| {
         b.iter(|| shadowed.frames_batch(&indices).unwrap().len())
+    });
+    g.bench_function("frames_batch_realistic", |b| {
+        b.iter(|| realistic.frames_batch(&indices).unwrap().len())
     });
     g.bench_function("write_bop", |b| {
         b.iter_batched(
