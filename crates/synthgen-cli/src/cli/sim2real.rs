@@ -118,9 +118,10 @@ pub struct ExperimentSim2realArgs {
 
     /// TNets trained per row (on the same frames, each from its own training seed), their
     /// centres averaged: less of the training's seed-to-seed spread. 1: one model. The
-    /// default was chosen on validation scenes (docs/experiments.md).
-    #[arg(long, value_name = "K", default_value_t = 1, value_parser = parse_ensemble)]
-    pub ensemble: usize,
+    /// default was chosen on validation scenes (docs/experiments.md). [default: 3; 1 with
+    /// --quick]
+    #[arg(long, value_name = "K", value_parser = parse_ensemble)]
+    pub ensemble: Option<usize>,
 
     /// Seeds the renders and the training.
     #[arg(long, default_value_t = 0)]

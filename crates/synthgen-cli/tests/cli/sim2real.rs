@@ -109,6 +109,9 @@ fn quick_sim2real_on_real_frames_reports_every_row_and_resumes() {
     assert!(r["skipped_frames"]["synth_fitted"].is_array());
 
     assert_eq!(settings["unseen_up"], "any");
+    // --quick trains one model per row; the default is an ensemble of 3.
+    assert_eq!(settings["ensemble"], 1);
+    assert!(!out.join("rows/synth_fitted/train_1").exists());
     // Resume: nothing is fitted, rendered or trained again.
     let o = sim2real(
         &real,
@@ -134,6 +137,57 @@ fn quick_sim2real_on_real_frames_reports_every_row_and_resumes() {
         &["--test-scenes", "1", "--frames", "24"],
     );
     refused(&o, &["other settings"]);
+}
+
+#[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
+fn an_ensemble_trains_each_member_and_scores_their_mean() {
+    let real = ycbv_real();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("s2r");
+    let args = [
+        "--test-scenes",
+        "2",
+        "--frames",
+        "24",
+        "--rows",
+        "synth_fitted",
+        "--ensemble",
+        "2",
+    ];
+    let o = sim2real(&real, &real, &out, &args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let settings: Value =
+        serde_json::from_slice(&std::fs::read(out.join("experiment.json")).unwrap()).unwrap();
+    assert_eq!(settings["ensemble"], 2);
+    let row = out.join("rows/synth_fitted");
+    for member in ["train", "train_1"] {
+        assert!(
+            row.join(member).join("model.safetensors").is_file(),
+            "{member}"
+        );
+    }
+    // Two training seeds: two different models.
+    assert_ne!(
+        std::fs::read(row.join("train/model.safetensors")).unwrap(),
+        std::fs::read(row.join("train_1/model.safetensors")).unwrap()
+    );
+    let r: Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    assert!(r["all"]["mean_centre_error_cm"]
+        .as_f64()
+        .unwrap()
+        .is_finite());
+    let o = sim2real(
+        &real,
+        &real,
+        &out,
+        &[&args[..6], &["--ensemble", "0"]].concat(),
+    );
+    refused(&o, &["expected 1 to 16 models"]);
 }
 
 #[test]

@@ -321,7 +321,7 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
             mask_shift_px: args.mask_shift_px,
         },
         per_object: args.per_object,
-        ensemble: args.ensemble,
+        ensemble: args.ensemble.unwrap_or(if args.quick { 1 } else { 3 }),
         seed: args.seed,
         quick: args.quick,
     };
