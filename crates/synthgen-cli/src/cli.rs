@@ -672,6 +672,13 @@ pub struct RenderArgs {
     #[arg(long, value_name = "DIR", requires = "replay")]
     pub replay_models: Option<PathBuf>,
 
+    /// With --replay: light the replay instead of rendering it flat (ambient 1, no lights):
+    /// one point light 0.5 m above the camera, the sky/ground environment light, cast
+    /// shadows, ambient occlusion and GGX shading (docs/models.md) — the realistic raster on
+    /// the real frames' poses, for `sensor compare-rgb`.
+    #[arg(long, requires = "replay")]
+    pub replay_lit: bool,
+
     /// Camera preset: linemod, d455, d455-720, ycbv (YCB-Video's UW rig, scenes 0-59),
     /// ycbv-cmu (its CMU rig, scenes 60-91).
     #[arg(long)]

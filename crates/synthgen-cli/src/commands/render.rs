@@ -23,6 +23,13 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     if args.replay.is_some() {
         return replay::run(args, printer);
     }
+    if args.replay_models.is_some() || args.replay_lit {
+        // clap's `requires` lets them through beside a flag that conflicts with --replay.
+        return Err(user_error(
+            "--replay-models and --replay-lit apply only to --replay (a replay of real frames)",
+            "add --replay REAL_DIR, or drop them",
+        ));
+    }
     if !args.scenes.is_empty() {
         // clap's `requires` lets it through beside a flag that conflicts with --replay.
         return Err(user_error(

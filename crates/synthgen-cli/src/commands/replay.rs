@@ -139,7 +139,10 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
             chunk
                 .par_iter()
                 .map(|job| {
-                    let scene = frame_scene(job, &index, cam.width, cam.height);
+                    let mut scene = frame_scene(job, &index, cam.width, cam.height);
+                    if args.replay_lit {
+                        light(&mut scene);
+                    }
                     let (frame, ann) = render_annotated(&renderer, &scene, &sensor, delta_m)?;
                     let rec = sinks[job.sink].write_frame_in(
                         Some(&job.split),
@@ -511,6 +514,34 @@ fn frame_scene(job: &Job, index: &BTreeMap<u32, usize>, width: u32, height: u32)
         scene.world_from_cam = cam_from_world.inverse();
     }
     scene
+}
+
+/// `--replay-lit`: the realistic raster's options on a replayed frame. The light sits 0.5 m
+/// above the camera (world up where the frame knows its table, else the image's up), as a
+/// room's ceiling light does for a handheld camera; the materials are a plain dielectric
+/// (specular 0.5: F0 4 %, roughness 0.5).
+fn light(scene: &mut FrameScene) {
+    use synthgen_core::glam::DVec3;
+    let up = if scene.world_from_cam == synthgen_core::Pose::IDENTITY {
+        DVec3::new(0.0, -1.0, 0.0)
+    } else {
+        scene.world_from_cam.rotation.transpose() * DVec3::Z
+    };
+    scene.lights = vec![synthgen_core::sample::PointLight {
+        position_cam_m: up * 0.5,
+        color: [1.0; 3],
+        intensity: 0.8,
+    }];
+    scene.ambient = 0.35;
+    scene.shadows = true;
+    scene.ambient_occlusion = 0.6;
+    scene.shading = synthgen_core::scene::Shading::Ggx;
+    scene.environment = Some([[1.15, 1.15, 1.2], [0.7, 0.7, 0.7]]);
+    for o in &mut scene.objects {
+        o.specular = 0.5;
+        // Roughness 0.5: n = 2 / r⁴ − 2.
+        o.shininess = 30.0;
+    }
 }
 
 /// `split/scene/image` of a source frame, for messages.

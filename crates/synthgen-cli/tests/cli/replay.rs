@@ -150,6 +150,43 @@ fn replay_of_ycbv_as_bop_keeps_ids_poses_and_masks_and_clean_depth() {
     not(has_shared_data),
     ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
 )]
+fn a_lit_replay_keeps_the_annotations_and_shades_the_objects() {
+    let real = ycbv_real();
+    let dir = tempfile::tempdir().unwrap();
+    let (flat, lit) = (dir.path().join("flat"), dir.path().join("lit"));
+    let args = ["--scenes", "1", "--format", "ycbv"];
+    let o = replay(&real, &flat, &args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = replay(&real, &lit, &[&args[..], &["--replay-lit"]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    check_twin(&real, &lit, &[1], "train");
+    let (mut same, mut differ) = (0, 0);
+    for entry in std::fs::read_dir(flat.join("data/0001")).unwrap() {
+        let name = entry.unwrap().file_name().into_string().unwrap();
+        let (a, b) = (
+            std::fs::read(flat.join("data/0001").join(&name)).unwrap(),
+            std::fs::read(lit.join("data/0001").join(&name)).unwrap(),
+        );
+        if name.ends_with("-color.png") {
+            differ += usize::from(a != b);
+        } else if name.ends_with("-depth.png") || name.ends_with("-label.png") {
+            assert_eq!(a, b, "{name}: the lighting changes colours only");
+            same += 1;
+        }
+    }
+    assert!(same >= 40 && differ >= 20, "{same} same, {differ} differ");
+    // The replay flags need --replay (they were silently ignored beside --objects).
+    for flag in [&["--replay-lit"][..], &["--replay-models", "m"][..]] {
+        let o = run(synthgen().args(["render", "--objects", "x.ply"]).args(flag));
+        refused(&o, &["apply only to --replay"]);
+    }
+}
+
+#[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
 fn replay_of_ycbv_as_ycbv_keeps_ids_poses_and_masks() {
     let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
