@@ -56,13 +56,15 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     if !args.resume {
         check_out_dir(&args.out, args.force)?;
     }
+    // The folders this run creates: removed again (when empty) if the job cannot start.
+    let created = first_missing_ancestor(&args.out);
     // One writer per output folder; a crashed run's lock goes with its process.
-    let _lock = OutputLock::acquire(&args.out)?;
+    let lock = OutputLock::acquire(&args.out)?;
     if args.force && !args.resume {
         replace_output(&args.out, printer)?;
     }
 
-    let job = RenderJob::new(spec)
+    let built = RenderJob::new(spec)
         .objects(&sources)
         .units(units_of(args.units))
         .frames(frame_range)
@@ -70,7 +72,29 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
         .threads(args.jobs.unwrap_or(0))
         .backend(job_backend(&args))
         .visib_delta_m(args.visib_delta_m)
-        .build(printer)?;
+        .build(printer);
+    let job = match built {
+        Ok(job) => job,
+        Err(e) => {
+            // A broken mesh must not leave an empty output folder behind: a folder this run
+            // created and that holds only its lock file goes (the lock file while still held).
+            if let Some(top) = created {
+                let only_lock = std::fs::read_dir(&args.out).is_ok_and(|entries| {
+                    entries.flatten().all(|e| {
+                        e.file_name() == std::ffi::OsStr::new(synthgen_dataset::output::LOCK_FILE)
+                    })
+                });
+                if only_lock {
+                    let _ =
+                        std::fs::remove_file(args.out.join(synthgen_dataset::output::LOCK_FILE));
+                }
+                drop(lock);
+                remove_empty_dirs(&args.out, &top);
+            }
+            return Err(e.into());
+        }
+    };
+    let _lock = lock;
     let options = WriteOptions {
         out: args.out.clone(),
         sink: sink_options(&args),
@@ -426,5 +450,27 @@ fn summarize(
                 .join("rgb")
                 .display()
         ));
+    }
+}
+
+/// The outermost ancestor of `path` (or `path` itself) that does not exist yet: what creating
+/// `path` creates.
+fn first_missing_ancestor(path: &std::path::Path) -> Option<std::path::PathBuf> {
+    let mut missing = None;
+    for a in path.ancestors() {
+        if a.as_os_str().is_empty() || a.exists() {
+            break;
+        }
+        missing = Some(a.to_path_buf());
+    }
+    missing
+}
+
+/// Removes `path` and its ancestors up to `top`, each only while it is empty.
+fn remove_empty_dirs(path: &std::path::Path, top: &std::path::Path) {
+    for a in path.ancestors() {
+        if std::fs::remove_dir(a).is_err() || a == top {
+            break;
+        }
     }
 }

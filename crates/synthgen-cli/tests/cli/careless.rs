@@ -5,7 +5,7 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use crate::common::{run, stderr, synthgen};
+use crate::common::{refused, run, stderr, synthgen};
 use crate::mix::render_tiny;
 use crate::render::write_box_ply;
 
@@ -531,4 +531,33 @@ fn not_empty_output_hint_names_resume() {
     let o = render(d, "o", 2, &[]);
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("--resume"), "{}", stderr(&o));
+}
+
+/// A render that cannot start (a missing mesh) leaves no empty output folder behind, and
+/// never touches a folder that existed.
+#[test]
+fn a_render_that_cannot_start_leaves_no_empty_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = run(synthgen().current_dir(d).args([
+        "render",
+        "-q",
+        "--objects",
+        "missing.ply",
+        "--out",
+        "a/b",
+    ]));
+    refused(&o, &["cannot load object missing.ply"]);
+    assert!(!d.join("a").exists(), "a/b and a were created and removed");
+    std::fs::create_dir(d.join("kept")).unwrap();
+    let o = run(synthgen().current_dir(d).args([
+        "render",
+        "-q",
+        "--objects",
+        "missing.ply",
+        "--out",
+        "kept/new",
+    ]));
+    refused(&o, &["cannot load object missing.ply"]);
+    assert!(d.join("kept").is_dir() && !d.join("kept/new").exists());
 }
