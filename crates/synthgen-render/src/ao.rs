@@ -9,11 +9,10 @@
 //! ambient share of its light (ambient / (ambient + Σ Lambert)), in linear light as the
 //! shadow pass darkens.
 
-use synthgen_core::glam::Vec3;
 use synthgen_core::{depth_features, FrameScene};
 
 use crate::raster::Projection;
-use crate::shadow::darken_linear;
+use crate::shadow::{darken_linear, direct_lambert};
 
 /// World radius of the occlusion search, metres.
 pub(crate) const RADIUS_M: f32 = 0.05;
@@ -56,13 +55,6 @@ pub(crate) fn obscurance(
             })
         })
         .collect();
-    let back = |x: f32, y: f32, z: f32| {
-        Vec3::new(
-            (x + 0.5 - proj.cx) / proj.fx * z,
-            (y + 0.5 - proj.cy) / proj.fy * z,
-            z,
-        )
-    };
     for y in (0..h).step_by(2) {
         for x in (0..w).step_by(2) {
             let z = depth_m[y * w + x];
@@ -73,7 +65,7 @@ pub(crate) fn obscurance(
             let Some(n) = depth_features::normal_cam(depth_m, SAME_SURFACE, k, x, y) else {
                 continue;
             };
-            let p = back(x as f32, y as f32, z);
+            let p = proj.unproject(x as f32, y as f32, z);
             let r_px = proj.fx * RADIUS_M / z;
             if r_px < 1.0 {
                 continue;
@@ -89,7 +81,7 @@ pub(crate) fn obscurance(
                 if zs <= 0.0 {
                     continue;
                 }
-                let v = back(sx, sy, zs) - p;
+                let v = proj.unproject(sx, sy, zs) - p;
                 let d = v.length();
                 if d <= 1e-6 || d >= RADIUS_M {
                     continue;
@@ -170,23 +162,9 @@ pub(crate) fn apply(
             if ao <= 0.0 {
                 continue;
             }
-            let z = depth_m[i];
-            let n = depth_features::normal_cam(depth_m, SAME_SURFACE, k, x, y);
-            let direct = n.map_or(0.0, |n| {
-                let xc = Vec3::new(
-                    (x as f32 + 0.5 - proj.cx) / proj.fx * z,
-                    (y as f32 + 0.5 - proj.cy) / proj.fy * z,
-                    z,
-                );
-                scene
-                    .lights
-                    .iter()
-                    .map(|l| {
-                        let d = (l.position_cam_m.as_vec3() - xc).normalize_or_zero();
-                        l.intensity.max(0.0) * n.dot(d).max(0.0)
-                    })
-                    .sum::<f32>()
-            });
+            let xc = proj.unproject(x as f32, y as f32, depth_m[i]);
+            let direct = depth_features::normal_cam(depth_m, SAME_SURFACE, k, x, y)
+                .map_or(0.0, |n| direct_lambert(scene, n, xc));
             s.lost[i] = strength * ao * ambient / (ambient + direct);
         }
     }

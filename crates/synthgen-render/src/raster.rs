@@ -39,6 +39,16 @@ pub(crate) struct Projection {
 }
 
 impl Projection {
+    /// The camera-frame point at z-depth `z` seen through the centre of pixel (x, y).
+    #[inline(always)]
+    pub(crate) fn unproject(&self, x: f32, y: f32, z: f32) -> Vec3 {
+        Vec3::new(
+            (x + 0.5 - self.cx) / self.fx * z,
+            (y + 0.5 - self.cy) / self.fy * z,
+            z,
+        )
+    }
+
     #[inline(always)]
     fn project(&self, p: Vec3) -> ScreenVert {
         let iz = 1.0 / p.z;

@@ -30,6 +30,24 @@ pub(crate) struct ShadowScratch {
     tables: LinearTables,
 }
 
+/// Lambert's cosine at camera-frame point `xc` of unit normal `n` towards a light at `light`
+/// (0 for a face turned away).
+#[inline]
+fn lambert(n: Vec3, xc: Vec3, light: Vec3) -> f32 {
+    n.dot((light - xc).normalize_or_zero()).max(0.0)
+}
+
+/// What the scene's point lights gave a surface point `xc` of unit normal `n` (camera frame),
+/// as the shading computed it: Σ intensity × Lambert's cosine. The shadow and occlusion passes
+/// weigh what they take away against it.
+pub(crate) fn direct_lambert(scene: &FrameScene, n: Vec3, xc: Vec3) -> f32 {
+    scene
+        .lights
+        .iter()
+        .map(|l| l.intensity.max(0.0) * lambert(n, xc, l.position_cam_m.as_vec3()))
+        .sum()
+}
+
 /// sRGB ↔ linear tables for darkening 8-bit pixels in linear light.
 #[derive(Default)]
 pub(crate) struct LinearTables {
@@ -209,19 +227,9 @@ pub(crate) fn apply(
                 let Some(n) = depth_features::normal_cam(depth_m, SAME_SURFACE, k, px, py) else {
                     continue;
                 };
-                let xc = Vec3::new(
-                    (px as f32 + 0.5 - proj.cx) / proj.fx * z,
-                    (py as f32 + 0.5 - proj.cy) / proj.fy * z,
-                    z,
-                );
-                let lambert = |pos: Vec3| n.dot((pos - xc).normalize_or_zero()).max(0.0);
-                let received = scene.ambient.max(0.0)
-                    + scene
-                        .lights
-                        .iter()
-                        .map(|l| l.intensity.max(0.0) * lambert(l.position_cam_m.as_vec3()))
-                        .sum::<f32>();
-                let from_this = light.intensity.max(0.0) * lambert(p);
+                let xc = proj.unproject(px as f32, py as f32, z);
+                let received = scene.ambient.max(0.0) + direct_lambert(scene, n, xc);
+                let from_this = light.intensity.max(0.0) * lambert(n, xc, p);
                 if received > 0.0 {
                     s.lost[i] += from_this / received * blocked as f32 / 9.0;
                 }

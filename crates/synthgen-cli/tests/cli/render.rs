@@ -519,32 +519,12 @@ fn shadows_only_darken_and_do_darken_the_ground() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     write_box_ply(&d.join("box.ply"));
-    let spec = |shadows: bool| {
-        format!(
-            "[camera_pose]\ndistance_m = [0.5, 0.6]\nelevation_deg = [50.0, 60.0]\n[lights]\ncount = [1, 1]\nelevation_deg = [35.0, 40.0]\ndistance_m = [1.0, 1.0]\nshadows = {shadows}\n[background]\nkind = \"color\"\n"
-        )
-    };
     for (name, on) in [("off", false), ("on", true)] {
-        std::fs::write(d.join(format!("{name}.toml")), spec(on)).unwrap();
-        let o = run(synthgen()
-            .current_dir(d)
-            .args([
-                "render",
-                "-q",
-                "--objects",
-                "box.ply",
-                "box.ply",
-                "--units",
-                "m",
-            ])
-            .args([
-                "--scene",
-                &format!("{name}.toml"),
-                "--image-size",
-                "160,120",
-            ])
-            .args(["--frames", "3", "--seed", "5", "--out", name]));
-        assert!(o.status.success(), "{}", stderr(&o));
+        render_boxes(
+            d,
+            name,
+            &format!("[lights]\ncount = [1, 1]\nelevation_deg = [35.0, 40.0]\ndistance_m = [1.0, 1.0]\nshadows = {on}\n"),
+        );
     }
     let read = |p: &Path| image::open(p).unwrap().to_rgb8();
     let mut darker = 0usize;
