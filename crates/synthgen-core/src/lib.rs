@@ -19,6 +19,7 @@ pub mod depth_features;
 pub mod distractor;
 mod distractor_spec;
 mod error;
+pub mod jacobi;
 pub mod mesh;
 pub mod pose;
 pub mod pose_render;

@@ -290,50 +290,18 @@ fn horn(pairs: &[(DVec3, DVec3)]) -> (DMat3, DVec3) {
     (rot, cb - rot * ca)
 }
 
-/// The eigenvector of a symmetric 4x4 matrix's largest eigenvalue (cyclic Jacobi).
-fn largest_eigenvector(mut a: [[f64; 4]; 4]) -> DVec4 {
-    let mut v = [[0.0f64; 4]; 4];
-    for (i, row) in v.iter_mut().enumerate() {
-        row[i] = 1.0;
-    }
-    for _ in 0..50 {
+/// The eigenvector of a symmetric 4x4 matrix's largest eigenvalue (cyclic Jacobi, until the
+/// off-diagonal's squares sum below 1e-30).
+fn largest_eigenvector(a: [[f64; 4]; 4]) -> DVec4 {
+    let (values, v) = synthgen_core::jacobi::symmetric_eigen(a, |a| {
         let off: f64 = (0..4)
             .flat_map(|i| (0..4).filter(move |&j| j != i).map(move |j| (i, j)))
             .map(|(i, j)| a[i][j] * a[i][j])
             .sum();
-        if off < 1e-30 {
-            break;
-        }
-        for p in 0..3 {
-            for q in p + 1..4 {
-                if a[p][q].abs() < 1e-300 {
-                    continue;
-                }
-                let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
-                let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
-                let t = if theta == 0.0 { 1.0 } else { t };
-                let c = 1.0 / (t * t + 1.0).sqrt();
-                let s = t * c;
-                for row in a.iter_mut() {
-                    let (akp, akq) = (row[p], row[q]);
-                    row[p] = c * akp - s * akq;
-                    row[q] = s * akp + c * akq;
-                }
-                let (rp, rq) = (a[p], a[q]);
-                for (k, (apk, aqk)) in rp.iter().zip(rq.iter()).enumerate() {
-                    a[p][k] = c * apk - s * aqk;
-                    a[q][k] = s * apk + c * aqk;
-                }
-                for row in v.iter_mut() {
-                    let (vkp, vkq) = (row[p], row[q]);
-                    row[p] = c * vkp - s * vkq;
-                    row[q] = s * vkp + c * vkq;
-                }
-            }
-        }
-    }
+        off < 1e-30
+    });
     let i = (0..4)
-        .max_by(|&x, &y| a[x][x].total_cmp(&a[y][y]))
+        .max_by(|&x, &y| values[x].total_cmp(&values[y]))
         .unwrap_or(0);
     DVec4::new(v[0][i], v[1][i], v[2][i], v[3][i])
 }

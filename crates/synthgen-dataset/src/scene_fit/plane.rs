@@ -184,46 +184,21 @@ pub fn least_squares_plane(points: &[DVec3]) -> Option<Plane> {
 /// Eigenvalues and eigenvectors (columns) of a symmetric 3x3 matrix, by cyclic Jacobi
 /// rotations.
 pub fn symmetric_eigen(m: DMat3) -> ([f64; 3], DMat3) {
-    let mut a = m.to_cols_array_2d(); // a[col][row]; symmetric, so a[i][j] = a[j][i]
-    let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
-    for _ in 0..50 {
-        let off = a[0][1].powi(2) + a[0][2].powi(2) + a[1][2].powi(2);
-        let scale = a[0][0].powi(2) + a[1][1].powi(2) + a[2][2].powi(2);
-        if off <= 1e-30 * scale.max(1e-300) {
-            break;
-        }
-        for (p, q) in [(0, 1), (0, 2), (1, 2)] {
-            if a[p][q].abs() < 1e-300 {
-                continue;
-            }
-            let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
-            let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
-            let t = if theta == 0.0 { 1.0 } else { t };
-            let c = 1.0 / (t * t + 1.0).sqrt();
-            let s = t * c;
-            // a' = Jᵀ a J with J the rotation in the (p, q) plane.
-            for row in &mut a {
-                let (akp, akq) = (row[p], row[q]);
-                row[p] = c * akp - s * akq;
-                row[q] = s * akp + c * akq;
-            }
-            let (rp, rq) = (a[p], a[q]);
-            a[p] = std::array::from_fn(|k| c * rp[k] - s * rq[k]);
-            a[q] = std::array::from_fn(|k| s * rp[k] + c * rq[k]);
-            for row in &mut v {
-                let (vp, vq) = (row[p], row[q]);
-                row[p] = c * vp - s * vq;
-                row[q] = s * vp + c * vq;
-            }
-        }
-    }
+    // a[col][row]; symmetric, so a[i][j] = a[j][i]. Until the off-diagonal is 1e-30 of the
+    // diagonal (squares).
+    let (values, v) =
+        synthgen_core::jacobi::symmetric_eigen(m.to_cols_array_2d(), |a: &[[f64; 3]; 3]| {
+            let off = a[0][1].powi(2) + a[0][2].powi(2) + a[1][2].powi(2);
+            let scale = a[0][0].powi(2) + a[1][1].powi(2) + a[2][2].powi(2);
+            off <= 1e-30 * scale.max(1e-300)
+        });
     // v[row][col]: column j is eigenvector j.
     let vectors = DMat3::from_cols(
         DVec3::new(v[0][0], v[1][0], v[2][0]),
         DVec3::new(v[0][1], v[1][1], v[2][1]),
         DVec3::new(v[0][2], v[1][2], v[2][2]),
     );
-    ([a[0][0], a[1][1], a[2][2]], vectors)
+    (values, vectors)
 }
 
 #[cfg(test)]
