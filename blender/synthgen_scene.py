@@ -73,6 +73,25 @@ def setup(settings_json):
     world.use_nodes = True
     bg = world.node_tree.nodes.get("Background")
     bg.inputs["Strength"].default_value = 1.0
+    # The environment light: `ground + (sky - ground) * [dir . up > 0]`, each scaled by the
+    # ambient (the raster's two-colour hemisphere probe; a uniform world when sky = ground).
+    # A world shader's Generated coordinate is the view direction in world space.
+    wt = world.node_tree
+    coord = wt.nodes.new("ShaderNodeTexCoord")
+    up_dot = wt.nodes.new("ShaderNodeVectorMath")
+    up_dot.operation = "DOT_PRODUCT"
+    wt.links.new(coord.outputs["Generated"], up_dot.inputs[0])
+    above = wt.nodes.new("ShaderNodeMath")
+    above.operation = "GREATER_THAN"
+    above.inputs[1].default_value = 0.0
+    wt.links.new(up_dot.outputs["Value"], above.inputs[0])
+    sky_minus_ground = wt.nodes.new("ShaderNodeVectorMath")
+    sky_minus_ground.operation = "SCALE"
+    wt.links.new(above.outputs["Value"], sky_minus_ground.inputs["Scale"])
+    env = wt.nodes.new("ShaderNodeVectorMath")
+    env.operation = "ADD"
+    wt.links.new(sky_minus_ground.outputs["Vector"], env.inputs[0])
+    wt.links.new(env.outputs["Vector"], bg.inputs["Color"])
 
     cam = bpy.data.objects.new("synthgen_camera", bpy.data.cameras.new("synthgen_camera"))
     scene.collection.objects.link(cam)
@@ -90,7 +109,9 @@ def setup(settings_json):
         scene=scene,
         root=root,
         camera=cam,
-        world_bg=bg,
+        world_up=up_dot,
+        world_diff=sky_minus_ground,
+        world_ground=env,
         ground=ground,
         models={},  # model_index -> list of (mesh, base material, material kind)
         instances={},  # model_index -> list of instance slots (lists of objects)
@@ -348,7 +369,10 @@ def render_frame(frame_json, exr_path):
         obj.hide_render = True
 
     a = f["ambient"]
-    _state["world_bg"].inputs["Color"].default_value = (a, a, a, 1.0)
+    e = f.get("environment") or {"sky": [1.0] * 3, "ground": [1.0] * 3, "up": [0.0, -1.0, 0.0]}
+    _state["world_up"].inputs[1].default_value = e["up"]
+    _state["world_diff"].inputs[0].default_value = [a * (s - g) for s, g in zip(e["sky"], e["ground"])]
+    _state["world_ground"].inputs[1].default_value = [a * g for g in e["ground"]]
 
     g = f["ground"]
     ground = _state["ground"]

@@ -546,8 +546,18 @@ pub fn frame_json_with(scene: &FrameScene, aspects: &SurfaceAspects) -> String {
             )
         })
         .collect();
+    // The sky/ground probe with the world's up in the camera frame (the Blender world frame).
+    let environment = scene
+        .environment
+        .map_or("null".to_string(), |[sky, ground]| {
+            let up = scene.world_from_cam.rotation.transpose() * DVec3::Z;
+            format!(
+                "{{\"sky\": [{}, {}, {}], \"ground\": [{}, {}, {}], \"up\": [{}, {}, {}]}}",
+                sky[0], sky[1], sky[2], ground[0], ground[1], ground[2], up.x, up.y, up.z
+            )
+        });
     format!(
-        "{{\"seed\": {}, \"camera\": {{\"width\": {}, \"height\": {}, \"lens_mm\": {}, \"sensor_width_mm\": {}, \"shift_x\": {}, \"shift_y\": {}, \"y_scale\": {}, \"matrix_world\": {}}}, \"objects\": [{}], \"lights\": [{}], \"ambient\": {}, \"ground\": {}, \"walls\": [{}]}}",
+        "{{\"seed\": {}, \"camera\": {{\"width\": {}, \"height\": {}, \"lens_mm\": {}, \"sensor_width_mm\": {}, \"shift_x\": {}, \"shift_y\": {}, \"y_scale\": {}, \"matrix_world\": {}}}, \"objects\": [{}], \"lights\": [{}], \"ambient\": {}, \"environment\": {}, \"ground\": {}, \"walls\": [{}]}}",
         scene.frame_index,
         cam.width,
         cam.height,
@@ -560,6 +570,7 @@ pub fn frame_json_with(scene: &FrameScene, aspects: &SurfaceAspects) -> String {
         objects.join(", "),
         lights.join(", "),
         scene.ambient,
+        environment,
         ground,
         walls.join(", ")
     )

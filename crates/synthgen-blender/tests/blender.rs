@@ -439,6 +439,68 @@ mod cycles {
         assert!(iou > 0.9, "visible target IoU with the raster {iou}");
     }
 
+    /// The sky/ground environment light reaches Cycles as a world: a box seen from above
+    /// (its top face towards the world's up) is brighter under a bright sky than under a
+    /// bright ground, by about what the raster's hemisphere probe gives.
+    #[test]
+    #[cfg_attr(
+        not(has_bpy),
+        ignore = "needs the bpy venv: scripts/setup-blender.sh (probed when the crate was built)"
+    )]
+    fn the_environment_light_lights_cycles_as_it_lights_the_raster() {
+        let renderer = renderer();
+        let k = Intrinsics {
+            width: 96,
+            height: 72,
+            fx: 120.0,
+            fy: 120.0,
+            cx: 48.0,
+            cy: 36.0,
+        };
+        // Below the optical axis (image y down), so the camera sees the top and the front.
+        let target = ObjectInstance::new(
+            BOX,
+            1,
+            Pose::new(DMat3::IDENTITY, DVec3::new(0.0, 0.12, 0.5)),
+        );
+        let lit = |sky: f32, ground: f32| {
+            let scene = FrameScene {
+                lights: vec![],
+                ambient: 0.5,
+                environment: Some([[sky; 3], [ground; 3]]),
+                // World up is the camera's -y: world z = camera -y.
+                world_from_cam: Pose::new(
+                    DMat3::from_rotation_x(-std::f64::consts::FRAC_PI_2),
+                    DVec3::ZERO,
+                ),
+                ..FrameScene::bare(0, k, vec![target.clone()])
+            };
+            let (b, r) = renderer.render_with_raster(&scene).unwrap();
+            let mean = |f: &RenderedFrame| {
+                let px: Vec<f64> = (0..f.instance.len())
+                    .filter(|&p| f.instance[p] == 1)
+                    .map(|p| f64::from(f.rgb[p * 3 + 1]))
+                    .collect();
+                assert!(px.len() > 100, "{} px", px.len());
+                px.iter().sum::<f64>() / px.len() as f64
+            };
+            (mean(&b), mean(&r))
+        };
+        let (sky_b, sky_r) = lit(1.8, 0.2);
+        let (ground_b, ground_r) = lit(0.2, 1.8);
+        eprintln!("bright sky: cycles {sky_b:.1}, raster {sky_r:.1}; bright ground: cycles {ground_b:.1}, raster {ground_r:.1}");
+        assert!(sky_r > ground_r + 10.0, "raster {sky_r} vs {ground_r}");
+        assert!(sky_b > ground_b + 10.0, "cycles {sky_b} vs {ground_b}");
+        assert!(
+            (sky_b - sky_r).abs() < 30.0,
+            "cycles {sky_b} vs raster {sky_r}"
+        );
+        assert!(
+            (ground_b - ground_r).abs() < 30.0,
+            "cycles {ground_b} vs raster {ground_r}"
+        );
+    }
+
     /// Pearson correlation of two equally long series.
     fn correlation(a: &[f64], b: &[f64]) -> f64 {
         let n = a.len() as f64;

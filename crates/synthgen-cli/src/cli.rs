@@ -642,15 +642,15 @@ pub struct RenderArgs {
 
     /// Re-render every annotated frame of this real dataset (BOP, Linemod or YCB-Video) at its
     /// GT poses with its own camera, models and ids: only the annotated objects, on black.
-    /// Takes no --objects, --frames, --scene or camera, pose and background flags.
+    /// Takes no --objects, --frames, --scene or camera, pose and background flags; renders
+    /// with the embedded CPU renderer, or Cycles with --backend blender.
     #[arg(
         long,
         value_name = "REAL_DIR",
         conflicts_with_all = [
             "objects", "obj_ids", "units", "frames", "first_frame", "shard", "resume",
             "camera", "camera_k", "image_size", "distance_m", "elevation_deg", "orientation",
-            "background", "background_dir", "chunk_size", "samples", "denoise",
-            "blender_threads", "blender_venv",
+            "background", "background_dir", "chunk_size",
         ]
     )]
     pub replay: Option<PathBuf>,
@@ -675,7 +675,8 @@ pub struct RenderArgs {
     /// With --replay: light the replay instead of rendering it flat (ambient 1, no lights):
     /// one point light 0.5 m above the camera, the sky/ground environment light, cast
     /// shadows, ambient occlusion and GGX shading (docs/models.md) — the realistic raster on
-    /// the real frames' poses, for `sensor compare-rgb`.
+    /// the real frames' poses, for `sensor compare-rgb`; with --backend blender the same
+    /// light, environment and materials through Cycles.
     #[arg(long, requires = "replay")]
     pub replay_lit: bool,
 

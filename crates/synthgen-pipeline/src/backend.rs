@@ -50,6 +50,27 @@ impl Backend {
     }
 }
 
+/// The renderer `backend` draws with, for a caller that makes its own frames (`render
+/// --replay` renders the real frames' poses): the CPU rasterizer, or Cycles behind the
+/// same [`Renderer`] (annotations from Cycles' depth, as a sampled Blender render has).
+pub fn renderer_for(
+    backend: &Backend,
+    models: Vec<Model>,
+    backgrounds: Vec<Arc<Texture>>,
+    progress: &dyn Progress,
+) -> Result<Box<dyn Renderer + Send + Sync>> {
+    Ok(match backend {
+        Backend::Cpu => Box::new(synthgen_render::CpuRenderer::new(models, backgrounds)?),
+        Backend::Blender(settings) => blender_renderer(
+            settings,
+            models,
+            backgrounds,
+            [Vec::new(), Vec::new()],
+            progress,
+        )?,
+    })
+}
+
 #[cfg(feature = "blender")]
 pub(crate) fn blender_renderer(
     settings: &BlenderSettings,

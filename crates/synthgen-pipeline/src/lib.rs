@@ -35,7 +35,7 @@ mod resume;
 mod sink;
 mod write;
 
-pub use backend::{Backend, BlenderSettings};
+pub use backend::{renderer_for, Backend, BlenderSettings};
 pub use error::{Error, Result};
 pub use frame::{Frame, FrameObject};
 pub use job::{render_annotated, Frames, PreparedJob, RenderJob};

@@ -215,7 +215,7 @@ fn failed_status(
     }
 }
 
-fn job_backend(args: &RenderArgs) -> JobBackend {
+pub(crate) fn job_backend(args: &RenderArgs) -> JobBackend {
     match args.backend {
         Backend::Cpu => JobBackend::Cpu,
         Backend::Blender => JobBackend::Blender(BlenderSettings {
@@ -227,7 +227,7 @@ fn job_backend(args: &RenderArgs) -> JobBackend {
     }
 }
 
-fn check_backend(args: &RenderArgs) -> Result<()> {
+pub(crate) fn check_backend(args: &RenderArgs) -> Result<()> {
     match args.backend {
         Backend::Cpu => {
             let blender_only = args.samples != 16

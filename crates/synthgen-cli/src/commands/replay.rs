@@ -18,7 +18,7 @@ use synthgen_dataset::output::{check_apart, is_empty, OutputLock};
 use synthgen_dataset::source::{open_source, FrameSource, SourceFrame};
 use synthgen_dataset::validate::{detect_layout, Layout as SourceLayout};
 use synthgen_pipeline::{render_annotated, ycbv_class_index, Layout, Sink};
-use synthgen_render::{CpuRenderer, SensorModel};
+use synthgen_render::SensorModel;
 
 use crate::cli::{Backend, FormatArg, RenderArgs};
 use crate::commands::object_models::{files_with_extensions, frame_obj_ids, load_models};
@@ -119,7 +119,8 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     if let Some(first) = sinks.first() {
         first.write_models(&models, &obj_ids, &symmetries)?;
     }
-    let renderer = CpuRenderer::new(models, Vec::new())?;
+    let backend = super::render::job_backend(&args);
+    let renderer = synthgen_pipeline::renderer_for(&backend, models, Vec::new(), printer)?;
     let sensor =
         SensorModel::new(sensor_spec.clone(), args.seed).context("invalid sensor model")?;
     printer.info(sensor_line(args.sensor.as_deref(), &sensor_spec, args.seed));
@@ -143,7 +144,7 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
                     if args.replay_lit {
                         light(&mut scene);
                     }
-                    let (frame, ann) = render_annotated(&renderer, &scene, &sensor, delta_m)?;
+                    let (frame, ann) = render_annotated(&*renderer, &scene, &sensor, delta_m)?;
                     let rec = sinks[job.sink].write_frame_in(
                         Some(&job.split),
                         job.index,
@@ -201,7 +202,7 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     }
 
     let mut manifest = Manifest::new(std::env::args().collect(), args.seed);
-    manifest.backend = "cpu".into();
+    manifest.backend = backend.name().into();
     manifest.scene_spec = serde_json::json!({
         "sensor": serde_json::to_value(&sensor_spec).context("cannot serialize the sensor")?,
     });
@@ -231,11 +232,15 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
 
     let elapsed = started.elapsed().as_secs_f64();
     printer.info(format!(
-        "Replayed {rendered} frames of {} ({} object{}: {}) in {elapsed:.1} s with the embedded CPU renderer; wrote {}.{}{}",
+        "Replayed {rendered} frames of {} ({} object{}: {}) in {elapsed:.1} s with {}; wrote {}.{}{}",
         real.display(),
         obj_ids.len(),
         if obj_ids.len() == 1 { "" } else { "s" },
         obj_ids.iter().map(u32::to_string).collect::<Vec<_>>().join(", "),
+        match args.backend {
+            Backend::Cpu => "the embedded CPU renderer",
+            Backend::Blender => "Blender Cycles",
+        },
         wrote.join(" and "),
         if skipped.is_empty() {
             String::new()
@@ -276,13 +281,7 @@ fn check_args(args: &RenderArgs) -> Result<()> {
             "choose the depth sensor with --sensor none|d455|tof|structured_light|FILE (a sensor file holds the keys of a scene's [sensor] section)",
         ));
     }
-    if args.backend == Backend::Blender {
-        return Err(user_error(
-            "--replay renders with the embedded CPU renderer; --backend blender does not apply",
-            "drop --backend blender",
-        ));
-    }
-    Ok(())
+    super::render::check_backend(args)
 }
 
 /// `--replay-models DIR`: each object with a folder `DIR/<its name>/` holding one mesh gets

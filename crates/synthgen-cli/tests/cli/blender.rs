@@ -91,3 +91,60 @@ fn missing_bpy_says_how_to_install_it() {
         "{e}"
     );
 }
+
+/// `render --replay --backend blender --replay-lit`: the real frames' poses through Cycles,
+/// lit as the realistic raster's replay is (the Cycles row of `sensor compare-rgb`): the
+/// same poses and ids as the raster replay, the backend recorded, other pixels.
+#[test]
+#[cfg_attr(
+    not(all(has_bpy, has_shared_data)),
+    ignore = "needs the bpy venv (scripts/setup-blender.sh) and ../shared/data (probed when the crate was built)"
+)]
+fn a_replay_renders_through_cycles() {
+    require_bpy();
+    let real = crate::common::ycbv_real();
+    let dir = tempfile::tempdir().unwrap();
+    let replay = |backend: &str| {
+        let out_dir = dir.path().join(backend);
+        let out = run(synthgen()
+            .args(["render", "--replay"])
+            .arg(&real)
+            .args(["--scenes", "1", "--replay-lit", "--backend", backend])
+            .args(if backend == "blender" {
+                &["--samples", "1"][..]
+            } else {
+                &[]
+            })
+            .arg("--out")
+            .arg(&out_dir));
+        assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+        assert!(
+            stderr(&out).contains(if backend == "blender" {
+                "Blender Cycles"
+            } else {
+                "embedded CPU renderer"
+            }),
+            "{}",
+            stderr(&out)
+        );
+        out_dir
+    };
+    let (b, c) = (replay("blender"), replay("cpu"));
+    let manifest = std::fs::read_to_string(b.join("synthgen.json")).unwrap();
+    assert!(manifest.contains("\"backend\": \"blender\""), "{manifest}");
+    let scene = b.join("train/000001");
+    let gt = |root: &std::path::Path| {
+        std::fs::read_to_string(root.join("train/000001/scene_gt.json")).unwrap()
+    };
+    assert_eq!(gt(&b), gt(&c));
+    let mut differ = 0;
+    for entry in std::fs::read_dir(scene.join("rgb")).unwrap() {
+        let name = entry.unwrap().file_name();
+        let cycles = std::fs::read(scene.join("rgb").join(&name)).unwrap();
+        let raster = std::fs::read(c.join("train/000001/rgb").join(&name)).unwrap();
+        differ += usize::from(cycles != raster);
+    }
+    assert_eq!(differ, 20);
+    let out = run(synthgen().arg("validate").arg(&b));
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+}

@@ -335,6 +335,10 @@ fn replay_bad_input_is_refused_with_the_reason() {
     refused(&o, &["--replay", "--frames"]);
     let o = replay(&real, &d.join("o2"), &["--scene", "tabletop.toml"]);
     refused(&o, &["--scene does not apply to --replay", "--sensor"]);
+    // Cycles' flags need the Blender backend, as they do for a sampled render.
+    let o = replay(&real, &d.join("o2"), &["--samples", "4"]);
+    refused(&o, &["apply only to --backend blender"]);
+    assert!(!d.join("o2").exists());
     let o = replay(&real, &d.join("o2"), &["--scenes", "0,7"]);
     refused(&o, &["no scene 7", "its scenes are 0, 1, 2"]);
     let o = run(synthgen().args(["render", "--scenes", "1", "--objects", "box.ply"]));
