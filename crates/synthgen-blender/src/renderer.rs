@@ -49,6 +49,8 @@ pub struct BlenderRenderer {
     scratch: PathBuf,
     options: BlenderOptions,
     aspects: SurfaceAspects,
+    /// Renders started, for the scratch file names.
+    renders: std::sync::atomic::AtomicU64,
 }
 
 /// Height / width of each ground and wall image the renderer holds (in order), which the
@@ -142,6 +144,7 @@ impl BlenderRenderer {
             scratch,
             options,
             aspects,
+            renders: std::sync::atomic::AtomicU64::new(0),
         })
     }
 
@@ -166,9 +169,14 @@ impl BlenderRenderer {
         };
         let background = self.raster.render(&background_only)?;
 
+        // A name per render, not per frame index: two threads may render scenes with the
+        // same index (tests, replays of several splits), and each removes its file.
+        let render_id = self
+            .renders
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let exr_path = self
             .scratch
-            .join(format!("frame_{:09}.exr", scene.frame_index));
+            .join(format!("frame_{:09}_{render_id}.exr", scene.frame_index));
         let (reply_tx, reply_rx) = channel();
         {
             let jobs = self.jobs.lock().map_err(|_| Error::ThreadGone {

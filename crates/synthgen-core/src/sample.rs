@@ -222,7 +222,8 @@ pub struct FrameScene {
     #[serde(default)]
     pub ambient_occlusion: f32,
     /// The objects' specular model (`[materials] shading`).
-    #[serde(default)]
+    /// Absent in records written before GGX existed: Blinn-Phong, as they were rendered.
+    #[serde(default = "phong")]
     pub shading: crate::scene::Shading,
     /// Environment light: the ambient's colour from above (sky) and from below (ground),
     /// linear multipliers (`[lights] sky_color`, `ground_color`); None: uniform ambient.
@@ -233,6 +234,10 @@ pub struct FrameScene {
     #[serde(default)]
     pub walls: Vec<WallInstance>,
     pub background: BackgroundSample,
+}
+
+fn phong() -> crate::scene::Shading {
+    crate::scene::Shading::Phong
 }
 
 impl FrameScene {

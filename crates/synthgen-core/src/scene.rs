@@ -337,19 +337,21 @@ pub struct LightSpec {
     /// Ambient light level. Default 0.15..0.35.
     pub ambient: Range,
     /// The lights cast shadows onto the objects, the ground and the walls (the embedded
-    /// renderer's shadow maps, soft-edged; Cycles always shadows). Default false.
+    /// renderer's shadow maps, soft-edged; Cycles always shadows). Default true.
     pub shadows: bool,
     /// Screen-space ambient occlusion strength 0..1 (the embedded renderer): each pixel
     /// loses up to this share of its ambient light where nearby surfaces hide the sky
-    /// (contact shadows where objects touch the table and each other). Default 0 (off).
+    /// (contact shadows where objects touch the table and each other). Default 0.6; 0 is off.
     pub ambient_occlusion: f64,
     /// Environment light (a two-colour hemisphere probe, the embedded renderer): the ambient
     /// light comes from a sky of this colour above the table and from the room and floor of
     /// `ground_color` below it, so a surface facing up gets `ambient × sky_color`, one facing
     /// down `ambient × ground_color`, and in between the mix by (1 + n·up) / 2. Linear
-    /// multipliers of `ambient`. Both unset (default): the same ambient from everywhere.
+    /// multipliers of `ambient`. Default [1.2, 1.2, 1.3] (a bluish sky); both [1, 1, 1]: the
+    /// same ambient from everywhere (the renderer before the environment light).
     pub sky_color: Option<[f64; 3]>,
-    /// See `sky_color`; defaults to [1, 1, 1] when only `sky_color` is set.
+    /// See `sky_color`. Default [0.6, 0.55, 0.5] (a warm, darker floor and room); [1, 1, 1]
+    /// when only `sky_color` is given.
     pub ground_color: Option<[f64; 3]>,
 }
 
@@ -363,10 +365,10 @@ impl Default for LightSpec {
             color_jitter: 0.15,
             temperature_k: None,
             ambient: [0.15, 0.35],
-            shadows: false,
-            ambient_occlusion: 0.0,
-            sky_color: None,
-            ground_color: None,
+            shadows: true,
+            ambient_occlusion: 0.6,
+            sky_color: Some([1.2, 1.2, 1.3]),
+            ground_color: Some([0.6, 0.55, 0.5]),
         }
     }
 }
@@ -420,13 +422,13 @@ pub struct MaterialSpec {
     pub roughness: Option<Range>,
     /// Hue rotation per object, degrees (about the grey axis in linear RGB). Default 0..0.
     pub hue_deg: Range,
-    /// The objects' specular model: `phong` (Blinn-Phong, the default) or `ggx`
-    /// (metallic-roughness: a GGX microfacet lobe with Smith shadowing and Schlick's Fresnel;
+    /// The objects' specular model: `ggx` (the default; metallic-roughness: a GGX microfacet
+    /// lobe with Smith shadowing and Schlick's Fresnel;
     /// F0 = 0.08 × specular for dielectrics, as in Disney's convention where 0.5 gives 0.04,
     /// and the base colour for metals). The embedded renderer's; Cycles' Principled BSDF is
-    /// always GGX.
+    /// always GGX) or `phong` (Blinn-Phong, the renderer's model before GGX).
     pub shading: Shading,
-    /// Metalness range per object (GGX): 0 dielectric, 1 metal. Default 0..0.
+    /// Metalness range per object (GGX): 0 dielectric, 1 metal. Default 0..0.3.
     pub metallic: Range,
 }
 
@@ -435,9 +437,9 @@ pub struct MaterialSpec {
 #[serde(rename_all = "snake_case")]
 pub enum Shading {
     /// Lambert + Blinn-Phong (`specular`, `shininess`).
-    #[default]
     Phong,
     /// Lambert + GGX microfacet specular with Fresnel (`specular`, `roughness`, `metallic`).
+    #[default]
     Ggx,
 }
 
@@ -449,8 +451,8 @@ impl Default for MaterialSpec {
             shininess: [8.0, 64.0],
             roughness: None,
             hue_deg: [0.0, 0.0],
-            shading: Shading::Phong,
-            metallic: [0.0, 0.0],
+            shading: Shading::Ggx,
+            metallic: [0.0, 0.3],
         }
     }
 }

@@ -2,11 +2,12 @@
 //! 1, 5, 6, 8, 9; 640x480, ToF depth noise), 8 frames per iteration through the whole
 //! pipeline (sample, render, annotate, sensor model): in memory with `frames()` and
 //! `frames_batch`, and written as BOP to a fresh temp folder with `write` (PNG encoding,
-//! masks, JSON, manifest); `frames_batch_shadows`, the same frames with `[lights] shadows
-//! = true`; and `frames_batch_realistic`, with every realism option of the embedded renderer
-//! on (shadows, ambient occlusion 0.6, GGX shading with metallic 0..0.3, the sky/ground
-//! environment light). Throughput is in frames; threads: all cores (set
-//! `SYNTHGEN_BENCH_THREADS` to pin them).
+//! masks, JSON, manifest) — these with every realism option off (`frames_batch`, `write_bop`:
+//! Blinn-Phong, uniform ambient, no shadows, no occlusion; the renderer before them);
+//! `frames_batch_shadows`, the same frames with `[lights] shadows = true`; and
+//! `frames_batch_realistic`, the scene with the defaults (shadows, ambient occlusion 0.6, GGX
+//! shading with metallic 0..0.3, the sky/ground environment light). Throughput is in frames;
+//! threads: all cores (set `SYNTHGEN_BENCH_THREADS` to pin them).
 //!
 //! Models come from `$SYNTHGEN_LMO_DIR/models` (default `../shared/data/lmo/models` next to
 //! the workspace).
@@ -43,13 +44,15 @@ fn job(look: Look) -> PreparedJob {
         .collect();
     let mut spec = SceneSpec::from_toml_file(&manifest_dir.join("../../scenes/linemod_like.toml"))
         .expect("scenes/linemod_like.toml");
-    spec.lights.shadows = look != Look::Plain;
-    if look == Look::Realistic {
-        spec.lights.ambient_occlusion = 0.6;
-        spec.lights.sky_color = Some([1.2, 1.2, 1.3]);
-        spec.lights.ground_color = Some([0.6, 0.55, 0.5]);
-        spec.materials.shading = synthgen_core::scene::Shading::Ggx;
-        spec.materials.metallic = [0.0, 0.3];
+    // The scene file sets none of the realism options: Realistic is the defaults; Plain
+    // turns every one off (the renderer before them); Shadows is Plain with shadows.
+    if look != Look::Realistic {
+        spec.lights.shadows = look == Look::Shadows;
+        spec.lights.ambient_occlusion = 0.0;
+        spec.lights.sky_color = None;
+        spec.lights.ground_color = None;
+        spec.materials.shading = synthgen_core::scene::Shading::Phong;
+        spec.materials.metallic = [0.0, 0.0];
     }
     let threads = std::env::var("SYNTHGEN_BENCH_THREADS")
         .ok()

@@ -71,7 +71,8 @@ pub(crate) fn darken_linear(rgb: &mut [u8], lost: &[f32], t: &mut LinearTables) 
         let keep = (1.0 - lost).max(0.0);
         for c in &mut rgb[3 * i..3 * i + 3] {
             let lin = t.to_lin[*c as usize] * keep;
-            *c = t.to_srgb[((lin * 4095.0).round() as usize).min(4095)];
+            // lin ≥ 0: + 0.5 and a truncating cast round it (no libm call).
+            *c = t.to_srgb[((lin * 4095.0 + 0.5) as usize).min(4095)];
         }
     }
 }

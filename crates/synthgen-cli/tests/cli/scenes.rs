@@ -95,3 +95,40 @@ fn every_preset_renders_and_validates() {
         assert!(o.status.success(), "{name}: {}", stderr(&o));
     }
 }
+
+/// The realistic defaults change colours only: the same seed with `scenes/plain.toml` (every
+/// realism option off) gives the same poses, masks and depth, other RGB.
+#[test]
+fn the_realistic_defaults_change_colours_only() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mesh = tmp.path().join("box.ply");
+    write_box_ply(&mesh);
+    let defaults = tmp.path().join("defaults.toml");
+    std::fs::write(&defaults, "[camera_pose]\ndistance_m = [0.5, 0.7]\n").unwrap();
+    let plain = tmp.path().join("plain.toml");
+    let plain_spec = std::fs::read_to_string(repo_root().join("scenes/plain.toml")).unwrap();
+    std::fs::write(
+        &plain,
+        format!("[camera_pose]\ndistance_m = [0.5, 0.7]\n{plain_spec}"),
+    )
+    .unwrap();
+    let (a, b) = (tmp.path().join("realistic"), tmp.path().join("plain"));
+    render(&a, &mesh, &defaults, "3");
+    render(&b, &mesh, &plain, "3");
+    let scene = |root: &Path| root.join("train_pbr/000000");
+    for f in ["scene_gt.json", "scene_gt_info.json", "scene_camera.json"] {
+        assert_eq!(
+            std::fs::read(scene(&a).join(f)).unwrap(),
+            std::fs::read(scene(&b).join(f)).unwrap(),
+            "{f}"
+        );
+    }
+    for d in ["mask", "mask_visib", "depth"] {
+        assert_eq!(files(&scene(&a).join(d)), files(&scene(&b).join(d)), "{d}");
+    }
+    let (ra, rb) = (files(&scene(&a).join("rgb")), files(&scene(&b).join("rgb")));
+    assert_eq!(ra.len(), 3);
+    for ((name, x), (_, y)) in ra.iter().zip(&rb) {
+        assert_ne!(x, y, "{name}: the realistic look is not the plain one");
+    }
+}

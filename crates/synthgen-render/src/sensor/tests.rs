@@ -276,3 +276,35 @@ fn sensor_model_touches_only_rgb_and_depth_and_is_deterministic() {
     SensorModel::new(spec, 10).unwrap().apply(&scene, &mut c);
     assert_ne!(a.depth_m, c.depth_m);
 }
+
+#[test]
+fn quantize_rounds_as_round_does() {
+    for unit in [0.001, 0.0001, 0.00025] {
+        for i in -20_000..20_000 {
+            let z = f64::from(i) * 0.000_037_3;
+            assert_eq!(
+                super::quantize(z, unit),
+                (z / unit).round() * unit,
+                "z {z} unit {unit}"
+            );
+        }
+        // Exact halves go away from zero, as `round` does.
+        assert_eq!(super::quantize(2.5 * unit, unit), 3.0 * unit);
+        assert_eq!(super::quantize(-2.5 * unit, unit), -3.0 * unit);
+    }
+    assert_eq!(super::quantize(0.123, 0.0), 0.123);
+}
+
+#[test]
+fn normal_draws_have_mean_0_variance_1_and_normal_tails() {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let mut n = super::Normal::new();
+    let v: Vec<f64> = (0..200_000).map(|_| n.sample(&mut rng)).collect();
+    let mean = v.iter().sum::<f64>() / v.len() as f64;
+    let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / v.len() as f64;
+    let beyond_2 = v.iter().filter(|x| x.abs() > 2.0).count() as f64 / v.len() as f64;
+    assert!(mean.abs() < 0.01, "mean {mean}");
+    assert!((var - 1.0).abs() < 0.01, "variance {var}");
+    // P(|z| > 2) = 0.0455 for a standard normal.
+    assert!((beyond_2 - 0.0455).abs() < 0.002, "{beyond_2}");
+}

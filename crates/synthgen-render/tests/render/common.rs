@@ -36,7 +36,7 @@ pub fn scene(intrinsics: Intrinsics, objects: Vec<ObjectInstance>) -> FrameScene
         ambient: 0.25,
         shadows: false,
         ambient_occlusion: 0.0,
-        shading: Default::default(),
+        shading: synthgen_core::scene::Shading::Phong,
         environment: None,
         ground: None,
         walls: vec![],

@@ -201,3 +201,24 @@ fn golden_64x48() {
     let i = frac_off(&wide(inst.as_raw()), &wide(want_inst.as_raw()), 0);
     assert!(i <= 0.01, "{:.2}% of instance pixels differ", i * 100.0);
 }
+
+/// `sky_color = ground_color = [1, 1, 1]` (what `scenes/plain.toml` sets) is the uniform
+/// ambient to the byte, on the objects and on the ground: the plain look is reachable from a
+/// spec file, where "unset" cannot be written.
+#[test]
+fn a_white_sky_and_ground_is_no_environment() {
+    let (models, bgs) = models();
+    let r = CpuRenderer::new(models, bgs).unwrap();
+    let mut scene = golden_scene();
+    scene.world_from_cam = Pose::new(DMat3::from_rotation_x(-2.0), DVec3::new(0.0, 0.0, 0.3));
+    let none = r.render(&scene).unwrap();
+    scene.environment = Some([[1.0; 3], [1.0; 3]]);
+    let white = r.render(&scene).unwrap();
+    assert_eq!(none.rgb, white.rgb);
+    scene.environment = Some([[1.3; 3], [0.5; 3]]);
+    let coloured = r.render(&scene).unwrap();
+    assert_ne!(
+        none.rgb, coloured.rgb,
+        "the environment light does something"
+    );
+}
