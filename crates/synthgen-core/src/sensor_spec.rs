@@ -383,6 +383,9 @@ pub struct RgbNoiseSpec {
     /// Motion blur per frame: a streak of this length, pixels, uniform in this range, in a
     /// direction drawn uniformly (camera shake). Default [0, 0] (none).
     pub motion_blur_px: Range,
+    /// JPEG compression per frame: the quality 1..100 uniform in this range (a camera or a
+    /// recording that stores compressed frames). Default [0, 0] (none).
+    pub jpeg_quality: Range,
 }
 
 impl Default for RgbNoiseSpec {
@@ -397,6 +400,7 @@ impl Default for RgbNoiseSpec {
             vignetting: [0.0, 0.0],
             defocus_px: [0.0, 0.0],
             motion_blur_px: [0.0, 0.0],
+            jpeg_quality: [0.0, 0.0],
         }
     }
 }
@@ -499,6 +503,8 @@ impl SensorSpec {
         check_value("sensor.rgb.defocus_px", r.defocus_px[1], 0.0, 30.0)?;
         check_range("sensor.rgb.motion_blur_px", r.motion_blur_px, 0.0)?;
         check_value("sensor.rgb.motion_blur_px", r.motion_blur_px[1], 0.0, 40.0)?;
+        check_range("sensor.rgb.jpeg_quality", r.jpeg_quality, 0.0)?;
+        check_value("sensor.rgb.jpeg_quality", r.jpeg_quality[1], 0.0, 100.0)?;
         Ok(())
     }
 

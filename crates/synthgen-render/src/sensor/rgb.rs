@@ -1,6 +1,7 @@
 //! RGB sensor effects in linear light: exposure jitter, white balance error, vignetting,
 //! defocus by depth (thin-lens circle of confusion), motion blur (a straight streak), Gaussian
-//! blur (optics), shot noise (variance proportional to the signal) and read noise.
+//! blur (optics), shot noise (variance proportional to the signal) and read noise; then JPEG
+//! compression of the 8-bit frame.
 
 use rand::{Rng, RngCore};
 use rand_chacha::ChaCha8Rng;
@@ -78,6 +79,40 @@ pub(crate) fn apply_rgb(
         let n = approx_normal(rng.next_u64());
         let noisy = v + (shot * v + read2).sqrt() * n;
         *out = luts.srgb_at(srgb_index(noisy * TO_SRGB_MAX as f32));
+    }
+    // Last, as a camera's encoder does: JPEG at a quality drawn per frame.
+    if spec.jpeg_quality[1] > 0.0 {
+        let q = uniform(rng, spec.jpeg_quality).round().clamp(1.0, 100.0) as u8;
+        jpeg_round_trip(rgb, w, h, q);
+    }
+}
+
+/// Encodes `rgb` (sRGB bytes) as a baseline JPEG of quality `q` (1..100, 4:2:0 chroma as
+/// `image`'s encoder writes it) and decodes it back in place: the blocks, ringing and colour
+/// bleeding of a compressed camera stream. Left as it is if either step fails (it cannot for
+/// a well-formed buffer).
+fn jpeg_round_trip(rgb: &mut [u8], w: usize, h: usize, q: u8) {
+    use image::codecs::jpeg::{JpegDecoder, JpegEncoder};
+    use image::ImageDecoder;
+    let mut bytes = Vec::new();
+    let encoded = JpegEncoder::new_with_quality(&mut bytes, q).encode(
+        rgb,
+        w as u32,
+        h as u32,
+        image::ExtendedColorType::Rgb8,
+    );
+    if encoded.is_err() {
+        return;
+    }
+    let Ok(dec) = JpegDecoder::new(std::io::Cursor::new(&bytes)) else {
+        return;
+    };
+    if dec.dimensions() != (w as u32, h as u32) || dec.color_type() != image::ColorType::Rgb8 {
+        return;
+    }
+    let mut out = vec![0u8; rgb.len()];
+    if dec.read_image(&mut out).is_ok() {
+        rgb.copy_from_slice(&out);
     }
 }
 
@@ -252,6 +287,7 @@ mod tests {
             vignetting: [0.0, 0.0],
             defocus_px: [0.0, 0.0],
             motion_blur_px: [0.0, 0.0],
+            jpeg_quality: [0.0, 0.0],
         };
         let grey = vec![128u8; w * h * 3];
         let run = |spec: &RgbNoiseSpec, seed: u64| {
@@ -323,6 +359,42 @@ mod tests {
 
     /// Defocus leaves the focused object sharp and blurs what lies far behind it; motion blur
     /// smears a dot into a streak along its direction, keeping its energy.
+    #[test]
+    fn jpeg_compression_blocks_a_sharp_edge_and_keeps_a_flat_image() {
+        let (w, h) = (48usize, 32usize);
+        let flat = vec![120u8; w * h * 3];
+        let mut f = flat.clone();
+        jpeg_round_trip(&mut f, w, h, 50);
+        assert!(
+            f.iter().zip(&flat).all(|(a, b)| a.abs_diff(*b) <= 1),
+            "flat stays flat"
+        );
+        // A hard red/blue edge: low quality rings around it and bleeds the colours, and
+        // more so at quality 10 than at 90.
+        let edge: Vec<u8> = (0..w * h)
+            .flat_map(|i| {
+                if i % w < 21 {
+                    [220, 30, 30]
+                } else {
+                    [30, 30, 220]
+                }
+            })
+            .collect();
+        let err = |q: u8| {
+            let mut e = edge.clone();
+            jpeg_round_trip(&mut e, w, h, q);
+            e.iter()
+                .zip(&edge)
+                .map(|(a, b)| u64::from(a.abs_diff(*b)))
+                .sum::<u64>()
+        };
+        let (low, high) = (err(10), err(90));
+        assert!(
+            low > 2 * high && high > 0,
+            "quality 10: {low}, quality 90: {high}"
+        );
+    }
+
     #[test]
     fn defocus_by_depth_and_motion_streaks() {
         let (w, h) = (40usize, 20usize);
