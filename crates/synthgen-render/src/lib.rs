@@ -76,15 +76,21 @@
 //!   (texture, bilinear with wrap, if the primitive has uvs and a texture; else the
 //!   per-vertex colour, stored as 8-bit sRGB, if present) × `ObjectInstance::brightness`.
 //!   Light = `ambient` + Σ over point lights of `color × intensity × max(0, n·l)` (Lambert),
-//!   plus Blinn-Phong highlights `specular × color × intensity × (n·h)^shininess` using the
-//!   instance's per-frame `specular` and `shininess` (the material's own values are not
-//!   used). Lights have no distance falloff: `intensity` is the irradiance they deliver, so
+//!   plus highlights from the instance's per-frame `specular` and `shininess` (the material's
+//!   own values are not used): Blinn-Phong `specular × color × intensity × (n·h)^shininess`
+//!   (`Shading::Phong`), or a GGX lobe with Fresnel and `metallic` (`Shading::Ggx`, the
+//!   scene spec's default; `shade.rs`). With `FrameScene::environment` the ambient comes
+//!   from a sky and a ground colour, mixed by the normal's elevation. Lights have no distance falloff: `intensity` is the irradiance they deliver, so
 //!   exposure does not depend on the sampled light distance. Normals are the interpolated
 //!   vertex normals when the model has them, else the face normal. All maths in linear
 //!   light; sRGB conversion in both directions goes through lookup tables.
 //! - **Shadows** (`FrameScene::shadows`, `[lights] shadows`): after shading, one shadow map
 //!   per light (`shadow.rs`: the casters rasterized from the light, 3x3 PCF); a pixel loses
 //!   the Lambert share of each blocked light's contribution (normal from the depth buffer).
+//! - **Ambient occlusion** (`FrameScene::ambient_occlusion`): screen-space obscurance from
+//!   the depth buffer at a quarter of the pixels, filtered within a surface; a pixel loses
+//!   that share of its ambient light (`ao.rs`). Shadows and occlusion are on in the scene
+//!   spec's defaults; `FrameScene::bare` has neither.
 //! - **Background** where nothing is hit: `Color`, `Noise` (uniform per-pixel RGB noise from
 //!   the background seed) or `Images` (an image picked by the seed, cropped at a random
 //!   50-100% scale and offset with the output's aspect ratio, maybe mirrored, nearest
