@@ -103,7 +103,7 @@ pub enum Command {
     /// Fit a depth-sensor model to real frames, or compare two datasets' depth readings.
     #[command(subcommand)]
     Sensor(SensorCommand),
-    /// Derive a scene spec from real frames with GT poses and depth.
+    /// Derive a scene spec from real frames with GT poses (and depth, where there is some).
     #[command(subcommand)]
     Scene(SceneCommand),
     /// Work on object models: align a textured scan to the model a dataset's poses refer to.

@@ -21,6 +21,7 @@ mod distractor_spec;
 mod error;
 pub mod jacobi;
 pub mod mesh;
+pub mod pnp;
 pub mod pose;
 pub mod pose_render;
 pub mod progress;

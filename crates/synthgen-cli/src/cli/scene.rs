@@ -7,7 +7,7 @@ use clap::{Args, Subcommand};
 #[derive(Debug, Subcommand)]
 pub enum SceneCommand {
     /// Derive a scene spec (camera, camera pose, placement, objects) from real frames with GT
-    /// poses and depth.
+    /// poses (and depth, where there is some).
     #[command(after_long_help = FIT_EXAMPLES)]
     Fit(SceneFitArgs),
 }
@@ -23,8 +23,14 @@ pub const FIT_EXAMPLES: &str = "Examples:
   synthgen scene fit --data ../shared/data/ycbv_real --scenes 1,2 --sensor sensors/xtion.toml \\
       --out scenes/fitted_12.toml --json
 
+  # RGB-only photographs (no depth): the table from the objects' poses:
+  synthgen scene fit --data ../shared/data/lmo --out scenes/lmo_fitted.toml
+
 Per frame, the table plane is fitted (RANSAC, 300 candidates, 5 mm inlier band, fixed seed)
-to the real depth outside the objects' visible masks, its normal pointing up. From it: the
+to the real depth outside the objects' visible masks, its normal pointing up; in a frame
+without depth (RGB-only data such as Linemod-Occluded's test images) it is the plane on which
+the objects' lowest points at their GT poses agree best (at least 3 objects within 1 cm,
+those on other objects left out). From it: the
 camera's elevation (the angle between the optical axis and the table), its distance to the
 look-at point (where the optical axis passes the height of the objects' mean centre, as
 synthgen's sampler aims), the roll about the optical axis, and per object the model axis
@@ -37,7 +43,7 @@ the numbers on the shared frames: docs/scenes.md.";
 
 #[derive(Debug, Args)]
 pub struct SceneFitArgs {
-    /// The real dataset (BOP, Linemod or YCB-Video) with depth images and GT poses.
+    /// The real dataset (BOP, Linemod or YCB-Video) with GT poses; depth images optional.
     #[arg(long, value_name = "DIR")]
     pub data: PathBuf,
 

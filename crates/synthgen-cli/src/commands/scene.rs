@@ -103,6 +103,13 @@ pub fn fit_to_file(
             fit.frames_used
         ));
     }
+    if fit.frames_plane_from_poses > 0 {
+        printer.info(format!(
+            "{} of the {} frames have no depth: their table planes come from the objects' lowest \
+             points at the GT poses (docs/scenes.md)",
+            fit.frames_plane_from_poses, fit.frames_used
+        ));
+    }
     if fit.frames_without_masks > 0 {
         printer.warning(format!(
             "{} frames have no visible masks for every object: their table planes were fitted to \

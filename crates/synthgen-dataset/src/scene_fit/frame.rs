@@ -1,4 +1,5 @@
-//! One frame's measurements: its table plane from the real depth, the camera's elevation,
+//! One frame's measurements: its table plane from the real depth (or, without depth, from the
+//! objects' GT poses), the camera's elevation,
 //! distance and roll relative to it, and each object's up axis, tilt and height.
 
 use std::collections::BTreeMap;
@@ -9,7 +10,7 @@ use synthgen_core::rest::UpAxis;
 use synthgen_core::rng::splitmix64;
 use synthgen_core::{Intrinsics, Pose, PoseRenderer};
 
-use super::plane::{ransac_plane, Plane, RansacOptions};
+use super::plane::{plane_from_poses, ransac_plane, Plane, PlaneFit, RansacOptions};
 use crate::annotate::complete_annotations;
 use crate::bop::image::read_depth_m;
 use crate::error::{Error, Result};
@@ -49,6 +50,10 @@ pub struct FrameFit {
     pub extent_m: [f64; 2],
     /// Whether the objects' visible masks were left out of the plane's points.
     pub masked: bool,
+    /// Where the table plane came from: the depth, or (a frame without depth) the objects'
+    /// lowest points at their GT poses; then `plane_points` and `plane_inlier_share` count
+    /// objects.
+    pub plane_from: PlaneSource,
     /// Where the objects' `visib_fract` came from (`scene_gt_info`, or `visible masks /
     /// rendered silhouettes`); None when unknown.
     pub visib_source: Option<String>,
@@ -139,22 +144,25 @@ pub(crate) fn measure_frame(
 ) -> Result<std::result::Result<FrameFit, Skip>> {
     let (w, h) = (ctx.width, ctx.height);
     let k = frame.camera.intrinsics(w, h);
-    let Some(depth_path) = &frame.depth else {
-        return Ok(Err(Skip::from("no depth image".to_string())));
+    // Without depth (RGB-only data) the table comes from the objects' poses alone.
+    let depth = match &frame.depth {
+        Some(path) => Some((path, read_depth_m(path, frame.camera.depth_scale)?)),
+        None => None,
     };
-    let depth = read_depth_m(depth_path, frame.camera.depth_scale)?;
-    if (depth.width, depth.height) != (w, h) {
-        return Err(Error::malformed(
-            depth_path,
-            format!(
-                "depth image is {}x{} but the camera is {w}x{h}",
-                depth.width, depth.height
-            ),
-        ));
+    if let Some((depth_path, depth)) = &depth {
+        if (depth.width, depth.height) != (w, h) {
+            return Err(Error::malformed(
+                depth_path,
+                format!(
+                    "depth image is {}x{} but the camera is {w}x{h}",
+                    depth.width, depth.height
+                ),
+            ));
+        }
     }
     // The depth must agree with the GT poses, as `sensor fit` checks: a misread depth scale
     // would fit a table a tenth as far away, under the objects' centres.
-    if let Some(renderer) = ctx.renderer {
+    if let (Some((_, depth)), Some(renderer)) = (&depth, ctx.renderer) {
         let rendered = crate::annotate::render_gt(renderer, frame, &k)?;
         if let Some(ratio) = depth_ratio(&depth.data, &rendered) {
             if (ratio - 1.0).abs() > MAX_DEPTH_RATIO_ERROR {
@@ -198,6 +206,44 @@ pub(crate) fn measure_frame(
     let objects_mask = dilate(&objects_mask, w, h, ctx.mask_margin_px);
     let poses: Vec<_> = frame.gt.iter().map(|g| g.cam_from_obj()).collect();
     let centres: Vec<DVec3> = poses.iter().map(|p| p.translation_m).collect();
+    let accept = |p: &Plane| {
+        centres
+            .iter()
+            .all(|&c| (-CENTRE_BELOW_M..=CENTRE_ABOVE_M).contains(&p.height(c)))
+    };
+    let Some((_, depth)) = &depth else {
+        // The objects' support points at their poses.
+        let objects: Vec<Vec<DVec3>> = frame
+            .gt
+            .iter()
+            .zip(&poses)
+            .map(|(g, pose)| {
+                ctx.support.get(&g.obj_id).map_or_else(Vec::new, |pts| {
+                    pts.iter().map(|&p| pose.transform_point(p)).collect()
+                })
+            })
+            .collect();
+        let Some(fit) = plane_from_poses(&objects, POSE_PLANE_BAND_M).filter(|f| accept(&f.plane))
+        else {
+            return Ok(Err(Skip::from(format!(
+                "no depth image, and no table plane from the object poses: fewer than 3 of its {} objects (with models) have their lowest points within {} mm of one plane with every object centre {:.0} cm below to {:.0} cm above it",
+                objects.iter().filter(|o| !o.is_empty()).count(),
+                POSE_PLANE_BAND_M * 1000.0,
+                CENTRE_BELOW_M * 100.0,
+                CENTRE_ABOVE_M * 100.0
+            ))));
+        };
+        return finish(
+            ctx,
+            frame,
+            &visib,
+            (w, h),
+            &poses,
+            fit,
+            masked,
+            PlaneSource::ObjectPoses,
+        );
+    };
     let points = sample_points(&depth.data, &objects_mask, &k, ctx.max_points);
     let ransac = RansacOptions {
         seed: ctx.ransac.seed
@@ -205,11 +251,6 @@ pub(crate) fn measure_frame(
                 (u64::from(frame.location.scene_id) << 32) | u64::from(frame.location.im_id),
             ),
         ..ctx.ransac
-    };
-    let accept = |p: &Plane| {
-        centres
-            .iter()
-            .all(|&c| (-CENTRE_BELOW_M..=CENTRE_ABOVE_M).contains(&p.height(c)))
     };
     let Some(fit) = ransac_plane(&points, &ransac, accept) else {
         return Ok(Err(Skip::from(format!(
@@ -222,6 +263,45 @@ pub(crate) fn measure_frame(
             CENTRE_ABOVE_M * 100.0
         ))));
     };
+    finish(
+        ctx,
+        frame,
+        &visib,
+        (w, h),
+        &poses,
+        fit,
+        masked,
+        PlaneSource::Depth,
+    )
+}
+
+/// Objects whose lowest points lie within this of the plane fitted to them (frames without
+/// depth) are standing on it.
+const POSE_PLANE_BAND_M: f64 = 0.01;
+
+/// Where a frame's table plane came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PlaneSource {
+    /// RANSAC on the depth readings around the objects.
+    Depth,
+    /// The objects' lowest points at their GT poses (a frame without depth).
+    ObjectPoses,
+}
+
+/// The frame's measurements from its table plane `fit`.
+#[allow(clippy::too_many_arguments)]
+fn finish(
+    ctx: &FrameContext<'_>,
+    frame: &SourceFrame,
+    visib: &[Option<Vec<u8>>],
+    (w, h): (u32, u32),
+    poses: &[Pose],
+    fit: PlaneFit,
+    masked: bool,
+    plane_from: PlaneSource,
+) -> Result<std::result::Result<FrameFit, Skip>> {
+    let centres: Vec<DVec3> = poses.iter().map(|p| p.translation_m).collect();
     let plane = fit.plane;
     let n = plane.normal;
 
@@ -237,14 +317,14 @@ pub(crate) fn measure_frame(
     }
     let look_at = DVec3::new(0.0, 0.0, s);
 
-    let (info, visib_source) = match visibility(ctx, frame, &visib, (w, h))? {
+    let (info, visib_source) = match visibility(ctx, frame, visib, (w, h))? {
         Some((v, s)) => (Some(v), Some(s.to_string())),
         None => (None, None),
     };
     let objects = frame
         .gt
         .iter()
-        .zip(&poses)
+        .zip(poses)
         .enumerate()
         .map(|(i, (g, pose))| {
             let (up, tilt) = up_axis_of(pose, n);
@@ -277,6 +357,7 @@ pub(crate) fn measure_frame(
         roll_deg: roll_deg(n),
         extent_m: extent_on_plane(&centres, n),
         masked,
+        plane_from,
         visib_source,
         objects,
     }))

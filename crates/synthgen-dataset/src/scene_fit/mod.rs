@@ -170,6 +170,8 @@ pub struct SceneFit {
     pub frames_skipped: Vec<SkippedFrame>,
     /// Frames used without every visible mask (their plane points include the objects').
     pub frames_without_masks: usize,
+    /// Frames without depth whose table plane came from the objects' GT poses.
+    pub frames_plane_from_poses: usize,
     pub camera: FittedCamera,
     pub elevation_deg: Observed,
     pub distance_m: Observed,
@@ -195,13 +197,15 @@ pub struct SceneFit {
     pub frames: Vec<FrameFit>,
 }
 
-/// The frames of `source` to fit to: those with GT and depth in `scenes` (all when empty).
+/// The frames of `source` to fit to: those with GT in `scenes` (all when empty), with or
+/// without depth.
 pub fn select_frames(source: &dyn FrameSource, scenes: &[u32]) -> Result<Vec<SourceFrame>> {
     crate::sensor::select_frames_for(
         source,
         scenes,
         "fitting a scene needs objects at known poses",
-        "fitting a scene needs depth to find the table plane",
+        // Without depth the table plane comes from the objects' poses (frame.rs).
+        None,
     )
 }
 
@@ -436,7 +440,14 @@ fn summarize(
     };
     spec.validate()
         .map_err(|e| Error::InvalidRequest(format!("the fitted scene is invalid: {e}")))?;
-    let frames_without_masks = used.iter().filter(|f| !f.masked).count();
+    let frames_without_masks = used
+        .iter()
+        .filter(|f| !f.masked && f.plane_from == frame::PlaneSource::Depth)
+        .count();
+    let frames_plane_from_poses = used
+        .iter()
+        .filter(|f| f.plane_from == frame::PlaneSource::ObjectPoses)
+        .count();
     Ok(SceneFit {
         data: source.root().to_path_buf(),
         scenes: options.scenes.clone(),
@@ -444,6 +455,7 @@ fn summarize(
         frames_used: used.len(),
         frames_skipped: skipped,
         frames_without_masks,
+        frames_plane_from_poses,
         camera,
         elevation_deg,
         distance_m,

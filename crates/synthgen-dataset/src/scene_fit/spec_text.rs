@@ -105,6 +105,14 @@ pub fn spec_toml(fit: &SceneFit, out: &Path, sensor: Option<&Path>) -> Result<St
             format!(" ({} skipped: no table plane)", fit.frames_skipped.len())
         }
     );
+    if fit.frames_plane_from_poses > 0 {
+        let _ = writeln!(
+            t,
+            "# {} of them without depth: their table plane is where the objects' lowest points",
+            fit.frames_plane_from_poses
+        );
+        let _ = writeln!(t, "# lie at the GT poses.");
+    }
     let _ = writeln!(
         t,
         "# Render it: synthgen render --scene {} --frames 1000 --out data/synth",

@@ -47,17 +47,17 @@ pub fn select_frames(source: &dyn FrameSource, scenes: &[u32]) -> Result<Vec<Sou
         source,
         scenes,
         "fitting and comparing sensors needs objects at known poses",
-        "fitting and comparing sensors needs the depth readings",
+        Some("fitting and comparing sensors needs the depth readings"),
     )
 }
 
 /// [`select_frames`] with the errors' reasons (`why_gt`, `why_depth`: what needs the GT
-/// poses and the depth images) given by the caller.
+/// poses and the depth images) given by the caller; `why_depth` None: depth is optional.
 pub(crate) fn select_frames_for(
     source: &dyn FrameSource,
     scenes: &[u32],
     why_gt: &str,
-    why_depth: &str,
+    why_depth: Option<&str>,
 ) -> Result<Vec<SourceFrame>> {
     let all = source.frames(&[])?;
     if all.is_empty() {
@@ -98,7 +98,7 @@ pub(crate) fn select_frames_for(
             }
         )));
     }
-    if let Some(f) = frames.iter().find(|f| f.depth.is_none()) {
+    if let (Some(why_depth), Some(f)) = (why_depth, frames.iter().find(|f| f.depth.is_none())) {
         return Err(Error::InvalidRequest(format!(
             "{} has no depth images ({}/{:06} image {} has none): {why_depth}",
             source.root().display(),
