@@ -304,10 +304,11 @@ fn solve6(mut a: [[f64; 6]; 6], mut b: [f64; 6]) -> Option<[f64; 6]> {
         }
         a.swap(col, piv);
         b.swap(col, piv);
+        let pivot = a[col];
         for row in col + 1..6 {
-            let f = a[row][col] / a[col][col];
-            for c in col..6 {
-                a[row][c] -= f * a[col][c];
+            let f = a[row][col] / pivot[col];
+            for (v, p) in a[row].iter_mut().zip(&pivot).skip(col) {
+                *v -= f * p;
             }
             b[row] -= f * b[col];
         }
