@@ -6,15 +6,16 @@
 //!    centred and scaled (Hartley's conditioning); the 3x4 matrix is the eigenvector of the
 //!    smallest eigenvalue of AᵀA (12x12, cyclic Jacobi), its 3x3 part projected to the nearest
 //!    rotation (polar decomposition), the sign chosen so the points lie in front of the
-//!    camera. Needs ≥ 6 points not on one plane.
+//!    camera. Needs ≥ 6 points not on one line (coplanar ones: the homography start below).
 //! 2. [`refine`]: Levenberg-Marquardt on the reprojection error in pixels (rotation updated
 //!    on the left by exp(ω), translation additively; analytic 2x6 Jacobians).
 //! 3. [`ransac`]: 6-point samples from a seeded generator (deterministic), inliers by
 //!    reprojection error, the iteration count adapted to the best inlier ratio so far for the
 //!    asked confidence; the winner refined on its inliers, inliers recounted, refined again.
 //!
-//! Coplanar model points (one face of a box) are degenerate for the DLT: [`dlt`] returns
-//! None and RANSAC keeps drawing; a planar (homography) start is not implemented yet.
+//! Coplanar model points (one face of a box) are degenerate for the 3D DLT: [`dlt`] then
+//! starts from the plane's homography instead (Zhang's decomposition); collinear points give
+//! no pose.
 
 use glam::{DMat3, DVec2, DVec3};
 use rand::{Rng, SeedableRng};
@@ -98,12 +99,16 @@ pub fn dlt(model: &[DVec3], pixels: &[DVec2], k: &Intrinsics) -> Option<Pose> {
             }
         }
     }
-    let (ev, _) = crate::jacobi::symmetric_eigen(scatter, |a| off_diagonal(a) < 1e-24);
-    let (lo, hi) = ev.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &e| {
-        (lo.min(e), hi.max(e))
-    });
-    if lo < 1e-6 * hi {
-        return None;
+    let (ev, evec) = crate::jacobi::symmetric_eigen(scatter, |a| off_diagonal(a) < 1e-24);
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|&a, &b| ev[b].total_cmp(&ev[a]));
+    let [hi, mid, lo] = order.map(|i| ev[i]);
+    let axis = |i: usize| DVec3::new(evec[0][i], evec[1][i], evec[2][i]).normalize();
+    if mid < 1e-6 * hi {
+        return None; // collinear
+    }
+    if lo < PLANAR * hi {
+        return planar(model, pixels, k, c, [axis(order[0]), axis(order[1])]);
     }
     let mut ata = [[0.0f64; 12]; 12];
     for (p, u) in model.iter().zip(pixels) {
@@ -148,11 +153,34 @@ pub fn dlt(model: &[DVec3], pixels: &[DVec2], k: &Intrinsics) -> Option<Pose> {
         m = -m;
         t = -t;
     }
-    // Nearest rotation: R = M (MᵀM)^(-1/2); the scale λ = mean singular value.
+    let (r, lambda) = nearest_rotation(m)?;
+    // Back from the conditioned points: M = λ R, so p_cam = R (X − c) + t / (λ s).
+    let t_cam = t / (lambda * s) - r * c;
+    in_front(model, Pose::new(r, t_cam))
+}
+
+/// Below this share of the largest scatter eigenvalue, the smallest one means coplanar model
+/// points (thinner than ~3 % of their extent): the homography start.
+const PLANAR: f64 = 1e-3;
+
+/// `pose` when it puts the points in front of the camera on average (a sign error puts every
+/// point behind).
+fn in_front(model: &[DVec3], pose: Pose) -> Option<Pose> {
+    let mean_z = model
+        .iter()
+        .map(|p| pose.transform_point(*p).z)
+        .sum::<f64>()
+        / model.len() as f64;
+    (mean_z > 0.0).then_some(pose)
+}
+
+/// The rotation nearest to `m` (the polar factor M (MᵀM)^(-1/2); `m` with a positive
+/// determinant) and the mean of its singular values. None when `m` is singular.
+fn nearest_rotation(m: DMat3) -> Option<(DMat3, f64)> {
     let mtm = m.transpose() * m;
     let a: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| mtm.col(j)[i]));
     let (d, w) = crate::jacobi::symmetric_eigen(a, |a| off_diagonal(a) < 1e-30);
-    if d.iter().any(|&x| x <= 0.0) {
+    if d.iter().any(|&x| x <= 1e-300) {
         return None;
     }
     let wm = DMat3::from_cols(
@@ -165,15 +193,75 @@ pub fn dlt(model: &[DVec3], pixels: &[DVec2], k: &Intrinsics) -> Option<Pose> {
         1.0 / d[1].sqrt(),
         1.0 / d[2].sqrt(),
     ));
-    let r = m * wm * inv_sqrt * wm.transpose();
     let lambda = (d[0].sqrt() + d[1].sqrt() + d[2].sqrt()) / 3.0;
-    // Back from the conditioned points: R (x − c) s / λ... the rotation is R, the scale s/λ
-    // belongs to the translation: p_cam = R (X − c) + (t / λ) / s.
-    let t_cam = t / (lambda * s) - r * c;
-    let pose = Pose::new(r, t_cam);
-    // In front of the camera (the mean depth; a sign error puts every point behind).
-    let mean_z = model.iter().map(|p| (r * *p + t_cam).z).sum::<f64>() / n as f64;
-    (mean_z > 0.0).then_some(pose)
+    Some((m * wm * inv_sqrt * wm.transpose(), lambda))
+}
+
+/// The DLT for coplanar model points (a box seen on one face): in the plane's frame (origin
+/// `c`, in-plane axes `axes`) the points are (a, b, 0), and the homography H from (a, b, 1) to
+/// normalized image coordinates (9x9 DLT, the plane coordinates scaled to unit RMS) gives,
+/// as in Zhang's calibration, r1 = h1 / λ, r2 = h2 / λ, r3 = r1 × r2 and t = h3 / λ with λ the
+/// mean of |h1| and |h2|; the rotation made orthonormal, the sign with the points in front.
+fn planar(
+    model: &[DVec3],
+    pixels: &[DVec2],
+    k: &Intrinsics,
+    c: DVec3,
+    axes: [DVec3; 2],
+) -> Option<Pose> {
+    let normal = axes[0].cross(axes[1]);
+    let basis = DMat3::from_cols(axes[0], axes[1], normal);
+    let ab: Vec<DVec2> = model
+        .iter()
+        .map(|p| {
+            let q = basis.transpose() * (*p - c);
+            DVec2::new(q.x, q.y)
+        })
+        .collect();
+    let rms = (ab.iter().map(|q| q.length_squared()).sum::<f64>() / ab.len() as f64).sqrt();
+    if rms < 1e-12 {
+        return None;
+    }
+    let s = 1.0 / rms;
+    let mut ata = [[0.0f64; 9]; 9];
+    for (q, u) in ab.iter().zip(pixels) {
+        let (a, b) = (q.x * s, q.y * s);
+        let (xn, yn) = ((u.x - k.cx) / k.fx, (u.y - k.cy) / k.fy);
+        let r1 = [a, b, 1.0, 0.0, 0.0, 0.0, -xn * a, -xn * b, -xn];
+        let r2 = [0.0, 0.0, 0.0, a, b, 1.0, -yn * a, -yn * b, -yn];
+        for r in [r1, r2] {
+            for (i, row) in ata.iter_mut().enumerate() {
+                for (j, v) in row.iter_mut().enumerate() {
+                    *v += r[i] * r[j];
+                }
+            }
+        }
+    }
+    let scale = ata
+        .iter()
+        .map(|r| r.iter().map(|v| v.abs()).fold(0.0, f64::max))
+        .fold(0.0, f64::max);
+    let (values, vectors) =
+        crate::jacobi::symmetric_eigen(ata, |a| off_diagonal(a) < 1e-26 * scale * scale);
+    let best = (0..9).min_by(|&a, &b| values[a].total_cmp(&values[b]))?;
+    let h: [f64; 9] = std::array::from_fn(|i| vectors[i][best]);
+    // Columns of H for the unscaled plane coordinates: h1, h2 times s.
+    let mut h1 = DVec3::new(h[0], h[3], h[6]) * s;
+    let mut h2 = DVec3::new(h[1], h[4], h[7]) * s;
+    let mut h3 = DVec3::new(h[2], h[5], h[8]);
+    if h3.z < 0.0 {
+        (h1, h2, h3) = (-h1, -h2, -h3);
+    }
+    let lambda = (h1.length() + h2.length()) / 2.0;
+    if lambda < 1e-300 {
+        return None;
+    }
+    let (r1, r2) = (h1 / lambda, h2 / lambda);
+    let (r_plane, _) = nearest_rotation(DMat3::from_cols(r1, r2, r1.cross(r2)))?;
+    let t_plane = h3 / lambda;
+    // p_cam = R_p Bᵀ (X − c) + t_p.
+    let r = r_plane * basis.transpose();
+    in_front(model, Pose::new(r, t_plane - r * c))
 }
 
 fn off_diagonal<const N: usize>(a: &[[f64; N]; N]) -> f64 {
@@ -519,15 +607,42 @@ mod tests {
         );
     }
 
+    /// One face of a box (every model point on z = 0.02): the homography start, exact on exact
+    /// data, and through RANSAC with outliers.
+    #[test]
+    fn coplanar_points_take_the_homography_start() {
+        let flat: Vec<DVec3> = cloud(200, 5)
+            .into_iter()
+            .map(|p| DVec3::new(p.x, p.y, 0.02))
+            .collect();
+        let px = pixels(&truth(), &flat);
+        let pose = dlt(&flat[..8], &px[..8], &k()).unwrap();
+        assert!(angle_deg(&pose.rotation, &truth().rotation) < 1e-6);
+        assert!((pose.translation_m - truth().translation_m).length() < 1e-8);
+        let mut noisy = px.clone();
+        let mut rng = ChaCha8Rng::seed_from_u64(6);
+        for (i, p) in noisy.iter_mut().enumerate() {
+            if i % 3 == 0 {
+                *p = DVec2::new(rng.gen_range(0.0..640.0), rng.gen_range(0.0..480.0));
+            } else {
+                *p += DVec2::new(rng.gen_range(-0.5..0.5), rng.gen_range(-0.5..0.5));
+            }
+        }
+        let sol = ransac(&flat, &noisy, &k(), &RansacOptions::default()).unwrap();
+        let re = angle_deg(&sol.pose.rotation, &truth().rotation);
+        let te = (sol.pose.translation_m - truth().translation_m).length();
+        assert!(re < 1.0 && te < 0.005, "{re} deg, {te} m");
+    }
+
     #[test]
     fn degenerate_input_gives_no_pose() {
         let model = cloud(20, 3);
         let px = pixels(&truth(), &model);
         assert!(dlt(&model[..5], &px[..5], &k()).is_none(), "5 points");
-        // Coplanar: every point on z = 0.
-        let flat: Vec<DVec3> = model.iter().map(|p| DVec3::new(p.x, p.y, 0.0)).collect();
-        let fpx = pixels(&truth(), &flat);
-        assert!(dlt(&flat, &fpx, &k()).is_none(), "coplanar");
+        // Collinear: every point on the x axis.
+        let line: Vec<DVec3> = model.iter().map(|p| DVec3::new(p.x, 0.0, 0.0)).collect();
+        let lpx = pixels(&truth(), &line);
+        assert!(dlt(&line, &lpx, &k()).is_none(), "collinear");
         // Pure noise: no consensus.
         let mut rng = ChaCha8Rng::seed_from_u64(4);
         let noise: Vec<DVec2> = (0..20)
