@@ -63,6 +63,38 @@ pub struct PnpSolution {
     pub iterations: usize,
 }
 
+/// The object coordinates of a rendered frame, the training target of a correspondence
+/// model: per pixel showing object `i` (`instance` = i + 1, as the renderers write it), the
+/// model-frame point `poses[i]⁻¹ (z · K⁻¹ (x, y, 1))` at the pixel centre with the frame's z
+/// depth `depth_m`; NaN elsewhere (background, ids without a pose, no depth).
+pub fn object_coordinates(
+    k: &Intrinsics,
+    depth_m: &[f32],
+    instance: &[u16],
+    poses: &[Pose],
+) -> Vec<[f32; 3]> {
+    let w = k.width as usize;
+    let inverse: Vec<Pose> = poses.iter().map(Pose::inverse).collect();
+    depth_m
+        .iter()
+        .zip(instance)
+        .enumerate()
+        .map(|(i, (&z, &id))| {
+            let Some(obj_from_cam) = (id as usize).checked_sub(1).and_then(|o| inverse.get(o))
+            else {
+                return [f32::NAN; 3];
+            };
+            if z <= 0.0 || !z.is_finite() {
+                return [f32::NAN; 3];
+            }
+            let (x, y) = ((i % w) as f64, (i / w) as f64);
+            let z = f64::from(z);
+            let cam = DVec3::new((x - k.cx) / k.fx * z, (y - k.cy) / k.fy * z, z);
+            obj_from_cam.transform_point(cam).as_vec3().to_array()
+        })
+        .collect()
+}
+
 /// Pixel of `p` (camera frame) through `k`; None behind the camera.
 fn project(k: &Intrinsics, p: DVec3) -> Option<DVec2> {
     (p.z > 1e-9).then(|| DVec2::new(k.fx * p.x / p.z + k.cx, k.fy * p.y / p.z + k.cy))

@@ -4,6 +4,7 @@
 
 mod background;
 mod common;
+mod correspondences;
 mod determinism;
 mod geometry;
 mod golden;
