@@ -111,6 +111,18 @@ mod cycles {
         }
     }
 
+    /// A 96x72 camera with square pixels (fx = fy = 120) centred on the image.
+    fn small_square() -> Intrinsics {
+        Intrinsics {
+            width: 96,
+            height: 72,
+            fx: 120.0,
+            fy: 120.0,
+            cx: 48.0,
+            cy: 36.0,
+        }
+    }
+
     fn sampler(k: Intrinsics, seed: u64) -> SceneSampler {
         let mut spec = SceneSpec::default();
         spec.camera.width = Some(k.width);
@@ -396,14 +408,7 @@ mod cycles {
     )]
     fn distractors_render_in_cycles_without_an_instance_id() {
         let renderer = renderer();
-        let k = Intrinsics {
-            width: 96,
-            height: 72,
-            fx: 120.0,
-            fy: 120.0,
-            cx: 48.0,
-            cy: 36.0,
-        };
+        let k = small_square();
         let target = ObjectInstance::new(
             BOX,
             1,
@@ -449,14 +454,7 @@ mod cycles {
     )]
     fn the_environment_light_lights_cycles_as_it_lights_the_raster() {
         let renderer = renderer();
-        let k = Intrinsics {
-            width: 96,
-            height: 72,
-            fx: 120.0,
-            fy: 120.0,
-            cx: 48.0,
-            cy: 36.0,
-        };
+        let k = small_square();
         // Below the optical axis (image y down), so the camera sees the top and the front.
         let target = ObjectInstance::new(
             BOX,

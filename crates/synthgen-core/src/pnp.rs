@@ -142,8 +142,7 @@ pub fn dlt(model: &[DVec3], pixels: &[DVec2], k: &Intrinsics) -> Option<Pose> {
     if lo < PLANAR * hi {
         return planar(model, pixels, k, c, [axis(order[0]), axis(order[1])]);
     }
-    let mut ata = [[0.0f64; 12]; 12];
-    for (p, u) in model.iter().zip(pixels) {
+    let v: [f64; 12] = null_vector(model.iter().zip(pixels).flat_map(|(p, u)| {
         let x = (*p - c) * s;
         let (xn, yn) = ((u.x - k.cx) / k.fx, (u.y - k.cy) / k.fy);
         let h = [x.x, x.y, x.z, 1.0];
@@ -155,25 +154,8 @@ pub fn dlt(model: &[DVec3], pixels: &[DVec2], k: &Intrinsics) -> Option<Pose> {
             r2[4 + j] = h[j];
             r2[8 + j] = -yn * h[j];
         }
-        for r in [r1, r2] {
-            for (i, row) in ata.iter_mut().enumerate() {
-                if r[i] == 0.0 {
-                    continue;
-                }
-                for (j, v) in row.iter_mut().enumerate() {
-                    *v += r[i] * r[j];
-                }
-            }
-        }
-    }
-    let scale = ata
-        .iter()
-        .map(|r| r.iter().map(|v| v.abs()).fold(0.0, f64::max))
-        .fold(0.0, f64::max);
-    let (values, vectors) =
-        crate::jacobi::symmetric_eigen(ata, |a| off_diagonal(a) < 1e-26 * scale * scale);
-    let best = (0..12).min_by(|&a, &b| values[a].total_cmp(&values[b]))?;
-    let v: [f64; 12] = std::array::from_fn(|i| vectors[i][best]);
+        [r1, r2]
+    }))?;
     // P = [M | t] for the conditioned points.
     let mut m = DMat3::from_cols(
         DVec3::new(v[0], v[4], v[8]),
@@ -185,7 +167,7 @@ pub fn dlt(model: &[DVec3], pixels: &[DVec2], k: &Intrinsics) -> Option<Pose> {
         m = -m;
         t = -t;
     }
-    let (r, lambda) = nearest_rotation(m)?;
+    let (r, lambda) = rotation_and_scale(m)?;
     // Back from the conditioned points: M = λ R, so p_cam = R (X − c) + t / (λ s).
     let t_cam = t / (lambda * s) - r * c;
     in_front(model, Pose::new(r, t_cam))
@@ -206,27 +188,41 @@ fn in_front(model: &[DVec3], pose: Pose) -> Option<Pose> {
     (mean_z > 0.0).then_some(pose)
 }
 
-/// The rotation nearest to `m` (the polar factor M (MᵀM)^(-1/2); `m` with a positive
-/// determinant) and the mean of its singular values. None when `m` is singular.
-fn nearest_rotation(m: DMat3) -> Option<(DMat3, f64)> {
-    let mtm = m.transpose() * m;
-    let a: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| mtm.col(j)[i]));
-    let (d, w) = crate::jacobi::symmetric_eigen(a, |a| off_diagonal(a) < 1e-30);
-    if d.iter().any(|&x| x <= 1e-300) {
+/// The rotation nearest to `m` (`m` with a positive determinant; [`crate::pose::nearest_rotation`],
+/// on `m` scaled to a unit mean square so that a small DLT scale does not read as singular)
+/// and the mean of `m`'s singular values (trace(Rᵀ M) / 3). None when `m` is singular.
+fn rotation_and_scale(m: DMat3) -> Option<(DMat3, f64)> {
+    let norm = (m.to_cols_array().iter().map(|v| v * v).sum::<f64>() / 3.0).sqrt();
+    if !norm.is_finite() || norm <= 1e-300 {
         return None;
     }
-    let wm = DMat3::from_cols(
-        DVec3::new(w[0][0], w[1][0], w[2][0]),
-        DVec3::new(w[0][1], w[1][1], w[2][1]),
-        DVec3::new(w[0][2], w[1][2], w[2][2]),
-    );
-    let inv_sqrt = DMat3::from_diagonal(DVec3::new(
-        1.0 / d[0].sqrt(),
-        1.0 / d[1].sqrt(),
-        1.0 / d[2].sqrt(),
-    ));
-    let lambda = (d[0].sqrt() + d[1].sqrt() + d[2].sqrt()) / 3.0;
-    Some((m * wm * inv_sqrt * wm.transpose(), lambda))
+    let r = crate::pose::nearest_rotation(&(m * (1.0 / norm)))?;
+    let rtm = r.transpose() * m;
+    Some((r, (rtm.x_axis.x + rtm.y_axis.y + rtm.z_axis.z) / 3.0))
+}
+
+/// The unit vector x minimizing |A x| for the matrix A whose rows are `rows` (the eigenvector
+/// of AᵀA's smallest eigenvalue, cyclic Jacobi): the DLTs' solution.
+fn null_vector<const N: usize>(rows: impl Iterator<Item = [f64; N]>) -> Option<[f64; N]> {
+    let mut ata = [[0.0f64; N]; N];
+    for r in rows {
+        for (i, row) in ata.iter_mut().enumerate() {
+            if r[i] == 0.0 {
+                continue;
+            }
+            for (j, v) in row.iter_mut().enumerate() {
+                *v += r[i] * r[j];
+            }
+        }
+    }
+    let scale = ata
+        .iter()
+        .map(|r| r.iter().map(|v| v.abs()).fold(0.0, f64::max))
+        .fold(0.0, f64::max);
+    let (values, vectors) =
+        crate::jacobi::symmetric_eigen(ata, |a| off_diagonal(a) < 1e-26 * scale * scale);
+    let best = (0..N).min_by(|&a, &b| values[a].total_cmp(&values[b]))?;
+    Some(std::array::from_fn(|i| vectors[i][best]))
 }
 
 /// The DLT for coplanar model points (a box seen on one face): in the plane's frame (origin
@@ -255,28 +251,14 @@ fn planar(
         return None;
     }
     let s = 1.0 / rms;
-    let mut ata = [[0.0f64; 9]; 9];
-    for (q, u) in ab.iter().zip(pixels) {
+    let h: [f64; 9] = null_vector(ab.iter().zip(pixels).flat_map(|(q, u)| {
         let (a, b) = (q.x * s, q.y * s);
         let (xn, yn) = ((u.x - k.cx) / k.fx, (u.y - k.cy) / k.fy);
-        let r1 = [a, b, 1.0, 0.0, 0.0, 0.0, -xn * a, -xn * b, -xn];
-        let r2 = [0.0, 0.0, 0.0, a, b, 1.0, -yn * a, -yn * b, -yn];
-        for r in [r1, r2] {
-            for (i, row) in ata.iter_mut().enumerate() {
-                for (j, v) in row.iter_mut().enumerate() {
-                    *v += r[i] * r[j];
-                }
-            }
-        }
-    }
-    let scale = ata
-        .iter()
-        .map(|r| r.iter().map(|v| v.abs()).fold(0.0, f64::max))
-        .fold(0.0, f64::max);
-    let (values, vectors) =
-        crate::jacobi::symmetric_eigen(ata, |a| off_diagonal(a) < 1e-26 * scale * scale);
-    let best = (0..9).min_by(|&a, &b| values[a].total_cmp(&values[b]))?;
-    let h: [f64; 9] = std::array::from_fn(|i| vectors[i][best]);
+        [
+            [a, b, 1.0, 0.0, 0.0, 0.0, -xn * a, -xn * b, -xn],
+            [0.0, 0.0, 0.0, a, b, 1.0, -yn * a, -yn * b, -yn],
+        ]
+    }))?;
     // Columns of H for the unscaled plane coordinates: h1, h2 times s.
     let mut h1 = DVec3::new(h[0], h[3], h[6]) * s;
     let mut h2 = DVec3::new(h[1], h[4], h[7]) * s;
@@ -289,7 +271,7 @@ fn planar(
         return None;
     }
     let (r1, r2) = (h1 / lambda, h2 / lambda);
-    let (r_plane, _) = nearest_rotation(DMat3::from_cols(r1, r2, r1.cross(r2)))?;
+    let (r_plane, _) = rotation_and_scale(DMat3::from_cols(r1, r2, r1.cross(r2)))?;
     let t_plane = h3 / lambda;
     // p_cam = R_p Bᵀ (X − c) + t_p.
     let r = r_plane * basis.transpose();
@@ -453,11 +435,10 @@ pub fn ransac(
     if n < 6 || pixels.len() != n {
         return None;
     }
-    let inliers_of = |pose: &Pose| -> Vec<usize> {
-        (0..n)
-            .filter(|&i| reprojection_error(k, pose, model[i], pixels[i]) < options.inlier_px)
-            .collect()
+    let inlier = |pose: &Pose, i: usize| {
+        reprojection_error(k, pose, model[i], pixels[i]) < options.inlier_px
     };
+    let inliers_of = |pose: &Pose| -> Vec<usize> { (0..n).filter(|&i| inlier(pose, i)).collect() };
     let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
     let mut best: Option<(Pose, usize)> = None;
     let mut needed = options.max_iterations;
@@ -482,9 +463,7 @@ pub fn ransac(
         let Some(pose) = dlt(&sm, &sp, k) else {
             continue;
         };
-        let count = (0..n)
-            .filter(|&i| reprojection_error(k, &pose, model[i], pixels[i]) < options.inlier_px)
-            .count();
+        let count = (0..n).filter(|&i| inlier(&pose, i)).count();
         if best.as_ref().is_none_or(|(_, c)| count > *c) {
             best = Some((pose, count));
             let w = count as f64 / n as f64;

@@ -159,34 +159,24 @@ fn filter(
     let near = dilate(tiles, tw, th);
     tmp.clear();
     tmp.resize(ao.len(), 0.0);
-    for ty in 0..th {
-        for tx in 0..tw {
-            if !near[ty * tw + tx] {
-                continue;
-            }
-            for y in ty * TILE..((ty + 1) * TILE).min(h) {
-                for x in tx * TILE..((tx + 1) * TILE).min(w) {
-                    if let Some(v) = box_tap(ao, depth_m, w, h, x, y, true) {
-                        tmp[y * w + x] = v;
+    let pass = |src: &[f32], dst: &mut [f32], horizontal: bool| {
+        for ty in 0..th {
+            for tx in 0..tw {
+                if !near[ty * tw + tx] {
+                    continue;
+                }
+                for y in ty * TILE..((ty + 1) * TILE).min(h) {
+                    for x in tx * TILE..((tx + 1) * TILE).min(w) {
+                        if let Some(v) = box_tap(src, depth_m, w, h, x, y, horizontal) {
+                            dst[y * w + x] = v;
+                        }
                     }
                 }
             }
         }
-    }
-    for ty in 0..th {
-        for tx in 0..tw {
-            if !near[ty * tw + tx] {
-                continue;
-            }
-            for y in ty * TILE..((ty + 1) * TILE).min(h) {
-                for x in tx * TILE..((tx + 1) * TILE).min(w) {
-                    if let Some(v) = box_tap(tmp, depth_m, w, h, x, y, false) {
-                        ao[y * w + x] = v;
-                    }
-                }
-            }
-        }
-    }
+    };
+    pass(ao, tmp, true);
+    pass(tmp, ao, false);
 }
 
 /// Side of the square tiles the filter skips where nothing is occluded, pixels.

@@ -211,8 +211,29 @@ pub(crate) fn measure_frame(
             .iter()
             .all(|&c| (-CENTRE_BELOW_M..=CENTRE_ABOVE_M).contains(&p.height(c)))
     };
-    let Some((_, depth)) = &depth else {
-        // The objects' support points at their poses.
+    let (fit, plane_from) = if let Some((_, depth)) = &depth {
+        let points = sample_points(&depth.data, &objects_mask, &k, ctx.max_points);
+        let ransac = RansacOptions {
+            seed: ctx.ransac.seed
+                ^ splitmix64(
+                    (u64::from(frame.location.scene_id) << 32) | u64::from(frame.location.im_id),
+                ),
+            ..ctx.ransac
+        };
+        let Some(fit) = ransac_plane(&points, &ransac, accept) else {
+            return Ok(Err(Skip::from(format!(
+                "no table plane under the objects: no plane within {} mm holds {:.0} % (and {}) of the {} depth points outside the objects with every object centre {:.0} cm below to {:.0} cm above it",
+                ransac.inlier_band_m * 1000.0,
+                ransac.min_inlier_share * 100.0,
+                ransac.min_inliers,
+                points.len(),
+                CENTRE_BELOW_M * 100.0,
+                CENTRE_ABOVE_M * 100.0
+            ))));
+        };
+        (fit, PlaneSource::Depth)
+    } else {
+        // No depth: the objects' support points at their poses.
         let objects: Vec<Vec<DVec3>> = frame
             .gt
             .iter()
@@ -233,46 +254,9 @@ pub(crate) fn measure_frame(
                 CENTRE_ABOVE_M * 100.0
             ))));
         };
-        return finish(
-            ctx,
-            frame,
-            &visib,
-            (w, h),
-            &poses,
-            fit,
-            masked,
-            PlaneSource::ObjectPoses,
-        );
+        (fit, PlaneSource::ObjectPoses)
     };
-    let points = sample_points(&depth.data, &objects_mask, &k, ctx.max_points);
-    let ransac = RansacOptions {
-        seed: ctx.ransac.seed
-            ^ splitmix64(
-                (u64::from(frame.location.scene_id) << 32) | u64::from(frame.location.im_id),
-            ),
-        ..ctx.ransac
-    };
-    let Some(fit) = ransac_plane(&points, &ransac, accept) else {
-        return Ok(Err(Skip::from(format!(
-            "no table plane under the objects: no plane within {} mm holds {:.0} % (and {}) of the {} depth points outside the objects with every object centre {:.0} cm below to {:.0} cm above it",
-            ransac.inlier_band_m * 1000.0,
-            ransac.min_inlier_share * 100.0,
-            ransac.min_inliers,
-            points.len(),
-            CENTRE_BELOW_M * 100.0,
-            CENTRE_ABOVE_M * 100.0
-        ))));
-    };
-    finish(
-        ctx,
-        frame,
-        &visib,
-        (w, h),
-        &poses,
-        fit,
-        masked,
-        PlaneSource::Depth,
-    )
+    finish(ctx, frame, &visib, (w, h), &poses, fit, masked, plane_from)
 }
 
 /// Objects whose lowest points lie within this of the plane fitted to them (frames without
