@@ -19,7 +19,7 @@ use synthgen_dataset::source::{open_source, FrameSource, SourceFrame};
 use crate::error::{Error, Result};
 use crate::eval::pick_split;
 use crate::models::rgb::Pinhole;
-use crate::rgb_input::BoxRegion;
+use crate::rgb_input::{BoxRegion, CoordRegion, CONTEXT, STORED_CONTEXT};
 
 /// How instances are made.
 #[derive(Debug, Clone, PartialEq)]
@@ -34,6 +34,9 @@ pub struct DataOptions {
     pub crop_size: u32,
     /// Side of the RGB model's input crop; > 0 keeps each instance's [`BoxRegion`].
     pub rgb_box: u32,
+    /// With `rgb_box`: the dense RGB model's targets ([`CoordRegion`], `rgb_box / 2` cells
+    /// across the nominal crop) from the frames' depth, where a frame has depth.
+    pub dense_targets: bool,
     /// Sample points from the depth (every model but RGB). Without, no depth image is read
     /// and the valid pixels are the visible mask's.
     pub depth_points: bool,
@@ -79,6 +82,7 @@ impl Default for DataOptions {
             min_pixels: 50,
             crop_size: 0,
             rgb_box: 0,
+            dense_targets: false,
             depth_points: true,
             seed: 0,
             split: None,
@@ -176,6 +180,13 @@ pub(crate) fn crop_resize(
     out
 }
 
+/// Cells across the stored region of the dense targets for an `rgb_box`-pixel crop: two
+/// per output cell of the model (`rgb_box / 2` across the nominal crop), so that cutting a
+/// jittered crop from them moves a target by at most a quarter of an output cell.
+pub fn dense_target_res(rgb_box: u32) -> u32 {
+    2 * (f64::from(rgb_box / 2) * STORED_CONTEXT / CONTEXT).ceil() as u32
+}
+
 /// A sampled pixel: u, v and its index in the image.
 type Pixel = (f64, f64, usize);
 
@@ -205,7 +216,14 @@ fn load_frame(frame: &SourceFrame, opts: &DataOptions) -> Result<Vec<Outcome>> {
     if wanted.is_empty() {
         return Ok(out);
     }
-    let depth = if opts.depth_points {
+    let dense = opts.dense_targets && opts.rgb_box > 0;
+    let depth = if dense && !opts.depth_points {
+        frame
+            .depth
+            .as_ref()
+            .map(|p| read_depth_m(p, cam.depth_scale))
+            .transpose()?
+    } else if opts.depth_points {
         let depth_path = frame.depth.as_ref().ok_or_else(|| Error::Malformed {
             what: "dataset",
             message: format!("image {im_id} of scene {scene_id} has no depth image"),
@@ -215,6 +233,8 @@ fn load_frame(frame: &SourceFrame, opts: &DataOptions) -> Result<Vec<Outcome>> {
     } else {
         None
     };
+    // Without depth_points the depth is read for the dense targets only, never for the pixels.
+    let pixel_depth = depth.as_ref().filter(|_| opts.depth_points);
     let rgb = if opts.crop_size > 0 || opts.rgb_box > 0 {
         Some(read_rgb(&frame.rgb)?)
     } else {
@@ -222,13 +242,48 @@ fn load_frame(frame: &SourceFrame, opts: &DataOptions) -> Result<Vec<Outcome>> {
     };
     for gt_id in wanted {
         // No visible mask (a Linemod object without a folder entry for the frame): no
-        // visible pixels.
-        let Some(mask_ref) = frame.masks_visib.get(gt_id).and_then(Option::as_ref) else {
-            out.push(Outcome::FewPixels);
-            continue;
+        // visible pixels; except for the RGB models on a dataset without masks and depth
+        // (Linemod-Occluded's BOP test images): they read only the colour inside
+        // `bbox_visib`, and `px_count_visib` says how much of the object shows.
+        let mask_ref = frame.masks_visib.get(gt_id).and_then(Option::as_ref);
+        let info = infos.and_then(|i| i.get(gt_id));
+        let box_only = match (mask_ref, info, &rgb) {
+            (None, Some(i), Some(img))
+                if !opts.depth_points && opts.crop_size == 0 && depth.is_none() =>
+            {
+                (i.bbox_visib[2] > 0 && i.bbox_visib[3] > 0).then_some((i, img))
+            }
+            _ => None,
         };
-        let mask_path = mask_ref.path();
-        let mask = mask_ref.read()?;
+        let (mask, mask_path) = match (mask_ref, box_only) {
+            (Some(m), _) => (m.read()?, m.path().to_path_buf()),
+            (None, Some((i, img))) => {
+                if (i.px_count_visib as usize) < opts.min_pixels.max(1) {
+                    out.push(Outcome::FewPixels);
+                    continue;
+                }
+                // The box as the mask: only its bounding box is read, and no dense targets
+                // come from it (they need depth, which such a frame lacks).
+                let [x, y, bw, bh] = i.bbox_visib.map(|v| v.max(0) as u32);
+                let mut data = vec![0u8; (img.width * img.height) as usize];
+                for yy in y..(y + bh).min(img.height) {
+                    for xx in x..(x + bw).min(img.width) {
+                        data[(yy * img.width + xx) as usize] = 255;
+                    }
+                }
+                let plane = synthgen_dataset::bop::Plane {
+                    width: img.width,
+                    height: img.height,
+                    data,
+                };
+                (plane, frame.rgb.clone())
+            }
+            (None, None) => {
+                out.push(Outcome::FewPixels);
+                continue;
+            }
+        };
+        let mask_path = mask_path.as_path();
         if let Some(depth) = &depth {
             if mask.width != depth.width || mask.height != depth.height {
                 return Err(Error::Malformed {
@@ -248,14 +303,14 @@ fn load_frame(frame: &SourceFrame, opts: &DataOptions) -> Result<Vec<Outcome>> {
             augment_mask(&mut in_mask, w, &opts.augment, &mut rng);
         }
         let valid: Vec<usize> = (0..in_mask.len())
-            .filter(|&i| in_mask[i] && depth.as_ref().is_none_or(|d| d.data[i] > 0.0))
+            .filter(|&i| in_mask[i] && pixel_depth.is_none_or(|d| d.data[i] > 0.0))
             .collect();
         if valid.len() < opts.min_pixels.max(1) {
             out.push(Outcome::FewPixels);
             continue;
         }
         // The sampled pixels (u, v, index) and their back-projected points; none without depth.
-        let (uv, points_m): (Vec<Pixel>, Vec<[f32; 3]>) = match &depth {
+        let (uv, points_m): (Vec<Pixel>, Vec<[f32; 3]>) = match pixel_depth {
             Some(depth) => {
                 let mut rng = instance_rng(opts.seed, scene_id, im_id, gt_id);
                 let uv: Vec<Pixel> = sample_indices(&mut rng, valid.len(), opts.n_points)
@@ -297,14 +352,43 @@ fn load_frame(frame: &SourceFrame, opts: &DataOptions) -> Result<Vec<Outcome>> {
                 })
         };
         let region = match &rgb {
-            Some(img) if opts.rgb_box > 0 => Some(BoxRegion::from_image(
-                &img.rgb,
-                img.width,
-                img.height,
-                bbox(),
-                opts.rgb_box,
-                Pinhole::from_cam_k(&cam.cam_k),
-            )),
+            Some(img) if opts.rgb_box > 0 => {
+                let mut r = BoxRegion::from_image(
+                    &img.rgb,
+                    img.width,
+                    img.height,
+                    bbox(),
+                    opts.rgb_box,
+                    Pinhole::from_cam_k(&cam.cam_k),
+                );
+                if let (true, Some(d)) = (dense, &depth) {
+                    // The visible (unperturbed) mask's pixels, back-projected and taken to
+                    // the model frame.
+                    let obj_from_cam = gts[gt_id].cam_from_obj().inverse();
+                    let at = |x: usize, y: usize| {
+                        let i = y * w + x;
+                        let z = f64::from(d.data[i]);
+                        if mask.data[i] == 0 || z <= 0.0 || !z.is_finite() {
+                            return [f32::NAN; 3];
+                        }
+                        let c = synthgen_core::glam::DVec3::new(
+                            (x as f64 - cx) * z / fx,
+                            (y as f64 - cy) * z / fy,
+                            z,
+                        );
+                        obj_from_cam.transform_point(c).as_vec3().to_array()
+                    };
+                    let res = dense_target_res(opts.rgb_box);
+                    r.target = Some(CoordRegion::sample(
+                        at,
+                        mask.width,
+                        mask.height,
+                        &r.region,
+                        res,
+                    ));
+                }
+                Some(r)
+            }
             _ => None,
         };
         let (crop_xy, crop_rgb) = match &rgb {

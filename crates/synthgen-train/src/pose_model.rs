@@ -26,6 +26,7 @@ use crate::models::rgb::{
     box_geometry, canonical_sign, class_indices, crops_nhwc, quaternion_rotation, ray_rotation,
     RgbNet, Translation, TARGET_SCALE,
 };
+use crate::models::rgb_dense::{canonical_coords, dense_loss, DenseNet};
 use crate::models::rnet::{crops_tensor, pixel_indices, RNet, RotationOut, CONFIDENCE_WEIGHT};
 use crate::models::tnet::{centres_from_offsets, make_batch, offset_l1_loss, TNet};
 use crate::models::ModelKind;
@@ -96,6 +97,7 @@ enum Net {
     R(RNet),
     F(Full),
     G(RgbNet),
+    D(DenseNet),
 }
 
 /// A model with its variables.
@@ -138,6 +140,78 @@ impl Prediction {
     /// A score for ranking estimates: the confidence, 1 without one.
     pub fn score(&self) -> f64 {
         self.rotation.map_or(1.0, |r| f64::from(r.1))
+    }
+}
+
+/// Visibility probability above which a cell of the dense model is a correspondence.
+pub const DENSE_VISIBLE: f32 = 0.5;
+/// RANSAC's inlier threshold for the dense model, in output cells (scaled to pixels by the
+/// box: a cell spans side / out pixels).
+pub const DENSE_INLIER_CELLS: f64 = 1.5;
+
+/// The pose of one instance from the dense model's output (`out × out` cells of coordinates
+/// over `radius` and visibility logits) over the crop of `s`: every cell more likely visible
+/// than not is a correspondence (the 6 most likely when fewer), PnP + RANSAC (seeded,
+/// deterministic) and refinement. The confidence is the inlier share of the cells. When PnP
+/// finds no pose, the box's ray at the depth where the object's diameter spans the box, with
+/// the identity rotation and confidence 0.
+fn dense_pose(
+    coords: &[f32],
+    logits: &[f32],
+    out: u32,
+    radius: f64,
+    s: &rgb_input::RgbSample,
+    diameter_m: f64,
+) -> Prediction {
+    let o = out as usize;
+    let cell = s.bbox.side / f64::from(out);
+    let mut order: Vec<usize> = (0..o * o).collect();
+    order.sort_by(|&a, &b| logits[b].total_cmp(&logits[a]));
+    let threshold = (DENSE_VISIBLE / (1.0 - DENSE_VISIBLE)).ln();
+    let n = order
+        .iter()
+        .take_while(|&&i| logits[i] > threshold)
+        .count()
+        .max(6)
+        .min(order.len());
+    let (mut model, mut pixels) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    for &i in &order[..n] {
+        let c = &coords[i * 3..i * 3 + 3];
+        model.push(DVec3::new(c[0].into(), c[1].into(), c[2].into()) * radius);
+        pixels.push(synthgen_core::glam::DVec2::new(
+            s.bbox.cx - 0.5 * s.bbox.side + ((i % o) as f64 + 0.5) * cell,
+            s.bbox.cy - 0.5 * s.bbox.side + ((i / o) as f64 + 0.5) * cell,
+        ));
+    }
+    let k = synthgen_core::Intrinsics {
+        width: 0,
+        height: 0,
+        fx: s.camera.fx,
+        fy: s.camera.fy,
+        cx: s.camera.cx,
+        cy: s.camera.cy,
+    };
+    let options = synthgen_core::pnp::RansacOptions {
+        inlier_px: (DENSE_INLIER_CELLS * cell).max(1.0),
+        ..Default::default()
+    };
+    match synthgen_core::pnp::ransac(&model, &pixels, &k, &options) {
+        Some(sol) => Prediction {
+            centre_m: Some(sol.pose.translation_m.as_vec3().to_array()),
+            rotation: Some((sol.pose.rotation, sol.inliers.len() as f32 / n as f32)),
+        },
+        None => {
+            let z = 0.5 * (s.camera.fx + s.camera.fy) * diameter_m / s.bbox.side.max(1.0);
+            let t = DVec3::new(
+                (s.bbox.cx - s.camera.cx) / s.camera.fx * z,
+                (s.bbox.cy - s.camera.cy) / s.camera.fy * z,
+                z,
+            );
+            Prediction {
+                centre_m: Some(t.as_vec3().to_array()),
+                rotation: Some((DMat3::IDENTITY, 0.0)),
+            }
+        }
     }
 }
 
@@ -205,10 +279,11 @@ impl PoseModel {
         seed: u64,
         device: &Device,
     ) -> Result<PoseModel> {
-        if kind == ModelKind::Rgb {
-            return Err(Error::InvalidOption(
-                "the rgb model is made by PoseModel::rgb (it needs its classes)".into(),
-            ));
+        if kind.is_rgb_only() {
+            return Err(Error::InvalidOption(format!(
+                "the {} model is made by PoseModel::rgb or rgb_dense (it needs its classes)",
+                kind.name()
+            )));
         }
         if kind.needs_rgb() && (crop_size < 2 || !crop_size.is_multiple_of(2)) {
             return Err(Error::InvalidOption(format!(
@@ -221,7 +296,7 @@ impl PoseModel {
             ModelKind::Tnet => Net::T(TNet::new(width, 0, vb)?),
             ModelKind::Rnet => Net::R(RNet::new(width, vb)?),
             ModelKind::Full => Net::F(Full::new(width, vb)?),
-            ModelKind::Rgb => unreachable!("returned above"),
+            ModelKind::Rgb | ModelKind::RgbDense => unreachable!("returned above"),
         };
         Ok(PoseModel {
             kind,
@@ -305,6 +380,43 @@ impl PoseModel {
         })
     }
 
+    /// The dense RGB model: `crop`-pixel inputs (a multiple of 8), a global feature of
+    /// `width`, one head per class (object ids; sorted and deduplicated here).
+    pub fn rgb_dense(
+        classes: &[u32],
+        width: usize,
+        crop: u32,
+        seed: u64,
+        device: &Device,
+    ) -> Result<PoseModel> {
+        let mut classes = classes.to_vec();
+        classes.sort_unstable();
+        classes.dedup();
+        if classes.is_empty() {
+            return Err(Error::InvalidOption(
+                "the rgb-dense model needs at least one object class".into(),
+            ));
+        }
+        if crop < 16 || !crop.is_multiple_of(8) {
+            return Err(Error::InvalidOption(format!(
+                "the rgb-dense model's crop size must be a multiple of 8, at least 16 (got {crop})"
+            )));
+        }
+        let varmap = VarMap::new();
+        let vb = seeded_var_builder(&varmap, seed, device);
+        let net = Net::D(DenseNet::new(crop, width, classes.len(), vb)?);
+        Ok(PoseModel {
+            kind: ModelKind::RgbDense,
+            varmap,
+            net,
+            scale: 1.0,
+            crop_size: crop,
+            translation: None,
+            classes,
+            device: device.clone(),
+        })
+    }
+
     /// Loads every variable from `checkpoint` (it must be of the same kind and size).
     pub fn load_strict(&mut self, checkpoint: &Path) -> Result<()> {
         self.varmap.load(checkpoint).map_err(|e| Error::Malformed {
@@ -377,6 +489,9 @@ impl PoseModel {
     ) -> Result<(Tensor, Vec<Prediction>)> {
         if let Net::G(net) = &self.net {
             return self.forward_rgb(net, batch, objects, predict, jitter_seed);
+        }
+        if let Net::D(net) = &self.net {
+            return self.forward_dense(net, batch, objects, predict, jitter_seed);
         }
         let clouds: Vec<&[[f32; 3]]> = batch.iter().map(|i| i.points_m.as_slice()).collect();
         let centres: Vec<[f32; 3]> = batch
@@ -489,7 +604,7 @@ impl PoseModel {
                 };
                 Ok((loss, preds))
             }
-            Net::G(_) => unreachable!("handled above"),
+            Net::G(_) | Net::D(_) => unreachable!("handled above"),
         }
     }
 
@@ -569,6 +684,119 @@ impl PoseModel {
                     centre_m: Some(t.as_vec3().to_array()),
                     rotation: Some((*ray * quaternion_rotation(q), 1.0)),
                 }
+            })
+            .collect();
+        Ok((loss, preds))
+    }
+
+    /// The dense RGB model on a batch: crops (with `jitter_seed`, jittered boxes and colours
+    /// and [`rgb_input::dense_augment`]), the targets cut from each instance's
+    /// [`rgb_input::CoordRegion`] over the same box (canonical for symmetric objects, over the
+    /// object's radius); with `predict`, poses by PnP + RANSAC on the visible cells.
+    /// Instances without targets (real frames without depth) add nothing to the loss; a
+    /// training step needs them all.
+    fn forward_dense(
+        &self,
+        net: &DenseNet,
+        batch: &[&Instance],
+        objects: Option<&Objects>,
+        predict: bool,
+        jitter_seed: Option<u64>,
+    ) -> Result<(Tensor, Vec<Prediction>)> {
+        let objects = objects.ok_or_else(|| {
+            Error::InvalidOption("the rgb-dense model needs the objects' models".into())
+        })?;
+        let out = self.crop_size / 2;
+        let cells = (out * out) as usize;
+        let mut samples = Vec::with_capacity(batch.len());
+        let mut targets = Vec::with_capacity(batch.len() * cells * 3);
+        let mut visible = Vec::with_capacity(batch.len() * cells);
+        let mut radii = Vec::with_capacity(batch.len());
+        for i in batch {
+            let what = || {
+                format!(
+                    "instance (scene {}, image {}, gt {})",
+                    i.scene_id, i.im_id, i.gt_id
+                )
+            };
+            let mut s = rgb_input::sample(i, self.crop_size, jitter_seed).ok_or_else(|| {
+                Error::InvalidOption(format!(
+                    "{} has no box region; load the data with an rgb box size",
+                    what()
+                ))
+            })?;
+            let obj = objects.get(&i.obj_id).ok_or_else(|| {
+                Error::InvalidOption(format!("no model loaded for object {}", i.obj_id))
+            })?;
+            let radius = (0.5 * obj.eval.diameter_m).max(1e-6);
+            let region = i
+                .region
+                .as_ref()
+                .ok_or_else(|| Error::InvalidOption(what()))?;
+            let mut t = match &region.target {
+                Some(t) => t.cut(&region.region, &s.bbox, out),
+                None if jitter_seed.is_some() => {
+                    return Err(Error::InvalidOption(format!(
+                        "{} has no coordinate targets: the rgb-dense model trains on frames with depth (every synthgen render has it)",
+                        what()
+                    )))
+                }
+                None => vec![[f32::NAN; 3]; cells],
+            };
+            if let Some(seed) = jitter_seed {
+                rgb_input::dense_augment(&mut s.crop, self.crop_size, &mut t, out, seed, i);
+            }
+            canonical_coords(&mut t, &i.pose, &obj.symmetries);
+            for c in &t {
+                let v = c[0].is_finite();
+                visible.push(if v { 1f32 } else { 0.0 });
+                targets.extend(c.map(|x| {
+                    if v {
+                        (f64::from(x) / radius) as f32
+                    } else {
+                        0.0
+                    }
+                }));
+            }
+            radii.push(radius);
+            samples.push(s);
+        }
+        let crops: Vec<&[u8]> = samples.iter().map(|s| s.crop.as_slice()).collect();
+        let crops = crops_nhwc(&crops, self.crop_size, &self.device)?;
+        let ids: Vec<u32> = batch.iter().map(|i| i.obj_id).collect();
+        let class = class_indices(&ids, &self.classes, &self.device)?;
+        let o = out as usize;
+        let result = net.forward(&crops, &class)?;
+        let loss = dense_loss(
+            &result,
+            &Tensor::from_vec(targets, (batch.len(), o, o, 3), &self.device)?,
+            &Tensor::from_vec(visible, (batch.len(), o, o), &self.device)?,
+        )?;
+        if !predict {
+            return Ok((loss, Vec::new()));
+        }
+        let coords: Vec<f32> = result
+            .coords
+            .to_dtype(DType::F32)?
+            .flatten_all()?
+            .to_vec1()?;
+        let logits: Vec<f32> = result
+            .logits
+            .to_dtype(DType::F32)?
+            .flatten_all()?
+            .to_vec1()?;
+        let preds = samples
+            .iter()
+            .enumerate()
+            .map(|(b, s)| {
+                dense_pose(
+                    &coords[b * cells * 3..(b + 1) * cells * 3],
+                    &logits[b * cells..(b + 1) * cells],
+                    out,
+                    radii[b],
+                    s,
+                    objects[&batch[b].obj_id].eval.diameter_m,
+                )
             })
             .collect();
         Ok((loss, preds))
@@ -869,6 +1097,214 @@ mod tests {
         // An object without a head is an error, not a silent wrong class.
         let model = PoseModel::rgb(Translation::CentreTz, &[2], 32, 16, 0, &dev).unwrap();
         assert!(model.run(&refs, Some(&objs), false).is_err());
+    }
+
+    /// A dense-model instance: an ellipsoid (semi-axes 5, 3, 2 cm: no symmetry) ray-cast into
+    /// a 200x160 image, coloured by its model coordinates, with its coordinate targets.
+    fn dense_instance(rng: &mut rand_chacha::ChaCha8Rng, im_id: u32, crop: u32) -> Instance {
+        use crate::models::rgb::Pinhole;
+        use crate::rgb_input::{BoxRegion, CoordRegion};
+        let axes = DVec3::new(0.05, 0.03, 0.02);
+        let r = DMat3::from_rotation_z(rng.gen_range(-3.0..3.0))
+            * DMat3::from_rotation_x(rng.gen_range(-1.2..1.2));
+        let t = DVec3::new(
+            rng.gen_range(-0.05..0.05),
+            rng.gen_range(-0.04..0.04),
+            rng.gen_range(0.5..0.8),
+        );
+        let pose = Pose::new(r, t);
+        let cam = Pinhole {
+            fx: 300.0,
+            fy: 300.0,
+            cx: 100.0,
+            cy: 80.0,
+        };
+        let (w, h) = (200u32, 160u32);
+        let inv = pose.inverse();
+        // The ray through pixel (x, y) meets the ellipsoid at model point p (or misses).
+        let hit = |x: usize, y: usize| -> Option<DVec3> {
+            let d = DVec3::new(
+                (x as f64 - cam.cx) / cam.fx,
+                (y as f64 - cam.cy) / cam.fy,
+                1.0,
+            );
+            let (o, d) = (
+                inv.transform_point(DVec3::ZERO) / axes,
+                (inv.rotation * d) / axes,
+            );
+            let (a, b, c) = (d.dot(d), 2.0 * o.dot(d), o.dot(o) - 1.0);
+            let disc = b * b - 4.0 * a * c;
+            (disc >= 0.0).then(|| (o + d * ((-b - disc.sqrt()) / (2.0 * a))) * axes)
+        };
+        let mut img = vec![30u8; (w * h * 3) as usize];
+        let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
+        for y in 0..h as usize {
+            for x in 0..w as usize {
+                if let Some(p) = hit(x, y) {
+                    let i = (y * w as usize + x) * 3;
+                    let c = (p / axes).to_array();
+                    for k in 0..3 {
+                        img[i + k] = (128.0 + 120.0 * c[k]) as u8;
+                    }
+                    (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
+                }
+            }
+        }
+        let bbox = [x0 as f64, y0 as f64, (x1 - x0) as f64, (y1 - y0) as f64];
+        let mut region = BoxRegion::from_image(&img, w, h, bbox, crop, cam);
+        let at = |x: usize, y: usize| hit(x, y).map_or([f32::NAN; 3], |p| p.as_vec3().to_array());
+        region.target = Some(CoordRegion::sample(
+            at,
+            w,
+            h,
+            &region.region,
+            crate::data::dense_target_res(crop),
+        ));
+        Instance {
+            scene_id: 0,
+            im_id,
+            gt_id: 0,
+            obj_id: 1,
+            points_m: vec![],
+            crop_xy: vec![],
+            crop_rgb: vec![],
+            region: Some(region),
+            pose,
+        }
+    }
+
+    fn ellipsoid_objects() -> Objects {
+        let pts: Vec<DVec3> = (0..200)
+            .map(|i| {
+                let (a, b) = (f64::from(i) * 0.7, f64::from(i) * 0.31);
+                DVec3::new(
+                    0.05 * a.cos() * b.sin(),
+                    0.03 * a.sin() * b.sin(),
+                    0.02 * b.cos(),
+                )
+            })
+            .collect();
+        BTreeMap::from([(
+            1,
+            TrainObject {
+                loss_points_m: pts.clone(),
+                symmetries: vec![Pose::IDENTITY],
+                eval: EvalObject {
+                    points_m: pts,
+                    diameter_m: 0.1,
+                    symmetric: false,
+                },
+            },
+        )])
+    }
+
+    /// The targets cut over the nominal crop, taken as a perfect network's output, give the
+    /// GT pose back through PnP: the cells, boxes and pixel centres agree.
+    #[test]
+    fn dense_targets_as_outputs_give_the_pose_back() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        for im in 0..5 {
+            let inst = dense_instance(&mut rng, im, 64);
+            let s = rgb_input::sample(&inst, 64, None).unwrap();
+            let r = inst.region.as_ref().unwrap();
+            let cells = r.target.as_ref().unwrap().cut(&r.region, &s.bbox, 32);
+            let visible = cells.iter().filter(|c| c[0].is_finite()).count();
+            assert!(visible > 150, "{visible} visible cells");
+            let radius = 0.05;
+            let coords: Vec<f32> = cells
+                .iter()
+                .flat_map(|c| {
+                    if c[0].is_finite() {
+                        c.map(|v| v / radius as f32)
+                    } else {
+                        [0.0; 3]
+                    }
+                })
+                .collect();
+            let logits: Vec<f32> = cells
+                .iter()
+                .map(|c| if c[0].is_finite() { 5.0 } else { -5.0 })
+                .collect();
+            // Each visible cell's target projects (GT pose) onto the cell's centre: no offset on
+            // average, at most a quarter of a cell (nearest of the stored cells, two per output
+            // cell) plus half a pixel (the image pixel nearest to the stored cell).
+            let cell = s.bbox.side / 32.0;
+            let (mut mean, mut worst) = (synthgen_core::glam::DVec2::ZERO, 0.0f64);
+            for (i, c) in cells.iter().enumerate().filter(|(_, c)| c[0].is_finite()) {
+                let q =
+                    inst.pose
+                        .transform_point(DVec3::new(c[0].into(), c[1].into(), c[2].into()));
+                let d = synthgen_core::glam::DVec2::new(
+                    s.camera.fx * q.x / q.z + s.camera.cx
+                        - (s.bbox.cx - 0.5 * s.bbox.side + ((i % 32) as f64 + 0.5) * cell),
+                    s.camera.fy * q.y / q.z + s.camera.cy
+                        - (s.bbox.cy - 0.5 * s.bbox.side + ((i / 32) as f64 + 0.5) * cell),
+                );
+                mean += d / visible as f64;
+                worst = worst.max(d.x.abs()).max(d.y.abs());
+            }
+            assert!(
+                mean.length() < 0.05 * cell && worst < 0.25 * cell + 0.5 + 1e-9,
+                "image {im}: offset {mean}, worst {worst:.2} px, cell {cell:.2} px"
+            );
+            let p = dense_pose(&coords, &logits, 32, radius, &s, 0.1);
+            let (rot, conf) = p.rotation.unwrap();
+            let est = Pose::new(rot, DVec3::from_array(p.centre_m.unwrap().map(f64::from)));
+            let re = crate::metrics::re_deg(&inst.pose.rotation, &est.rotation);
+            let te = (est.translation_m - inst.pose.translation_m).length();
+            // A 5 cm object over 32x32 cells with targets up to a third of a cell off: PnP's
+            // depth is the weak direction (over 16x16 cells the least-squares pose of one image
+            // was 37 mm deeper than the GT, at a lower reprojection error); the projection is good.
+            let centre = |p: &Pose| {
+                let c = p.translation_m;
+                synthgen_core::glam::DVec2::new(s.camera.fx * c.x / c.z, s.camera.fy * c.y / c.z)
+            };
+            let centre_px = centre(&est).distance(centre(&inst.pose));
+            assert!(
+                re < 5.0 && te < 0.07 * inst.pose.translation_m.z && centre_px < 1.0,
+                "image {im}: {re:.2}°, {:.1} mm, centre {centre_px:.2} px",
+                te * 1000.0
+            );
+            assert!(conf > 0.9, "inlier share {conf}");
+        }
+    }
+
+    #[test]
+    fn dense_loss_falls_predicts_poses_and_round_trips() {
+        let dev = Device::Cpu;
+        let objs = ellipsoid_objects();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let insts: Vec<Instance> = (0..8).map(|i| dense_instance(&mut rng, i, 16)).collect();
+        let refs: Vec<&Instance> = insts.iter().collect();
+        let model = PoseModel::rgb_dense(&[1], 16, 16, 0, &dev).unwrap();
+        let mut opt = adamw(&model, 3e-3);
+        let first = eval_loss(&model, &refs, &objs);
+        for step in 0..60 {
+            let l = model.run_training(&refs, Some(&objs), step).unwrap();
+            opt.backward_step(&l).unwrap();
+        }
+        let last = eval_loss(&model, &refs, &objs);
+        assert!(last < 0.6 * first, "{first} -> {last}");
+        let preds = model.predict(&refs, Some(&objs), 4).unwrap();
+        assert_eq!(preds.len(), 8);
+        for p in &preds {
+            let (r, c) = p.rotation.unwrap();
+            assert!((r.determinant() - 1.0).abs() < 1e-6);
+            assert!((0.0..=1.0).contains(&c));
+            assert!(p.centre_m.unwrap().iter().all(|v| v.is_finite()));
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("dense.safetensors");
+        model.varmap.save(&path).unwrap();
+        let mut again = PoseModel::rgb_dense(&[1], 16, 16, 9, &dev).unwrap();
+        again.load_strict(&path).unwrap();
+        assert_eq!(again.predict(&refs, Some(&objs), 4).unwrap(), preds);
+        // Training needs targets; evaluation without them (real RGB) scores no loss but predicts.
+        let mut bare = insts[0].clone();
+        bare.region.as_mut().unwrap().target = None;
+        assert!(model.run_training(&[&bare], Some(&objs), 0).is_err());
+        assert_eq!(model.predict(&[&bare], Some(&objs), 1).unwrap().len(), 1);
+        assert!(PoseModel::rgb_dense(&[1], 16, 20, 0, &dev).is_err());
     }
 
     #[test]

@@ -37,6 +37,69 @@ pub struct BoxRegion {
     /// The stored square (same centre, [`STORED_CONTEXT`] / [`CONTEXT`] × the side).
     pub region: SquareBox,
     pub camera: Pinhole,
+    /// The dense RGB model's training targets over the same square; `None` when not loaded.
+    pub target: Option<CoordRegion>,
+}
+
+/// Per-pixel targets of the dense RGB model over a box region: at `res × res` cells of the
+/// stored square, the object coordinates (metres, model frame, at the GT pose) of the
+/// instance's visible surface, NaN where the instance is not visible.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CoordRegion {
+    pub res: u32,
+    pub coords: Vec<[f32; 3]>,
+}
+
+impl CoordRegion {
+    /// Samples the region's cells from the object coordinates `at(x, y)` of image pixel
+    /// (x, y) (NaN where the instance is not visible), nearest pixel; NaN outside the image.
+    pub fn sample(
+        at: impl Fn(usize, usize) -> [f32; 3],
+        width: u32,
+        height: u32,
+        region: &SquareBox,
+        res: u32,
+    ) -> CoordRegion {
+        let [x0, y0, side, _] = edge_rect(region);
+        let step = side / f64::from(res);
+        let mut out = Vec::with_capacity((res * res) as usize);
+        for j in 0..res {
+            let y = (y0 + (f64::from(j) + 0.5) * step).floor();
+            for i in 0..res {
+                let x = (x0 + (f64::from(i) + 0.5) * step).floor();
+                let inside = x >= 0.0 && y >= 0.0 && x < f64::from(width) && y < f64::from(height);
+                out.push(if inside {
+                    at(x as usize, y as usize)
+                } else {
+                    [f32::NAN; 3]
+                });
+            }
+        }
+        CoordRegion { res, coords: out }
+    }
+
+    /// The `size × size` cells of square `b` (image pixels; `region` is the square this was
+    /// sampled over), nearest cell; NaN outside.
+    pub fn cut(&self, region: &SquareBox, b: &SquareBox, size: u32) -> Vec<[f32; 3]> {
+        let per_px = f64::from(self.res) / region.side;
+        let [rx, ry, ..] = edge_rect(region);
+        let [x0, y0, s, _] = edge_rect(b);
+        let step = s / f64::from(size);
+        let mut out = Vec::with_capacity((size * size) as usize);
+        for j in 0..size {
+            let y = ((y0 + (f64::from(j) + 0.5) * step - ry) * per_px).floor();
+            for i in 0..size {
+                let x = ((x0 + (f64::from(i) + 0.5) * step - rx) * per_px).floor();
+                let r = f64::from(self.res);
+                out.push(if x >= 0.0 && y >= 0.0 && x < r && y < r {
+                    self.coords[y as usize * self.res as usize + x as usize]
+                } else {
+                    [f32::NAN; 3]
+                });
+            }
+        }
+        out
+    }
 }
 
 /// The nominal square crop of a box `[x, y, w, h]` (BOP's `bbox_visib`: x, y the first pixel,
@@ -83,6 +146,7 @@ impl BoxRegion {
             nominal,
             region,
             camera,
+            target: None,
         }
     }
 
@@ -133,6 +197,80 @@ fn jitter_colours(crop: &mut [u8], rng: &mut ChaCha8Rng) {
             px[c] = (f64::from(px[c]) * gain[c] + offset[c])
                 .round()
                 .clamp(0.0, 255.0) as u8;
+        }
+    }
+}
+
+/// Seeds the dense model's augmentation apart from the box and colour jitter.
+const DENSE_AUGMENT_STREAM: u64 = 0x6465_6e73_6561_7567;
+
+/// What real photographs bring that the renders lack, for the dense model's training crops
+/// (`size` pixels across; `cells`: its `out × out` targets), drawn from (seed, instance):
+/// with probability 1/2 a random occluder (a rectangle 20–50 % of the side each way, one
+/// random colour with noise) hides the crop and its targets beneath (NaN: not visible); with
+/// probability 1/3 a 3×3 blur; then Gaussian-like noise of 0–6 levels (sum of three uniforms).
+pub fn dense_augment(
+    crop: &mut [u8],
+    size: u32,
+    cells: &mut [[f32; 3]],
+    out: u32,
+    seed: u64,
+    inst: &Instance,
+) {
+    let mut rng = jitter_rng(seed ^ DENSE_AUGMENT_STREAM, inst);
+    let s = size as usize;
+    if rng.gen_bool(0.5) {
+        let w = rng.gen_range(0.2..=0.5);
+        let h = rng.gen_range(0.2..=0.5);
+        let x0 = rng.gen_range(0.0..=1.0 - w);
+        let y0 = rng.gen_range(0.0..=1.0 - h);
+        let colour: [f64; 3] = std::array::from_fn(|_| rng.gen_range(0.0..=255.0));
+        let inside = |x: f64, y: f64| x >= x0 && x < x0 + w && y >= y0 && y < y0 + h;
+        for (i, px) in crop.chunks_exact_mut(3).enumerate() {
+            let (x, y) = (
+                ((i % s) as f64 + 0.5) / s as f64,
+                ((i / s) as f64 + 0.5) / s as f64,
+            );
+            if inside(x, y) {
+                for c in 0..3 {
+                    px[c] = (colour[c] + rng.gen_range(-12.0..=12.0)).clamp(0.0, 255.0) as u8;
+                }
+            }
+        }
+        let o = out as usize;
+        for (i, c) in cells.iter_mut().enumerate() {
+            let (x, y) = (
+                ((i % o) as f64 + 0.5) / o as f64,
+                ((i / o) as f64 + 0.5) / o as f64,
+            );
+            if inside(x, y) {
+                *c = [f32::NAN; 3];
+            }
+        }
+    }
+    if rng.gen_bool(1.0 / 3.0) {
+        let src = crop.to_vec();
+        for y in 0..s {
+            for x in 0..s {
+                for c in 0..3 {
+                    let mut sum = 0u32;
+                    let mut n = 0u32;
+                    for yy in y.saturating_sub(1)..=(y + 1).min(s - 1) {
+                        for xx in x.saturating_sub(1)..=(x + 1).min(s - 1) {
+                            sum += u32::from(src[(yy * s + xx) * 3 + c]);
+                            n += 1;
+                        }
+                    }
+                    crop[(y * s + x) * 3 + c] = ((sum + n / 2) / n) as u8;
+                }
+            }
+        }
+    }
+    let sigma = rng.gen_range(0.0..=6.0);
+    if sigma > 0.5 {
+        for v in crop.iter_mut() {
+            let e: f64 = (0..3).map(|_| rng.gen_range(-1.0..=1.0)).sum::<f64>() * sigma;
+            *v = (f64::from(*v) + e).round().clamp(0.0, 255.0) as u8;
         }
     }
 }

@@ -119,6 +119,14 @@ impl TrainConfig {
                 self.crop_size
             ));
         }
+        if self.model == ModelKind::RgbDense
+            && (self.crop_size < 16 || !self.crop_size.is_multiple_of(8))
+        {
+            return bad(format!(
+                "--crop-size {} does not suit the rgb-dense model (a multiple of 8, at least 16)",
+                self.crop_size
+            ));
+        }
         if !(self.normalization_scale.is_finite() && self.normalization_scale > 0.0) {
             return bad(format!(
                 "the normalization scale must be positive, got {}",
@@ -131,7 +139,7 @@ impl TrainConfig {
     /// How the run's model loads a dataset's instances (points and RNet crops, or the RGB
     /// model's box regions without depth), with its seed, split and visibility threshold.
     pub fn data_options(&self) -> DataOptions {
-        let rgb = self.model == ModelKind::Rgb;
+        let rgb = self.model.is_rgb_only();
         DataOptions {
             n_points: self.n_points,
             min_visib_fract: self.min_visib_fract,
@@ -139,6 +147,7 @@ impl TrainConfig {
             split: (!self.split.is_empty()).then(|| self.split.clone()),
             crop_size: if rgb { 0 } else { self.crop_size },
             rgb_box: if rgb { self.crop_size } else { 0 },
+            dense_targets: self.model == ModelKind::RgbDense,
             depth_points: self.model.needs_depth(),
             ..DataOptions::default()
         }
@@ -248,6 +257,9 @@ pub fn new_model(cfg: &TrainConfig, device: &Device) -> Result<PoseModel> {
             device,
         );
     }
+    if cfg.model == ModelKind::RgbDense {
+        return PoseModel::rgb_dense(&cfg.classes, cfg.width, cfg.crop_size, cfg.seed, device);
+    }
     if cfg.model == ModelKind::Tnet && !cfg.classes.is_empty() {
         return PoseModel::tnet_per_object(
             cfg.width,
@@ -351,14 +363,15 @@ pub fn train(
         )));
     }
     cfg.validate()?;
-    if cfg.model == ModelKind::Rgb {
+    if cfg.model.is_rgb_only() {
         if let Some(id) = data
             .obj_ids()
             .into_iter()
             .find(|id| !cfg.classes.contains(id))
         {
             return Err(Error::InvalidOption(format!(
-                "object {id} of the training data is not one of the rgb model's classes {:?}",
+                "object {id} of the training data is not one of the {} model's classes {:?}",
+                cfg.model.name(),
                 cfg.classes
             )));
         }
@@ -533,7 +546,8 @@ pub fn validate(
             / n
     });
     let (mut add_s_acc, mut mean_re_deg, mut acc_5cm5deg) = (None, None, None);
-    if let (ModelKind::Rnet | ModelKind::Full | ModelKind::Rgb, Some(objs)) = (model.kind, objects)
+    if let (ModelKind::Rnet | ModelKind::Full | ModelKind::Rgb | ModelKind::RgbDense, Some(objs)) =
+        (model.kind, objects)
     {
         let scored: Vec<(bool, f64, bool)> = preds
             .par_iter()
@@ -547,7 +561,7 @@ pub fn validate(
             .collect();
         add_s_acc = Some(scored.iter().filter(|s| s.0).count() as f64 / n);
         mean_re_deg = Some(scored.iter().map(|s| s.1).sum::<f64>() / n);
-        if model.kind == ModelKind::Rgb {
+        if model.kind.is_rgb_only() {
             acc_5cm5deg = Some(scored.iter().filter(|s| s.2).count() as f64 / n);
         }
     }

@@ -26,6 +26,9 @@ pub enum TrainModelArg {
     /// A whole pose from the colour crop of a box, no depth (seed 001): Tz and the centre
     /// inside the box, or XYZ directly (--translation), and a quaternion.
     Rgb,
+    /// Per pixel of a box's colour crop the visibility and the 3D object coordinates, then
+    /// the pose by PnP + RANSAC; no depth (trains on frames with depth: the targets).
+    RgbDense,
 }
 
 /// How the RGB model regresses the translation.

@@ -141,7 +141,12 @@ fn run_checkpoint(args: &EvalArgs, ckpt: &Path, printer: &Printer) -> Result<Exi
         ));
     }
     let cfg = read_config(&config_path)?;
-    if args.save_results.is_some() && !matches!(cfg.model, ModelKind::Full | ModelKind::Rgb) {
+    if args.save_results.is_some()
+        && !matches!(
+            cfg.model,
+            ModelKind::Full | ModelKind::Rgb | ModelKind::RgbDense
+        )
+    {
         return Err(user_error(
             format!(
                 "--save-results needs whole poses, and a {} checkpoint predicts {} only",
@@ -166,14 +171,15 @@ fn run_checkpoint(args: &EvalArgs, ckpt: &Path, printer: &Printer) -> Result<Exi
     let ds = open_dataset(&args.data)?;
     let mut set = load_source_instances(ds.as_ref(), &opts, printer)
         .with_context(|| format!("cannot load {}", args.data.display()))?;
-    if cfg.model == ModelKind::Rgb {
+    if cfg.model.is_rgb_only() {
         // One head per trained object: others get no estimate (and so count as misses).
         let before = set.instances.len();
         set.instances.retain(|i| cfg.classes.contains(&i.obj_id));
         if set.instances.len() < before {
             printer.warning(format!(
-                "{} instances of objects the rgb model was not trained on (its classes: {:?}) get no estimate",
+                "{} instances of objects the {} model was not trained on (its classes: {:?}) get no estimate",
                 before - set.instances.len(),
+                cfg.model.name(),
                 cfg.classes
             ));
         }
@@ -181,21 +187,24 @@ fn run_checkpoint(args: &EvalArgs, ckpt: &Path, printer: &Printer) -> Result<Exi
     if set.instances.is_empty() {
         return Err(user_error(
             format!("no usable object instances in {}", args.data.display()),
-            if cfg.model == ModelKind::Rgb {
+            if cfg.model.is_rgb_only() {
                 "check that the dataset has rgb/ and mask_visib/ images of the model's objects"
             } else {
                 "check that the dataset has depth/ and mask_visib/ images"
             },
         ));
     }
-    let objects = if !cfg.model.predicts_rotation() {
-        None
+    // The models of every object with GT in the split: those the model has no class for are
+    // scored as misses.
+    let (objects, gts) = if !cfg.model.predicts_rotation() {
+        (None, Vec::new())
     } else {
-        Some(
-            load_dataset_objects(ds.as_ref(), set.obj_ids(), cfg.loss_points).with_context(
-                || format!("cannot load the object models of {}", args.data.display()),
-            )?,
-        )
+        let gts = read_gt(ds.as_ref(), &set.split, args.min_visib_fract)?;
+        let mut ids = set.obj_ids();
+        ids.extend(gts.iter().map(|g| g.obj_id));
+        let objects = load_dataset_objects(ds.as_ref(), ids, cfg.loss_points)
+            .with_context(|| format!("cannot load the object models of {}", args.data.display()))?;
+        (Some(objects), gts)
     };
     let refs: Vec<_> = set.instances.iter().collect();
     let preds = model.predict(&refs, objects.as_ref(), 64)?;
@@ -215,10 +224,11 @@ fn run_checkpoint(args: &EvalArgs, ckpt: &Path, printer: &Printer) -> Result<Exi
         set.split,
         set.skipped_few_pixels
     ));
-    if cfg.model == ModelKind::Rgb {
-        printer.info(
-            "rgb: each instance's crop is cut around its GT visible box (bbox_visib; no detector)",
-        );
+    if cfg.model.is_rgb_only() {
+        printer.info(format!(
+            "{}: each instance's crop is cut around its GT visible box (bbox_visib; no detector)",
+            cfg.model.name()
+        ));
     }
     if cfg.model == ModelKind::Rnet {
         printer.warning(
@@ -269,7 +279,6 @@ fn run_checkpoint(args: &EvalArgs, ckpt: &Path, printer: &Printer) -> Result<Exi
     let Some(objects) = objects else {
         return Err(anyhow::anyhow!("internal: objects not loaded"));
     };
-    let gts = read_gt(ds.as_ref(), &set.split, args.min_visib_fract)?;
     let report = score_predictions(
         &preds,
         &set.instances,

@@ -87,6 +87,7 @@ pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
         TrainModelArg::Rnet => ModelKind::Rnet,
         TrainModelArg::Full => ModelKind::Full,
         TrainModelArg::Rgb => ModelKind::Rgb,
+        TrainModelArg::RgbDense => ModelKind::RgbDense,
     };
     for ckpt in &args.init {
         if !ckpt.is_file() {
@@ -152,7 +153,7 @@ pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
             split: args.split.clone().unwrap_or_default(),
             crop_size: match model {
                 ModelKind::Tnet => 0,
-                ModelKind::Rgb => args.crop_size.unwrap_or(DEFAULT_RGB_CROP),
+                ModelKind::Rgb | ModelKind::RgbDense => args.crop_size.unwrap_or(DEFAULT_RGB_CROP),
                 _ => args.crop_size.unwrap_or(DEFAULT_CROP),
             },
             loss_points: args.loss_points,
@@ -178,7 +179,7 @@ pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
         ));
     }
     if cfg.model.needs_rgb()
-        && cfg.model != ModelKind::Rgb
+        && !cfg.model.is_rgb_only()
         && (cfg.crop_size < 2 || cfg.crop_size % 2 != 0)
     {
         return Err(user_error(
@@ -186,7 +187,11 @@ pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
             "e.g. --crop-size 48",
         ));
     }
-    if matches!(cfg.model, ModelKind::Full | ModelKind::Rgb) && cfg.loss_points == 0 {
+    if matches!(
+        cfg.model,
+        ModelKind::Full | ModelKind::Rgb | ModelKind::RgbDense
+    ) && cfg.loss_points == 0
+    {
         return Err(user_error(
             "--loss-points must be positive",
             "e.g. --loss-points 100",
@@ -229,7 +234,7 @@ pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
         ));
     }
     let wants_classes =
-        cfg.model == ModelKind::Rgb || (cfg.model == ModelKind::Tnet && args.per_object);
+        cfg.model.is_rgb_only() || (cfg.model == ModelKind::Tnet && args.per_object);
     let classes = if wants_classes && cfg.classes.is_empty() {
         set.obj_ids().into_iter().collect()
     } else {

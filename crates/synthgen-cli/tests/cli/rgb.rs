@@ -389,3 +389,72 @@ fn experiment_rgb_refuses_to_resume_when_its_data_changed() {
         .unwrap();
     refused(&exp(&[]), &["--train dataset", "changed", "then", "now"]);
 }
+
+/// `train --model rgb-dense` and its evaluation, on renders and on the real Linemod-Occluded
+/// photographs of `../shared/data/lmo`, which have neither depth nor visible masks: the model
+/// reads only the colour inside `bbox_visib`, and the BOP scores leave VSD out.
+#[test]
+fn rgb_dense_trains_and_evaluates_on_real_lmo_without_masks_or_depth() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = two_class_set(dir.path(), "set", "6", "3");
+    let out = dir.path().join("dense");
+    let o = run(synthgen()
+        .args(["train", "-q", "--model", "rgb-dense", "--data"])
+        .arg(&data)
+        .args([
+            "--crop-size",
+            "16",
+            "--epochs",
+            "1",
+            "--batch",
+            "4",
+            "--width",
+            "16",
+            "--seed",
+            "1",
+            "--val-fraction",
+            "0.25",
+            "--out",
+        ])
+        .arg(&out));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let cfg = json_file(&out.join("config.json"));
+    assert_eq!(cfg["model"], "rgb-dense");
+    assert_eq!(cfg["classes"], serde_json::json!([8, 9]));
+    // The driller is object 8 of Linemod-Occluded, and the duck 9: the model's two classes.
+    let lmo = crate::common::shared_data().join("lmo");
+    let json = dir.path().join("lmo.json");
+    let o = run(synthgen()
+        .args(["eval", "--checkpoint"])
+        .arg(out.join("model.safetensors"))
+        .arg("--data")
+        .arg(&lmo)
+        .args(["--bop", "--json"])
+        .arg(&json));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(err.contains("bbox_visib; no detector"), "{err}");
+    assert!(err.contains("VSD needs depth images"), "{err}");
+    let report = json_file(&json);
+    let bop = &report["bop"];
+    // Every GT instance of objects 8 and 9 in the 82 photographs got an estimate.
+    let n: u64 = ["8", "9"]
+        .iter()
+        .map(|o| report[o]["n_est"].as_u64().unwrap_or(0))
+        .sum();
+    assert!(n >= 150, "{n} estimates: {report}");
+    assert!(bop["mspd"]["mean_recall"].as_f64().is_some(), "{bop}");
+    assert!(bop["vsd"].is_null() && bop["ar"].is_null(), "{bop}");
+    // A frame set with neither depth nor masks cannot be trained on: no targets.
+    let o = run(synthgen()
+        .args(["train", "-q", "--model", "rgb-dense", "--data"])
+        .arg(&lmo)
+        .args(["--crop-size", "16", "--epochs", "1", "--out"])
+        .arg(dir.path().join("refused")));
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("no coordinate targets"),
+        "{}",
+        stderr(&o)
+    );
+}

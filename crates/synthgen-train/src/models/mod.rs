@@ -6,6 +6,7 @@ pub mod full;
 pub mod fused;
 pub mod im2col;
 pub mod rgb;
+pub mod rgb_dense;
 pub mod rnet;
 pub mod tnet;
 
@@ -23,6 +24,10 @@ pub enum ModelKind {
     Full,
     /// A whole pose from the colour crop of a box, no depth (seed 001).
     Rgb,
+    /// Per-pixel visibility and object coordinates from the colour crop of a box, the pose
+    /// by PnP + RANSAC; no depth.
+    #[serde(rename = "rgb-dense")]
+    RgbDense,
 }
 
 impl ModelKind {
@@ -32,6 +37,7 @@ impl ModelKind {
             ModelKind::Rnet => "rnet",
             ModelKind::Full => "full",
             ModelKind::Rgb => "rgb",
+            ModelKind::RgbDense => "rgb-dense",
         }
     }
 
@@ -40,9 +46,14 @@ impl ModelKind {
         self != ModelKind::Tnet
     }
 
-    /// Whether the model reads depth (the sampled points): all but the RGB model.
+    /// Whether the model reads depth (the sampled points): all but the RGB models.
     pub fn needs_depth(self) -> bool {
-        self != ModelKind::Rgb
+        !self.is_rgb_only()
+    }
+
+    /// The RGB models: a whole pose from a box's colour crop, no depth.
+    pub fn is_rgb_only(self) -> bool {
+        matches!(self, ModelKind::Rgb | ModelKind::RgbDense)
     }
 
     /// Whether the model predicts a rotation (and so needs the objects' models to train).

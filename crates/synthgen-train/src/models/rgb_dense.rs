@@ -1,0 +1,306 @@
+//! The dense RGB model: per pixel of a box's colour crop, whether the object is visible there
+//! and which point of the object it is (its 3D object coordinates), then the pose by PnP +
+//! RANSAC and a non-linear refinement ([`synthgen_core::pnp`]), as correspondence methods do
+//! (Brachmann et al. 2014 on Linemod-Occluded, CDPN, GDR-Net).
+//!
+//! The network is a small encoder–decoder over the NHWC crop: three 3×3 stride-2 convolutions
+//! (3→32→64→128) and a 3×3 one at 1/8 (128), then twice a nearest-neighbour ×2 upsampling,
+//! concatenated with the encoder's map of that size (skip connection) and a 3×3 convolution
+//! (→64), so the output is half the crop's side; a 1×1 head gives, per class (the detector's
+//! class), 4 channels: the coordinates divided by the object's radius (half its diameter:
+//! O(1) for every object) and the visibility logit. A cell's convolutions see ~30 px of the
+//! crop, less than the object; which side of the object a cell shows is a property of the
+//! whole view, so a **global feature** (the 1/8 map flattened through a fully connected layer
+//! of `width`, as the direct RGB model's) is added, through its own projection, to each
+//! decoder layer's every cell. All convolutions are `im2col` + a fused dense layer (see
+//! [`super::im2col`]).
+//!
+//! Loss: the mean L1 distance of the coordinates over the visible cells, plus the binary
+//! cross-entropy of the visibility over all cells. A symmetric object's target is the
+//! coordinates under the one of its equivalent GT poses whose rotation is closest to the
+//! identity (largest trace): a function of the pose that every equivalent pose shares, so
+//! views that look alike get one target (as Pitteri et al.'s canonical poses).
+
+use candle_core::{Result, Tensor, D};
+use candle_nn::VarBuilder;
+use synthgen_core::glam::DVec3;
+use synthgen_core::Pose;
+
+use super::dense::{dense, dense_no_bias, Dense};
+use super::im2col::{im2col, Window};
+
+/// Encoder channels (three stride-2 layers) and the 1/8 layer's.
+const ENC: [usize; 3] = [32, 64, 128];
+const MID: usize = 128;
+/// Decoder channels after each upsampling.
+const DEC: usize = 64;
+/// Outputs per class: x, y, z (over the radius) and the visibility logit.
+pub const DENSE_OUT: usize = 4;
+const DOWN: Window = Window {
+    k: 3,
+    stride: 2,
+    pad: 1,
+};
+const SAME: Window = Window {
+    k: 3,
+    stride: 1,
+    pad: 1,
+};
+
+/// The network.
+pub struct DenseNet {
+    enc: Vec<Dense>,
+    mid: Dense,
+    global: Dense,
+    global2: Dense,
+    global1: Dense,
+    dec2: Dense,
+    dec1: Dense,
+    head: Dense,
+    classes: usize,
+}
+
+/// Its output for a batch: coordinates over the radius (B, S, S, 3) and visibility logits
+/// (B, S, S), S = crop / 2.
+pub struct DenseOut {
+    pub coords: Tensor,
+    pub logits: Tensor,
+}
+
+/// A 3×3 convolution of an NHWC map, ReLU.
+fn conv(layer: &Dense, x: &Tensor, win: Window) -> Result<Tensor> {
+    let (b, h, w, _) = x.dims4()?;
+    let y = layer.forward_relu(&im2col(x, win)?)?;
+    y.reshape((b, win.out(h), win.out(w), y.dim(1)?))
+}
+
+/// Nearest-neighbour ×2 upsampling of an NHWC map.
+fn upsample2(x: &Tensor) -> Result<Tensor> {
+    let (b, h, w, c) = x.dims4()?;
+    x.reshape((b, h, 1, w, 1, c))?
+        .broadcast_as((b, h, 2, w, 2, c))?
+        .contiguous()?
+        .reshape((b, 2 * h, 2 * w, c))
+}
+
+impl DenseNet {
+    /// For `crop`-pixel inputs (a multiple of 8), a global feature of `width` and `classes`
+    /// heads.
+    pub fn new(crop: u32, width: usize, classes: usize, vb: VarBuilder) -> Result<DenseNet> {
+        if classes == 0 {
+            candle_core::bail!("the rgb-dense model needs at least one object class");
+        }
+        if crop < 16 || !crop.is_multiple_of(8) {
+            candle_core::bail!(
+                "the rgb-dense model's crop must be a multiple of 8, at least 16 (got {crop})"
+            );
+        }
+        let mut enc = Vec::with_capacity(ENC.len());
+        let mut c_in = 3;
+        for (i, &c) in ENC.iter().enumerate() {
+            enc.push(dense(9 * c_in, c, vb.pp(format!("enc{}", i + 1)))?);
+            c_in = c;
+        }
+        let side = crop as usize / 8;
+        Ok(DenseNet {
+            enc,
+            mid: dense(9 * ENC[2], MID, vb.pp("mid"))?,
+            global: dense(side * side * MID, width, vb.pp("global"))?,
+            global2: dense_no_bias(width, DEC, vb.pp("global2"))?,
+            global1: dense_no_bias(width, DEC, vb.pp("global1"))?,
+            dec2: dense(9 * (MID + ENC[1]), DEC, vb.pp("dec2"))?,
+            dec1: dense(9 * (DEC + ENC[0]), DEC, vb.pp("dec1"))?,
+            head: dense(DEC, classes * DENSE_OUT, vb.pp("head"))?,
+            classes,
+        })
+    }
+
+    /// `crops`: (B, S, S, 3) normalized colours; `class`: (B,) u32 head indices.
+    pub fn forward(&self, crops: &Tensor, class: &Tensor) -> Result<DenseOut> {
+        let e1 = conv(&self.enc[0], crops, DOWN)?;
+        let e2 = conv(&self.enc[1], &e1, DOWN)?;
+        let e3 = conv(&self.enc[2], &e2, DOWN)?;
+        let m = conv(&self.mid, &e3, SAME)?;
+        let b = m.dim(0)?;
+        let g = self
+            .global
+            .forward_relu(&m.flatten_from(1)?.contiguous()?)?;
+        let with_global = |layer: &Dense, proj: &Dense, x: &Tensor| -> Result<Tensor> {
+            let (_, h, w, _) = x.dims4()?;
+            let extra = candle_core::Module::forward(proj, &g)?;
+            let y = layer.forward_relu_grouped(&im2col(x, SAME)?, Some(&extra))?;
+            y.reshape((b, h, w, y.dim(1)?))
+        };
+        let d2 = with_global(
+            &self.dec2,
+            &self.global2,
+            &Tensor::cat(&[&upsample2(&m)?, &e2], 3)?,
+        )?;
+        let d1 = with_global(
+            &self.dec1,
+            &self.global1,
+            &Tensor::cat(&[&upsample2(&d2)?, &e1], 3)?,
+        )?;
+        let (b, s, _, c) = d1.dims4()?;
+        let out = candle_core::Module::forward(&self.head, &d1.reshape((b * s * s, c))?)?
+            .reshape((b, s * s, self.classes, DENSE_OUT))?;
+        let idx = class
+            .reshape((b, 1, 1, 1))?
+            .broadcast_as((b, s * s, 1, DENSE_OUT))?
+            .contiguous()?;
+        let out = out.gather(&idx, 2)?.reshape((b, s, s, DENSE_OUT))?;
+        Ok(DenseOut {
+            coords: out.narrow(3, 0, 3)?,
+            logits: out.narrow(3, 3, 1)?.squeeze(3)?,
+        })
+    }
+}
+
+/// The loss of a batch: `targets` (B, S, S, 3) coordinates over the radius and `visible`
+/// (B, S, S) 0/1. Mean L1 over the visible cells (summed over x, y, z) plus the mean binary
+/// cross-entropy of the visibility logits.
+pub fn dense_loss(out: &DenseOut, targets: &Tensor, visible: &Tensor) -> Result<Tensor> {
+    let n_visible = visible.sum_all()?.to_scalar::<f32>()?.max(1.0);
+    let l1 = (&out.coords - targets)?
+        .abs()?
+        .sum(D::Minus1)?
+        .mul(visible)?
+        .sum_all()?
+        .affine(1.0 / f64::from(n_visible), 0.0)?;
+    // BCE with logits, stable: max(x, 0) − x·y + log(1 + exp(−|x|)).
+    let x = &out.logits;
+    let bce = ((x.relu()? - x.mul(visible)?)? + x.abs()?.neg()?.exp()?.affine(1.0, 1.0)?.log()?)?
+        .mean_all()?;
+    l1 + bce
+}
+
+/// The target coordinates of one instance (metres, model frame, NaN where not visible) for
+/// the canonical one of its equivalent poses: the symmetry `S` of `symmetries` (identity
+/// among them) whose pose `gt · S` has the largest rotation trace, each point mapped by S⁻¹.
+pub fn canonical_coords(coords: &mut [[f32; 3]], gt: &Pose, symmetries: &[Pose]) {
+    let best = symmetries.iter().max_by(|a, b| {
+        let ta = trace(&(gt.rotation * a.rotation));
+        let tb = trace(&(gt.rotation * b.rotation));
+        ta.total_cmp(&tb)
+    });
+    let Some(s) = best else { return };
+    if *s == Pose::IDENTITY {
+        return;
+    }
+    let inv = s.inverse();
+    for c in coords.iter_mut().filter(|c| c[0].is_finite()) {
+        let p = inv.transform_point(DVec3::new(c[0].into(), c[1].into(), c[2].into()));
+        *c = p.as_vec3().to_array();
+    }
+}
+
+fn trace(m: &synthgen_core::glam::DMat3) -> f64 {
+    m.x_axis.x + m.y_axis.y + m.z_axis.z
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+    use candle_core::{DType, Device};
+    use candle_nn::VarMap;
+    use synthgen_core::glam::DMat3;
+
+    #[test]
+    fn upsampling_repeats_each_pixel_twice_each_way() {
+        let dev = Device::Cpu;
+        let x = Tensor::arange(0f32, 8.0, &dev)
+            .unwrap()
+            .reshape((1, 2, 2, 2))
+            .unwrap();
+        let y: Vec<Vec<Vec<f32>>> = upsample2(&x)
+            .unwrap()
+            .squeeze(0)
+            .unwrap()
+            .to_vec3()
+            .unwrap();
+        assert_eq!(y.len(), 4);
+        assert_eq!(y[0][0], vec![0.0, 1.0]);
+        assert_eq!(y[1][1], vec![0.0, 1.0]);
+        assert_eq!(y[0][2], vec![2.0, 3.0]);
+        assert_eq!(y[3][3], vec![6.0, 7.0]);
+        assert_eq!(y[2][1], vec![4.0, 5.0]);
+    }
+
+    #[test]
+    fn shapes_and_the_class_picks_its_head() {
+        let dev = Device::Cpu;
+        let vm = VarMap::new();
+        let net = DenseNet::new(16, 8, 3, VarBuilder::from_varmap(&vm, DType::F32, &dev)).unwrap();
+        let crops = Tensor::randn(0f32, 1.0, (2, 16, 16, 3), &dev).unwrap();
+        let a = net
+            .forward(&crops, &Tensor::new(&[0u32, 0], &dev).unwrap())
+            .unwrap();
+        let b = net
+            .forward(&crops, &Tensor::new(&[0u32, 2], &dev).unwrap())
+            .unwrap();
+        assert_eq!(a.coords.dims(), [2, 8, 8, 3]);
+        assert_eq!(a.logits.dims(), [2, 8, 8]);
+        let row = |t: &Tensor, i: usize| {
+            t.get(i)
+                .unwrap()
+                .flatten_all()
+                .unwrap()
+                .to_vec1::<f32>()
+                .unwrap()
+        };
+        assert_eq!(row(&a.coords, 0), row(&b.coords, 0));
+        assert_ne!(row(&a.coords, 1), row(&b.coords, 1));
+        assert!(DenseNet::new(20, 8, 1, VarBuilder::from_varmap(&vm, DType::F32, &dev)).is_err());
+    }
+
+    #[test]
+    fn the_loss_is_zero_only_at_the_target_and_visibility() {
+        let dev = Device::Cpu;
+        let t = Tensor::new(&[[[[0.5f32, -0.5, 0.0], [0.1, 0.2, 0.3]]]], &dev).unwrap();
+        let vis = Tensor::new(&[[[1f32, 0.0]]], &dev).unwrap();
+        let at = |coords: &Tensor, logits: [f32; 2]| {
+            let out = DenseOut {
+                coords: coords.clone(),
+                logits: Tensor::new(&[[logits]], &dev).unwrap(),
+            };
+            dense_loss(&out, &t, &vis)
+                .unwrap()
+                .to_scalar::<f32>()
+                .unwrap()
+        };
+        // The invisible cell's coordinates do not count; confident, right visibility ~ 0.
+        let other = Tensor::new(&[[[[0.5f32, -0.5, 0.0], [9.0, 9.0, 9.0]]]], &dev).unwrap();
+        assert!(at(&other, [30.0, -30.0]) < 1e-6);
+        // L1 over the visible cell: |0.1| + |0.2| off.
+        let off = Tensor::new(&[[[[0.6f32, -0.3, 0.0], [0.0, 0.0, 0.0]]]], &dev).unwrap();
+        assert!((at(&off, [30.0, -30.0]) - 0.3).abs() < 1e-5);
+        // Wrong visibility: BCE of a logit of 0 is ln 2 per cell.
+        assert!((at(&t, [0.0, 0.0]) - std::f32::consts::LN_2).abs() < 1e-5);
+    }
+
+    #[test]
+    fn equivalent_poses_get_one_target() {
+        // A 180° symmetry about the model's z axis.
+        let flip = Pose::new(DMat3::from_rotation_z(std::f64::consts::PI), DVec3::ZERO);
+        let syms = [Pose::IDENTITY, flip];
+        let gt = Pose::new(
+            DMat3::from_rotation_x(0.3) * DMat3::from_rotation_z(2.5),
+            DVec3::new(0.0, 0.0, 0.8),
+        );
+        let gt_flipped = Pose::new(gt.rotation * flip.rotation, gt.translation_m);
+        // The same camera point seen under both poses has model coordinates p and flip⁻¹ p.
+        let p = DVec3::new(0.03, -0.01, 0.02);
+        let mut a = [p.as_vec3().to_array()];
+        let mut b = [flip.inverse().transform_point(p).as_vec3().to_array()];
+        canonical_coords(&mut a, &gt, &syms);
+        canonical_coords(&mut b, &gt_flipped, &syms);
+        for k in 0..3 {
+            assert!((a[0][k] - b[0][k]).abs() < 1e-6, "{a:?} {b:?}");
+        }
+        // NaN (not visible) stays NaN.
+        let mut n = [[f32::NAN; 3]];
+        canonical_coords(&mut n, &gt, &syms);
+        assert!(n[0][0].is_nan());
+    }
+}
