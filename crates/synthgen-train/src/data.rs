@@ -19,6 +19,7 @@ use synthgen_dataset::source::{open_source, FrameSource, SourceFrame};
 use crate::error::{Error, Result};
 use crate::eval::pick_split;
 use crate::models::rgb::Pinhole;
+use crate::models::rgb_dense::dense_out;
 use crate::rgb_input::{BoxRegion, CoordRegion, CONTEXT, STORED_CONTEXT};
 
 /// How instances are made.
@@ -181,10 +182,10 @@ pub(crate) fn crop_resize(
 }
 
 /// Cells across the stored region of the dense targets for an `rgb_box`-pixel crop: two
-/// per output cell of the model (`rgb_box / 2` across the nominal crop), so that cutting a
+/// per output cell of the model ([`dense_out`] across the nominal crop), so that cutting a
 /// jittered crop from them moves a target by at most a quarter of an output cell.
 pub fn dense_target_res(rgb_box: u32) -> u32 {
-    2 * (f64::from(rgb_box / 2) * STORED_CONTEXT / CONTEXT).ceil() as u32
+    2 * (f64::from(dense_out(rgb_box)) * STORED_CONTEXT / CONTEXT).ceil() as u32
 }
 
 /// A sampled pixel: u, v and its index in the image.

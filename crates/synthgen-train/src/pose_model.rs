@@ -26,7 +26,7 @@ use crate::models::rgb::{
     box_geometry, canonical_sign, class_indices, crops_nhwc, quaternion_rotation, ray_rotation,
     RgbNet, Translation, TARGET_SCALE,
 };
-use crate::models::rgb_dense::{canonical_coords, dense_loss, DenseNet};
+use crate::models::rgb_dense::{canonical_coords, dense_loss, dense_out, DenseNet};
 use crate::models::rnet::{crops_tensor, pixel_indices, RNet, RotationOut, CONFIDENCE_WEIGHT};
 use crate::models::tnet::{centres_from_offsets, make_batch, offset_l1_loss, TNet};
 use crate::models::ModelKind;
@@ -148,13 +148,16 @@ pub const DENSE_VISIBLE: f32 = 0.5;
 /// RANSAC's inlier threshold for the dense model, in output cells (scaled to pixels by the
 /// box: a cell spans side / out pixels).
 pub const DENSE_INLIER_CELLS: f64 = 1.5;
+/// The dense model's rotation-head loss weight (its point loss in decimetres) against the
+/// coordinate and visibility losses.
+pub const DENSE_ROTATION_WEIGHT: f64 = 1.0;
 
 /// The pose of one instance from the dense model's output (`out × out` cells of coordinates
 /// over `radius` and visibility logits) over the crop of `s`: every cell more likely visible
 /// than not is a correspondence (the 6 most likely when fewer), PnP + RANSAC (seeded,
 /// deterministic) and refinement. The confidence is the inlier share of the cells. When PnP
-/// finds no pose, the box's ray at the depth where the object's diameter spans the box, with
-/// the identity rotation and confidence 0.
+/// finds no pose, the rotation head's `head` rotation on the box's ray at the depth where
+/// the object's diameter spans the box, with confidence 0.
 fn dense_pose(
     coords: &[f32],
     logits: &[f32],
@@ -162,6 +165,7 @@ fn dense_pose(
     radius: f64,
     s: &rgb_input::RgbSample,
     diameter_m: f64,
+    head: DMat3,
 ) -> Prediction {
     let o = out as usize;
     let cell = s.bbox.side / f64::from(out);
@@ -209,7 +213,7 @@ fn dense_pose(
             );
             Prediction {
                 centre_m: Some(t.as_vec3().to_array()),
-                rotation: Some((DMat3::IDENTITY, 0.0)),
+                rotation: Some((head, 0.0)),
             }
         }
     }
@@ -706,7 +710,7 @@ impl PoseModel {
         let objects = objects.ok_or_else(|| {
             Error::InvalidOption("the rgb-dense model needs the objects' models".into())
         })?;
-        let out = self.crop_size / 2;
+        let out = dense_out(self.crop_size);
         let cells = (out * out) as usize;
         let mut samples = Vec::with_capacity(batch.len());
         let mut targets = Vec::with_capacity(batch.len() * cells * 3);
@@ -767,14 +771,27 @@ impl PoseModel {
         let class = class_indices(&ids, &self.classes, &self.device)?;
         let o = out as usize;
         let result = net.forward(&crops, &class)?;
-        let loss = dense_loss(
+        // The rotation head's target: the GT's allocentric rotation, as the RGB model's.
+        let rays: Vec<DMat3> = samples
+            .iter()
+            .map(|s| ray_rotation(&s.bbox, &s.camera))
+            .collect();
+        let allo: Vec<Pose> = batch
+            .iter()
+            .zip(&rays)
+            .map(|(i, ray)| Pose::new(ray.transpose() * i.pose.rotation, DVec3::ZERO))
+            .collect();
+        let (model_pts, r_target) = self.posed_targets(batch, &allo, TARGET_SCALE, objects)?;
+        let loss = (dense_loss(
             &result,
             &Tensor::from_vec(targets, (batch.len(), o, o, 3), &self.device)?,
             &Tensor::from_vec(visible, (batch.len(), o, o), &self.device)?,
-        )?;
+        )? + (rotation_points_loss(&result.quats, &model_pts, &r_target)?
+            * DENSE_ROTATION_WEIGHT)?)?;
         if !predict {
             return Ok((loss, Vec::new()));
         }
+        let quats: Vec<Vec<f32>> = result.quats.to_dtype(DType::F32)?.to_vec2()?;
         let coords: Vec<f32> = result
             .coords
             .to_dtype(DType::F32)?
@@ -789,6 +806,8 @@ impl PoseModel {
             .iter()
             .enumerate()
             .map(|(b, s)| {
+                let q = &quats[b];
+                let head = rays[b] * quaternion_rotation([q[0], q[1], q[2], q[3]]);
                 dense_pose(
                     &coords[b * cells * 3..(b + 1) * cells * 3],
                     &logits[b * cells..(b + 1) * cells],
@@ -796,6 +815,7 @@ impl PoseModel {
                     radii[b],
                     s,
                     objects[&batch[b].obj_id].eval.diameter_m,
+                    head,
                 )
             })
             .collect();
@@ -1204,8 +1224,8 @@ mod tests {
     fn dense_targets_as_outputs_give_the_pose_back() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
         for im in 0..5 {
-            let inst = dense_instance(&mut rng, im, 64);
-            let s = rgb_input::sample(&inst, 64, None).unwrap();
+            let inst = dense_instance(&mut rng, im, 128);
+            let s = rgb_input::sample(&inst, 128, None).unwrap();
             let r = inst.region.as_ref().unwrap();
             let cells = r.target.as_ref().unwrap().cut(&r.region, &s.bbox, 32);
             let visible = cells.iter().filter(|c| c[0].is_finite()).count();
@@ -1247,7 +1267,7 @@ mod tests {
                 mean.length() < 0.05 * cell && worst < 0.25 * cell + 0.5 + 1e-9,
                 "image {im}: offset {mean}, worst {worst:.2} px, cell {cell:.2} px"
             );
-            let p = dense_pose(&coords, &logits, 32, radius, &s, 0.1);
+            let p = dense_pose(&coords, &logits, 32, radius, &s, 0.1, DMat3::IDENTITY);
             let (rot, conf) = p.rotation.unwrap();
             let est = Pose::new(rot, DVec3::from_array(p.centre_m.unwrap().map(f64::from)));
             let re = crate::metrics::re_deg(&inst.pose.rotation, &est.rotation);
@@ -1274,9 +1294,9 @@ mod tests {
         let dev = Device::Cpu;
         let objs = ellipsoid_objects();
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
-        let insts: Vec<Instance> = (0..8).map(|i| dense_instance(&mut rng, i, 16)).collect();
+        let insts: Vec<Instance> = (0..8).map(|i| dense_instance(&mut rng, i, 32)).collect();
         let refs: Vec<&Instance> = insts.iter().collect();
-        let model = PoseModel::rgb_dense(&[1], 16, 16, 0, &dev).unwrap();
+        let model = PoseModel::rgb_dense(&[1], 16, 32, 0, &dev).unwrap();
         let mut opt = adamw(&model, 3e-3);
         let first = eval_loss(&model, &refs, &objs);
         for step in 0..60 {
@@ -1296,7 +1316,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("dense.safetensors");
         model.varmap.save(&path).unwrap();
-        let mut again = PoseModel::rgb_dense(&[1], 16, 16, 9, &dev).unwrap();
+        let mut again = PoseModel::rgb_dense(&[1], 16, 32, 9, &dev).unwrap();
         again.load_strict(&path).unwrap();
         assert_eq!(again.predict(&refs, Some(&objs), 4).unwrap(), preds);
         // Training needs targets; evaluation without them (real RGB) scores no loss but predicts.

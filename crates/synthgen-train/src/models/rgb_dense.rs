@@ -4,15 +4,17 @@
 //! (Brachmann et al. 2014 on Linemod-Occluded, CDPN, GDR-Net).
 //!
 //! The network is a small encoder–decoder over the NHWC crop: three 3×3 stride-2 convolutions
-//! (3→32→64→128) and a 3×3 one at 1/8 (128), then twice a nearest-neighbour ×2 upsampling,
-//! concatenated with the encoder's map of that size (skip connection) and a 3×3 convolution
-//! (→64), so the output is half the crop's side; a 1×1 head gives, per class (the detector's
-//! class), 4 channels: the coordinates divided by the object's radius (half its diameter:
-//! O(1) for every object) and the visibility logit. A cell's convolutions see ~30 px of the
-//! crop, less than the object; which side of the object a cell shows is a property of the
-//! whole view, so a **global feature** (the 1/8 map flattened through a fully connected layer
-//! of `width`, as the direct RGB model's) is added, through its own projection, to each
-//! decoder layer's every cell. All convolutions are `im2col` + a fused dense layer (see
+//! (3→32→64→128) and a 3×3 one at 1/8 (128), then a nearest-neighbour ×2 upsampling,
+//! concatenated with the encoder's 1/4 map (skip connection) and a 3×3 convolution (→64), so
+//! the output is a quarter of the crop's side ([`dense_out`]); a 1×1 head gives, per class
+//! (the detector's class), 4 channels: the coordinates divided by the object's radius (half
+//! its diameter: O(1) for every object) and the visibility logit. A cell's convolutions see
+//! ~30 px of the crop, less than the object; which side of the object a cell shows is a
+//! property of the whole view, so a **global feature** (the 1/8 map flattened through a fully
+//! connected layer of `width`, as the direct RGB model's) is added, through its own
+//! projection, to every decoder cell, and is trained to hold the view by an auxiliary
+//! **rotation head** (per class, the allocentric quaternion, with the direct RGB model's
+//! point-matching loss). All convolutions are `im2col` + a fused dense layer (see
 //! [`super::im2col`]).
 //!
 //! Loss: the mean L1 distance of the coordinates over the visible cells, plus the binary
@@ -28,6 +30,7 @@ use synthgen_core::Pose;
 
 use super::dense::{dense, dense_no_bias, Dense};
 use super::im2col::{im2col, Window};
+use super::rgb::normalize_quaternions;
 
 /// Encoder channels (three stride-2 layers) and the 1/8 layer's.
 const ENC: [usize; 3] = [32, 64, 128];
@@ -53,18 +56,24 @@ pub struct DenseNet {
     mid: Dense,
     global: Dense,
     global2: Dense,
-    global1: Dense,
     dec2: Dense,
-    dec1: Dense,
     head: Dense,
+    rot: Dense,
     classes: usize,
 }
 
-/// Its output for a batch: coordinates over the radius (B, S, S, 3) and visibility logits
-/// (B, S, S), S = crop / 2.
+/// Cells across the model's output for a `crop`-pixel input: a quarter of the side.
+pub fn dense_out(crop: u32) -> u32 {
+    crop / 4
+}
+
+/// Its output for a batch: coordinates over the radius (B, S, S, 3), visibility logits
+/// (B, S, S), S = [`dense_out`], and the rotation head's allocentric quaternions (B, 4),
+/// (w, x, y, z), normalized.
 pub struct DenseOut {
     pub coords: Tensor,
     pub logits: Tensor,
+    pub quats: Tensor,
 }
 
 /// A 3×3 convolution of an NHWC map, ReLU.
@@ -107,10 +116,9 @@ impl DenseNet {
             mid: dense(9 * ENC[2], MID, vb.pp("mid"))?,
             global: dense(side * side * MID, width, vb.pp("global"))?,
             global2: dense_no_bias(width, DEC, vb.pp("global2"))?,
-            global1: dense_no_bias(width, DEC, vb.pp("global1"))?,
             dec2: dense(9 * (MID + ENC[1]), DEC, vb.pp("dec2"))?,
-            dec1: dense(9 * (DEC + ENC[0]), DEC, vb.pp("dec1"))?,
             head: dense(DEC, classes * DENSE_OUT, vb.pp("head"))?,
+            rot: dense(width, classes * 4, vb.pp("rot"))?,
             classes,
         })
     }
@@ -125,33 +133,31 @@ impl DenseNet {
         let g = self
             .global
             .forward_relu(&m.flatten_from(1)?.contiguous()?)?;
-        let with_global = |layer: &Dense, proj: &Dense, x: &Tensor| -> Result<Tensor> {
-            let (_, h, w, _) = x.dims4()?;
-            let extra = candle_core::Module::forward(proj, &g)?;
-            let y = layer.forward_relu_grouped(&im2col(x, SAME)?, Some(&extra))?;
-            y.reshape((b, h, w, y.dim(1)?))
-        };
-        let d2 = with_global(
-            &self.dec2,
-            &self.global2,
-            &Tensor::cat(&[&upsample2(&m)?, &e2], 3)?,
-        )?;
-        let d1 = with_global(
-            &self.dec1,
-            &self.global1,
-            &Tensor::cat(&[&upsample2(&d2)?, &e1], 3)?,
-        )?;
-        let (b, s, _, c) = d1.dims4()?;
-        let out = candle_core::Module::forward(&self.head, &d1.reshape((b * s * s, c))?)?
+        let extra = candle_core::Module::forward(&self.global2, &g)?;
+        let x = Tensor::cat(&[&upsample2(&m)?, &e2], 3)?;
+        let (_, h, w, _) = x.dims4()?;
+        let y = self
+            .dec2
+            .forward_relu_grouped(&im2col(&x, SAME)?, Some(&extra))?;
+        let d = y.reshape((b, h, w, y.dim(1)?))?;
+        let (b, s, _, c) = d.dims4()?;
+        let out = candle_core::Module::forward(&self.head, &d.reshape((b * s * s, c))?)?
             .reshape((b, s * s, self.classes, DENSE_OUT))?;
         let idx = class
             .reshape((b, 1, 1, 1))?
             .broadcast_as((b, s * s, 1, DENSE_OUT))?
             .contiguous()?;
         let out = out.gather(&idx, 2)?.reshape((b, s, s, DENSE_OUT))?;
+        let q = candle_core::Module::forward(&self.rot, &g)?.reshape((b, self.classes, 4))?;
+        let qidx = class
+            .reshape((b, 1, 1))?
+            .broadcast_as((b, 1, 4))?
+            .contiguous()?;
+        let quats = normalize_quaternions(&q.gather(&qidx, 1)?.reshape((b, 4))?)?;
         Ok(DenseOut {
             coords: out.narrow(3, 0, 3)?,
             logits: out.narrow(3, 3, 1)?.squeeze(3)?,
+            quats,
         })
     }
 }
@@ -239,8 +245,9 @@ mod tests {
         let b = net
             .forward(&crops, &Tensor::new(&[0u32, 2], &dev).unwrap())
             .unwrap();
-        assert_eq!(a.coords.dims(), [2, 8, 8, 3]);
-        assert_eq!(a.logits.dims(), [2, 8, 8]);
+        assert_eq!(a.coords.dims(), [2, 4, 4, 3]);
+        assert_eq!(a.logits.dims(), [2, 4, 4]);
+        assert_eq!(a.quats.dims(), [2, 4]);
         let row = |t: &Tensor, i: usize| {
             t.get(i)
                 .unwrap()
@@ -263,6 +270,7 @@ mod tests {
             let out = DenseOut {
                 coords: coords.clone(),
                 logits: Tensor::new(&[[logits]], &dev).unwrap(),
+                quats: Tensor::zeros((1, 4), DType::F32, &dev).unwrap(),
             };
             dense_loss(&out, &t, &vis)
                 .unwrap()
