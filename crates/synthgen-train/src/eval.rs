@@ -174,6 +174,17 @@ pub struct ObjectScores {
     pub acc_5cm5deg: f64,
     pub mean_te_cm: Option<f64>,
     pub mean_re_deg: Option<f64>,
+    /// Median translation and rotation errors of the estimates.
+    pub median_te_cm: Option<f64>,
+    pub median_re_deg: Option<f64>,
+}
+
+/// The median of `v` (the mean of the middle two for an even count); None when empty.
+fn median(v: &[f64]) -> Option<f64> {
+    let mut v = v.to_vec();
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    (n > 0).then(|| 0.5 * (v[(n - 1) / 2] + v[n / 2]))
 }
 
 #[derive(Default)]
@@ -185,6 +196,8 @@ struct Acc {
     sum_add_m: f64,
     sum_te_m: f64,
     sum_re_deg: f64,
+    te_m: Vec<f64>,
+    re_deg: Vec<f64>,
 }
 
 impl Acc {
@@ -205,6 +218,8 @@ impl Acc {
             acc_5cm5deg: frac(self.n_5cm5deg),
             mean_te_cm: mean(self.sum_te_m * 100.0),
             mean_re_deg: mean(self.sum_re_deg),
+            median_te_cm: median(&self.te_m).map(|m| m * 100.0),
+            median_re_deg: median(&self.re_deg),
         }
     }
 }
@@ -350,6 +365,8 @@ pub fn evaluate(
                     a.sum_add_m += err.add_s_m;
                     a.sum_te_m += err.te_m;
                     a.sum_re_deg += err.re_deg;
+                    a.te_m.push(err.te_m);
+                    a.re_deg.push(err.re_deg);
                     a.n_add_ok += usize::from(obj.add_s_correct(err));
                     a.n_5cm5deg += usize::from(err.within_5cm5deg());
                 }

@@ -239,6 +239,8 @@ fn eval_results_csv() {
         "acc_5cm5deg",
         "mean_te_cm",
         "mean_re_deg",
+        "median_te_cm",
+        "median_re_deg",
     ] {
         assert!(!j["8"][key].is_null(), "{key}");
     }
