@@ -148,25 +148,58 @@ pub const DENSE_VISIBLE: f32 = 0.5;
 /// RANSAC's inlier threshold for the dense model, in output cells (scaled to pixels by the
 /// box: a cell spans side / out pixels).
 pub const DENSE_INLIER_CELLS: f64 = 1.5;
+/// The inlier share of the correspondences above which the dense model's rotation is PnP's
+/// rather than the rotation head's.
+pub const DENSE_MIN_INLIERS: f32 = 0.5;
 /// The dense model's rotation-head loss weight (its point loss in decimetres) against the
 /// coordinate and visibility losses.
 pub const DENSE_ROTATION_WEIGHT: f64 = 1.0;
 
 /// The pose of one instance from the dense model's output (`out × out` cells of coordinates
-/// over `radius` and visibility logits) over the crop of `s`: every cell more likely visible
-/// than not is a correspondence (the 6 most likely when fewer), PnP + RANSAC (seeded,
-/// deterministic) and refinement. The confidence is the inlier share of the cells. When PnP
-/// finds no pose, the rotation head's `head` rotation on the box's ray at the depth where
-/// the object's diameter spans the box, with confidence 0.
+/// over `radius` and visibility logits) over the crop of `s`, and its heads' pose `heads`
+/// (the rotation head's rotation, the centre + Tz head's translation): every cell more likely
+/// visible than not is a correspondence (the 6 most likely when fewer), PnP + RANSAC (seeded,
+/// deterministic) and refinement. The rotation is PnP's when at least [`DENSE_MIN_INLIERS`]
+/// of the correspondences are its inliers, else the head's; the translation is the head's
+/// (PnP's depth is its weak direction). The confidence is the inlier share (0 without a PnP
+/// pose).
 fn dense_pose(
     coords: &[f32],
     logits: &[f32],
     out: u32,
     radius: f64,
     s: &rgb_input::RgbSample,
-    diameter_m: f64,
-    head: DMat3,
+    heads: Pose,
 ) -> Prediction {
+    let t = heads.translation_m.as_vec3().to_array();
+    match dense_pnp(coords, logits, out, radius, s) {
+        Some((pose, share)) => Prediction {
+            centre_m: Some(t),
+            rotation: Some((
+                if share >= DENSE_MIN_INLIERS {
+                    pose.rotation
+                } else {
+                    heads.rotation
+                },
+                share,
+            )),
+        },
+        None => Prediction {
+            centre_m: Some(t),
+            rotation: Some((heads.rotation, 0.0)),
+        },
+    }
+}
+
+/// PnP + RANSAC on the dense output's correspondences ([`dense_pose`]): the pose and the
+/// inlier share of the correspondences; None when RANSAC finds none.
+fn dense_pnp(
+    coords: &[f32],
+    logits: &[f32],
+    out: u32,
+    radius: f64,
+    s: &rgb_input::RgbSample,
+) -> Option<(Pose, f32)> {
     let o = out as usize;
     let cell = s.bbox.side / f64::from(out);
     let mut order: Vec<usize> = (0..o * o).collect();
@@ -199,24 +232,8 @@ fn dense_pose(
         inlier_px: (DENSE_INLIER_CELLS * cell).max(1.0),
         ..Default::default()
     };
-    match synthgen_core::pnp::ransac(&model, &pixels, &k, &options) {
-        Some(sol) => Prediction {
-            centre_m: Some(sol.pose.translation_m.as_vec3().to_array()),
-            rotation: Some((sol.pose.rotation, sol.inliers.len() as f32 / n as f32)),
-        },
-        None => {
-            let z = 0.5 * (s.camera.fx + s.camera.fy) * diameter_m / s.bbox.side.max(1.0);
-            let t = DVec3::new(
-                (s.bbox.cx - s.camera.cx) / s.camera.fx * z,
-                (s.bbox.cy - s.camera.cy) / s.camera.fy * z,
-                z,
-            );
-            Prediction {
-                centre_m: Some(t.as_vec3().to_array()),
-                rotation: Some((head, 0.0)),
-            }
-        }
-    }
+    synthgen_core::pnp::ransac(&model, &pixels, &k, &options)
+        .map(|sol| (sol.pose, sol.inliers.len() as f32 / n as f32))
 }
 
 /// How often a training step hides an instance's class from a per-object TNet, so that the
@@ -782,16 +799,28 @@ impl PoseModel {
             .map(|(i, ray)| Pose::new(ray.transpose() * i.pose.rotation, DVec3::ZERO))
             .collect();
         let (model_pts, r_target) = self.posed_targets(batch, &allo, TARGET_SCALE, objects)?;
-        let loss = (dense_loss(
+        let t_target: Vec<f32> = batch
+            .iter()
+            .zip(&samples)
+            .flat_map(|(i, s)| {
+                Translation::CentreTz
+                    .target(i.pose.translation_m, &s.bbox, &s.camera)
+                    .map(|v| v as f32)
+            })
+            .collect();
+        let t_target = Tensor::from_vec(t_target, (batch.len(), 3), &self.device)?;
+        let loss = ((dense_loss(
             &result,
             &Tensor::from_vec(targets, (batch.len(), o, o, 3), &self.device)?,
             &Tensor::from_vec(visible, (batch.len(), o, o), &self.device)?,
         )? + (rotation_points_loss(&result.quats, &model_pts, &r_target)?
-            * DENSE_ROTATION_WEIGHT)?)?;
+            * DENSE_ROTATION_WEIGHT)?)?
+            + smooth_l1_loss(&result.translation, &t_target, RGB_SMOOTH_L1_BETA)?)?;
         if !predict {
             return Ok((loss, Vec::new()));
         }
         let quats: Vec<Vec<f32>> = result.quats.to_dtype(DType::F32)?.to_vec2()?;
+        let trans: Vec<Vec<f32>> = result.translation.to_dtype(DType::F32)?.to_vec2()?;
         let coords: Vec<f32> = result
             .coords
             .to_dtype(DType::F32)?
@@ -808,14 +837,19 @@ impl PoseModel {
             .map(|(b, s)| {
                 let q = &quats[b];
                 let head = rays[b] * quaternion_rotation([q[0], q[1], q[2], q[3]]);
+                let t = &trans[b];
+                let t_head = Translation::CentreTz.translation(
+                    [t[0], t[1], t[2]].map(f64::from),
+                    &s.bbox,
+                    &s.camera,
+                );
                 dense_pose(
                     &coords[b * cells * 3..(b + 1) * cells * 3],
                     &logits[b * cells..(b + 1) * cells],
                     out,
                     radii[b],
                     s,
-                    objects[&batch[b].obj_id].eval.diameter_m,
-                    head,
+                    Pose::new(head, t_head),
                 )
             })
             .collect();
@@ -1267,9 +1301,7 @@ mod tests {
                 mean.length() < 0.05 * cell && worst < 0.25 * cell + 0.5 + 1e-9,
                 "image {im}: offset {mean}, worst {worst:.2} px, cell {cell:.2} px"
             );
-            let p = dense_pose(&coords, &logits, 32, radius, &s, 0.1, DMat3::IDENTITY);
-            let (rot, conf) = p.rotation.unwrap();
-            let est = Pose::new(rot, DVec3::from_array(p.centre_m.unwrap().map(f64::from)));
+            let (est, conf) = dense_pnp(&coords, &logits, 32, radius, &s).unwrap();
             let re = crate::metrics::re_deg(&inst.pose.rotation, &est.rotation);
             let te = (est.translation_m - inst.pose.translation_m).length();
             // A 5 cm object over 32x32 cells with targets up to a third of a cell off: PnP's

@@ -14,7 +14,9 @@
 //! connected layer of `width`, as the direct RGB model's) is added, through its own
 //! projection, to every decoder cell, and is trained to hold the view by an auxiliary
 //! **rotation head** (per class, the allocentric quaternion, with the direct RGB model's
-//! point-matching loss). All convolutions are `im2col` + a fused dense layer (see
+//! point-matching loss). A **translation head** on the same feature regresses the centre's
+//! offset in the box and the scale-invariant depth, as the RGB model's centre + Tz (CDPN's
+//! SITE): PnP's depth is its weak direction. All convolutions are `im2col` + a fused dense layer (see
 //! [`super::im2col`]).
 //!
 //! Loss: the mean L1 distance of the coordinates over the visible cells, plus the binary
@@ -59,6 +61,7 @@ pub struct DenseNet {
     dec2: Dense,
     head: Dense,
     rot: Dense,
+    trans: Dense,
     classes: usize,
 }
 
@@ -68,12 +71,14 @@ pub fn dense_out(crop: u32) -> u32 {
 }
 
 /// Its output for a batch: coordinates over the radius (B, S, S, 3), visibility logits
-/// (B, S, S), S = [`dense_out`], and the rotation head's allocentric quaternions (B, 4),
-/// (w, x, y, z), normalized.
+/// (B, S, S), S = [`dense_out`], the rotation head's allocentric quaternions (B, 4),
+/// (w, x, y, z), normalized, and the translation head's centre + Tz targets (B, 3)
+/// ([`super::rgb::Translation::CentreTz`]).
 pub struct DenseOut {
     pub coords: Tensor,
     pub logits: Tensor,
     pub quats: Tensor,
+    pub translation: Tensor,
 }
 
 /// A 3×3 convolution of an NHWC map, ReLU.
@@ -119,6 +124,7 @@ impl DenseNet {
             dec2: dense(9 * (MID + ENC[1]), DEC, vb.pp("dec2"))?,
             head: dense(DEC, classes * DENSE_OUT, vb.pp("head"))?,
             rot: dense(width, classes * 4, vb.pp("rot"))?,
+            trans: dense(width, classes * 3, vb.pp("trans"))?,
             classes,
         })
     }
@@ -154,10 +160,17 @@ impl DenseNet {
             .broadcast_as((b, 1, 4))?
             .contiguous()?;
         let quats = normalize_quaternions(&q.gather(&qidx, 1)?.reshape((b, 4))?)?;
+        let t = candle_core::Module::forward(&self.trans, &g)?.reshape((b, self.classes, 3))?;
+        let tidx = class
+            .reshape((b, 1, 1))?
+            .broadcast_as((b, 1, 3))?
+            .contiguous()?;
+        let translation = t.gather(&tidx, 1)?.reshape((b, 3))?;
         Ok(DenseOut {
             coords: out.narrow(3, 0, 3)?,
             logits: out.narrow(3, 3, 1)?.squeeze(3)?,
             quats,
+            translation,
         })
     }
 }
@@ -271,6 +284,7 @@ mod tests {
                 coords: coords.clone(),
                 logits: Tensor::new(&[[logits]], &dev).unwrap(),
                 quats: Tensor::zeros((1, 4), DType::F32, &dev).unwrap(),
+                translation: Tensor::zeros((1, 3), DType::F32, &dev).unwrap(),
             };
             dense_loss(&out, &t, &vis)
                 .unwrap()
