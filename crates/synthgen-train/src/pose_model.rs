@@ -664,28 +664,8 @@ impl PoseModel {
         let obj_ids: Vec<u32> = batch.iter().map(|i| i.obj_id).collect();
         let class = class_indices(&obj_ids, &self.classes, &self.device)?;
         let out = net.forward(&crops, &geometry, &class)?;
-        let t_target: Vec<f32> = batch
-            .iter()
-            .zip(&samples)
-            .flat_map(|(i, s)| {
-                translation
-                    .target(i.pose.translation_m, &s.bbox, &s.camera)
-                    .map(|v| v as f32)
-            })
-            .collect();
-        let t_target = Tensor::from_vec(t_target, (batch.len(), 3), &self.device)?;
-        // Rotation targets without translation: the GT's allocentric rotation (as seen along
-        // the ray through the crop's centre) about the model's origin.
-        let rays: Vec<DMat3> = samples
-            .iter()
-            .map(|s| ray_rotation(&s.bbox, &s.camera))
-            .collect();
-        let poses: Vec<Pose> = batch
-            .iter()
-            .zip(&rays)
-            .map(|(i, ray)| Pose::new(ray.transpose() * i.pose.rotation, DVec3::ZERO))
-            .collect();
-        let (model_pts, r_target) = self.posed_targets(batch, &poses, TARGET_SCALE, objects)?;
+        let (rays, t_target, model_pts, r_target) =
+            self.box_targets(batch, &samples, translation, objects)?;
         let loss = (smooth_l1_loss(&out.translation, &t_target, RGB_SMOOTH_L1_BETA)?
             + (rotation_points_loss(&out.quats, &model_pts, &r_target)? * RGB_ROTATION_WEIGHT)?)?;
         if !predict {
@@ -788,27 +768,8 @@ impl PoseModel {
         let class = class_indices(&ids, &self.classes, &self.device)?;
         let o = out as usize;
         let result = net.forward(&crops, &class)?;
-        // The rotation head's target: the GT's allocentric rotation, as the RGB model's.
-        let rays: Vec<DMat3> = samples
-            .iter()
-            .map(|s| ray_rotation(&s.bbox, &s.camera))
-            .collect();
-        let allo: Vec<Pose> = batch
-            .iter()
-            .zip(&rays)
-            .map(|(i, ray)| Pose::new(ray.transpose() * i.pose.rotation, DVec3::ZERO))
-            .collect();
-        let (model_pts, r_target) = self.posed_targets(batch, &allo, TARGET_SCALE, objects)?;
-        let t_target: Vec<f32> = batch
-            .iter()
-            .zip(&samples)
-            .flat_map(|(i, s)| {
-                Translation::CentreTz
-                    .target(i.pose.translation_m, &s.bbox, &s.camera)
-                    .map(|v| v as f32)
-            })
-            .collect();
-        let t_target = Tensor::from_vec(t_target, (batch.len(), 3), &self.device)?;
+        let (rays, t_target, model_pts, r_target) =
+            self.box_targets(batch, &samples, Translation::CentreTz, objects)?;
         let loss = ((dense_loss(
             &result,
             &Tensor::from_vec(targets, (batch.len(), o, o, 3), &self.device)?,
@@ -854,6 +815,41 @@ impl PoseModel {
             })
             .collect();
         Ok((loss, preds))
+    }
+
+    /// The RGB models' head targets for crops `samples` of `batch`: the rays through the
+    /// crops' centres ([`ray_rotation`]), the translation targets (B, 3) in `translation`'s
+    /// parametrization, and the rotation's model points and targets ([`Self::posed_targets`]
+    /// at [`TARGET_SCALE`]) for the GT's allocentric rotation (as seen along the ray) about
+    /// the model's origin.
+    fn box_targets(
+        &self,
+        batch: &[&Instance],
+        samples: &[rgb_input::RgbSample],
+        translation: Translation,
+        objects: &Objects,
+    ) -> Result<(Vec<DMat3>, Tensor, Tensor, Tensor)> {
+        let t_target: Vec<f32> = batch
+            .iter()
+            .zip(samples)
+            .flat_map(|(i, s)| {
+                translation
+                    .target(i.pose.translation_m, &s.bbox, &s.camera)
+                    .map(|v| v as f32)
+            })
+            .collect();
+        let t_target = Tensor::from_vec(t_target, (batch.len(), 3), &self.device)?;
+        let rays: Vec<DMat3> = samples
+            .iter()
+            .map(|s| ray_rotation(&s.bbox, &s.camera))
+            .collect();
+        let poses: Vec<Pose> = batch
+            .iter()
+            .zip(&rays)
+            .map(|(i, ray)| Pose::new(ray.transpose() * i.pose.rotation, DVec3::ZERO))
+            .collect();
+        let (model_pts, r_target) = self.posed_targets(batch, &poses, TARGET_SCALE, objects)?;
+        Ok((rays, t_target, model_pts, r_target))
     }
 
     /// Model points scaled by `scale` (B, M, 3) and their targets (B, K, M, 3) under `poses`

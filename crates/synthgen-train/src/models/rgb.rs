@@ -220,15 +220,22 @@ impl RgbNet {
             .head
             .forward(&h)?
             .reshape((b, self.classes, HEAD_OUT))?;
-        let idx = class
-            .reshape((b, 1, 1))?
-            .broadcast_as((b, 1, HEAD_OUT))?
-            .contiguous()?;
-        let out = out.gather(&idx, 1)?.reshape((b, HEAD_OUT))?;
+        let out = pick_class(&out, class)?;
         let translation = out.narrow(1, 0, 3)?;
         let quats = normalize_quaternions(&out.narrow(1, 3, 4)?)?;
         Ok(RgbOut { translation, quats })
     }
+}
+
+/// Each row's head of per-class outputs `out` (B, classes, K): the one `class` (B,) u32
+/// names, (B, K).
+pub fn pick_class(out: &Tensor, class: &Tensor) -> Result<Tensor> {
+    let (b, _, k) = out.dims3()?;
+    let idx = class
+        .reshape((b, 1, 1))?
+        .broadcast_as((b, 1, k))?
+        .contiguous()?;
+    out.gather(&idx, 1)?.reshape((b, k))
 }
 
 /// Crops (`S² × 3` bytes each, RGB row-major) as a (B, S, S, 3) tensor, standardized as

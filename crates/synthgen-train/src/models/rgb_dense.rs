@@ -32,7 +32,7 @@ use synthgen_core::Pose;
 
 use super::dense::{dense, dense_no_bias, Dense};
 use super::im2col::{im2col, Window};
-use super::rgb::normalize_quaternions;
+use super::rgb::{normalize_quaternions, pick_class};
 
 /// Encoder channels (three stride-2 layers) and the 1/8 layer's.
 const ENC: [usize; 3] = [32, 64, 128];
@@ -155,17 +155,9 @@ impl DenseNet {
             .contiguous()?;
         let out = out.gather(&idx, 2)?.reshape((b, s, s, DENSE_OUT))?;
         let q = candle_core::Module::forward(&self.rot, &g)?.reshape((b, self.classes, 4))?;
-        let qidx = class
-            .reshape((b, 1, 1))?
-            .broadcast_as((b, 1, 4))?
-            .contiguous()?;
-        let quats = normalize_quaternions(&q.gather(&qidx, 1)?.reshape((b, 4))?)?;
+        let quats = normalize_quaternions(&pick_class(&q, class)?)?;
         let t = candle_core::Module::forward(&self.trans, &g)?.reshape((b, self.classes, 3))?;
-        let tidx = class
-            .reshape((b, 1, 1))?
-            .broadcast_as((b, 1, 3))?
-            .contiguous()?;
-        let translation = t.gather(&tidx, 1)?.reshape((b, 3))?;
+        let translation = pick_class(&t, class)?;
         Ok(DenseOut {
             coords: out.narrow(3, 0, 3)?,
             logits: out.narrow(3, 3, 1)?.squeeze(3)?,
