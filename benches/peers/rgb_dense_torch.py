@@ -29,6 +29,8 @@ import time
 import torch
 from torch import nn
 
+from rgb_torch import quat_to_matrix, smooth_l1  # the RGB model's peer, same folder
+
 CLASSES = 8
 
 
@@ -61,24 +63,6 @@ class DenseNet(nn.Module):
         q = q / (q.square().sum(-1, keepdim=True) + 1e-12).sqrt()
         t = self.trans(g).reshape(b, CLASSES, 3)[torch.arange(b), cls]
         return out[:, :3], out[:, 3], q, t
-
-
-def quat_to_matrix(q):
-    w, x, y, z = q.unbind(-1)
-    return torch.stack(
-        [
-            1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-            2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-            2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
-        ],
-        -1,
-    ).reshape(*q.shape[:-1], 3, 3)
-
-
-def smooth_l1(d, beta=0.1):
-    a = d.abs()
-    m = a.clamp(max=beta)
-    return (0.5 * m * m / beta + (a - m)).sum(-1).mean()
 
 
 def main():
