@@ -519,12 +519,26 @@ fn eval_reads_ycbv_models_in_metres() {
             .arg(&csv)
             .arg("--data")
             .arg(data)
-            .args(["--split", "train", "--min-visib-fract", "0", "--json"])
+            .args(["--split", "train", "--min-visib-fract", "0", "--bop", "--json"])
             .arg(&json));
         assert!(o.status.success(), "{}", stderr(&o));
-        serde_json::from_str::<Value>(&std::fs::read_to_string(&json).unwrap()).unwrap()
+        let mut v: Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let bop = v.as_object_mut().unwrap().remove("bop").unwrap();
+        (v, bop)
     };
-    let (native, converted) = (score(&real, "native.json"), score(&bop, "bop.json"));
+    let ((native, native_bop), (converted, converted_bop)) =
+        (score(&real, "native.json"), score(&bop, "bop.json"));
+    // Regression (issue 29): BOP's MSSD and MSPD read the YCB-Video models' metres as
+    // millimetres too (every turned estimate within every threshold).
+    for e in ["mssd", "mspd"] {
+        let (a, b) = (
+            native_bop[e]["mean_recall"].as_f64().unwrap(),
+            converted_bop[e]["mean_recall"].as_f64().unwrap(),
+        );
+        assert!((a - b).abs() < 1e-9, "AR_{e}: {a} native vs {b} converted");
+        assert!(a < 0.95, "AR_{e} {a}: 10° turns must miss some thresholds");
+    }
     // 10° about x moves the mustard bottle's points by centimetres.
     let mustard = native["5"]["mean_add_mm"].as_f64().unwrap();
     assert!(mustard > 5.0, "mustard ADD {mustard} mm");

@@ -211,7 +211,14 @@ pub fn load_bop_objects(
         read = synthgen_dataset::bop::reader::read_models_info(&info_path)?;
         Some(&read)
     };
-    // Units::M leaves the file's numbers (millimetres) as they are.
+    // Units::M leaves the file's numbers as they are: millimetres in BOP's models (and
+    // models_eval), metres in a dataset whose models are in metres (YCB-Video's own layout),
+    // which are scaled to millimetres here (models_info's diameter is in millimetres).
+    let to_mm = if info_path == ds.models_info_path() && ds.model_units() == Units::M {
+        1000.0
+    } else {
+        1.0
+    };
     crate::eval::load_each_object(
         infos,
         &info_path,
@@ -219,7 +226,7 @@ pub fn load_bop_objects(
         Units::M,
         obj_ids,
         |m, info| {
-            let pts: Vec<DVec3> = m.positions().map(|p| p.as_dvec3()).collect();
+            let pts: Vec<DVec3> = m.positions().map(|p| p.as_dvec3() * to_mm).collect();
             BopObject::new(pts, info, max_sym_disc_step)
         },
     )
