@@ -12,6 +12,7 @@
 //! # Ok::<(), synthgen_train::Error>(())
 //! ```
 
+pub mod baseline;
 pub mod bop;
 pub mod data;
 mod error;

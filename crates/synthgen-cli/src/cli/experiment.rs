@@ -10,7 +10,7 @@ use super::ModelArg;
 /// The training budget of every trained row, shared by `experiment mix` and `sim2real`.
 #[derive(Debug, Args)]
 pub struct TrainBudgetArgs {
-    /// Training epochs per trained row. [default: 8; 2 with --quick]
+    /// Training epochs per trained row. [default: 8; 20 for the RGB models; 2 with --quick]
     #[arg(long)]
     pub epochs: Option<usize>,
 
@@ -18,9 +18,9 @@ pub struct TrainBudgetArgs {
     #[arg(long)]
     pub batch: Option<usize>,
 
-    /// Peak learning rate (AdamW, cosine schedule).
-    #[arg(long, allow_negative_numbers = true, default_value_t = 1e-3)]
-    pub lr: f64,
+    /// Peak learning rate (AdamW, cosine schedule). [default: 1e-3; 2e-3 for the RGB models]
+    #[arg(long, allow_negative_numbers = true)]
+    pub lr: Option<f64>,
 
     /// Points sampled per object instance. [default: 500; 64 with --quick]
     #[arg(long)]
@@ -50,9 +50,19 @@ impl TrainBudgetArgs {
         TrainBudget {
             epochs: pick(self.epochs, 2, 8),
             batch: pick(self.batch, 8, 32),
-            lr: self.lr,
+            lr: self.lr.unwrap_or(1e-3),
             points: pick(self.points, 64, 500),
             width: pick(self.width, 16, 128),
+        }
+    }
+
+    /// The budget of the RGB models (`experiment sim2real --model rgb|rgb-dense`): the dense
+    /// model's settings of docs/experiments.md (20 epochs, lr 2e-3).
+    pub fn resolve_rgb(&self, quick: bool) -> TrainBudget {
+        TrainBudget {
+            epochs: self.epochs.unwrap_or(if quick { 2 } else { 20 }),
+            lr: self.lr.unwrap_or(2e-3),
+            ..self.resolve(quick)
         }
     }
 }

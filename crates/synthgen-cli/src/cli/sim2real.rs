@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use clap::Args;
+use clap::{Args, ValueEnum};
 
 use synthgen_core::scene::UpAxis;
 
@@ -14,6 +14,34 @@ fn parse_up(s: &str) -> Result<UpAxis, String> {
         .chain([UpAxis::Any, UpAxis::Stable])
         .find(|a| a.as_str() == s)
         .ok_or_else(|| format!("{s:?}: one of +x, -x, +y, -y, +z, -z, any, stable"))
+}
+
+/// `experiment sim2real --model`: the depth models, and the RGB models (no depth at test).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Sim2realModelArg {
+    /// Object centre from the masked depth points (PointNet offsets).
+    Tnet,
+    /// Rotation from colour + points (DenseFusion style), quaternion loss.
+    Rnet,
+    /// Both heads, per-pixel ADD loss (min over the object's symmetries).
+    Full,
+    /// RGB only: a whole pose from a box's colour crop (centre + Tz and a quaternion).
+    Rgb,
+    /// RGB only: per cell of a box's colour crop the object coordinates, the pose by PnP +
+    /// RANSAC or the rotation head, centre + Tz.
+    RgbDense,
+}
+
+impl Sim2realModelArg {
+    /// The depth model, or None for the RGB models.
+    pub fn depth_model(self) -> Option<ModelArg> {
+        match self {
+            Sim2realModelArg::Tnet => Some(ModelArg::Tnet),
+            Sim2realModelArg::Rnet => Some(ModelArg::Rnet),
+            Sim2realModelArg::Full => Some(ModelArg::Full),
+            Sim2realModelArg::Rgb | Sim2realModelArg::RgbDense => None,
+        }
+    }
 }
 
 pub const SIM2REAL_EXAMPLES: &str = "Examples:
@@ -49,9 +77,11 @@ plot.png (mean centre error per row), experiment.json (the settings).";
 #[derive(Debug, Args)]
 pub struct ExperimentSim2realArgs {
     /// Real frames with GT poses and depth (YCB-Video, BOP or Linemod) to fit the scene
-    /// (camera, views, objects' rest poses, objects per frame) and the depth sensor to.
-    #[arg(long, value_name = "DIR")]
-    pub fit: PathBuf,
+    /// (camera, views, objects' rest poses, objects per frame) and the depth sensor to. The
+    /// RGB models need no depth here (the table plane from the objects' rest poses, no sensor
+    /// fit), and may take --scene instead.
+    #[arg(long, value_name = "DIR", required_unless_present = "scene")]
+    pub fit: Option<PathBuf>,
 
     /// Real frames to test on: their objects (those with a model) are rendered and scored.
     /// May be --fit itself, with --test-scenes held out of the fits.
@@ -63,12 +93,30 @@ pub struct ExperimentSim2realArgs {
     #[arg(long, value_delimiter = ',', value_name = "ID,...")]
     pub test_scenes: Vec<u32>,
 
-    #[arg(long, value_enum, default_value_t = ModelArg::Tnet)]
-    pub model: ModelArg,
+    #[arg(long, value_enum, default_value_t = Sim2realModelArg::Tnet)]
+    pub model: Sim2realModelArg,
 
     /// Synthetic frames per rendered set. [default: 1500; 48 with --quick]
     #[arg(long)]
     pub frames: Option<usize>,
+
+    /// RGB models: a scene file to render the synthetic sets with instead of a scene fitted to
+    /// --fit (e.g. scenes/linemod_rgb.toml for Linemod-Occluded, one real scene with no other
+    /// to fit to). Its objects are replaced by the test objects.
+    #[arg(long, value_name = "FILE")]
+    pub scene: Option<PathBuf>,
+
+    /// RGB models: render each test object from the one mesh in DIR/<its name>/ (e.g. the
+    /// textured scans aligned by `synthgen model align --scans`) instead of the dataset's
+    /// model; objects without a folder keep the dataset's.
+    #[arg(long, value_name = "DIR")]
+    pub models: Option<PathBuf>,
+
+    /// RGB models: frames of the Cycles row (the Blender backend, 16 samples) and of the plain
+    /// and realistic raster rows at the same count; 0: no such rows. Cycles renders ~5-15 s a
+    /// frame on 2 cores. [default: 200; 4 with --quick]
+    #[arg(long, value_name = "N")]
+    pub cycles_frames: Option<usize>,
 
     #[command(flatten)]
     pub budget: super::experiment::TrainBudgetArgs,

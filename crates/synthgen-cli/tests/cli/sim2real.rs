@@ -330,3 +330,142 @@ fn quick_sim2real_on_objects_the_fit_never_saw() {
         r["notes"]
     );
 }
+
+/// Issue 29: `--model rgb-dense` on the RGB-only Linemod-Occluded photographs (no depth, no
+/// masks), the scene from a scene file: the rows, the naive box baseline, report.json in the
+/// issue's shape, per object and per scene; a re-run computes nothing.
+#[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
+fn quick_rgb_dense_sim2real_on_real_lmo_photographs() {
+    let lmo = crate::common::shared_data().join("lmo");
+    let scene = crate::common::repo_root().join("scenes/linemod_rgb.toml");
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("s2r");
+    let go = || {
+        run(synthgen()
+            .args(["experiment", "sim2real", "--quick", "--model", "rgb-dense"])
+            .arg("--scene")
+            .arg(&scene)
+            .arg("--test")
+            .arg(&lmo)
+            .args(["--cycles-frames", "0", "--frames", "24", "--out"])
+            .arg(&out))
+    };
+    let o = go();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let md = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(md.contains("GT visible boxes"), "{md}");
+    let r: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(r["model"], "rgb-dense");
+    assert_eq!(r["gt_boxes"], true);
+    assert_eq!(r["main_row"], "synth_realistic");
+    // The 82 photographs' 627 instances with visib_fract >= 0.1, 8 objects, scene 2.
+    assert_eq!(r["all"]["n"], 627, "{}", r["all"]);
+    for k in [
+        "ar_mspd",
+        "ar_mssd",
+        "acc_5cm5deg",
+        "median_re_deg",
+        "median_te_cm",
+    ] {
+        let v = r["all"][k].as_f64().unwrap_or_else(|| panic!("all.{k}"));
+        assert!(v.is_finite() && v >= 0.0, "{k} {v}");
+    }
+    assert_eq!(r["objects"].as_object().unwrap().len(), 8);
+    assert_eq!(r["scenes"]["2"]["n"], 627);
+    let rows = r["rows"].as_object().unwrap();
+    for name in ["synth_realistic", "synth_plain", "naive_box"] {
+        assert!(rows.contains_key(name), "{name} missing: {:?}", rows.keys());
+    }
+    // No --fit: no real-only row, and the report says so.
+    assert!(!rows.contains_key("real_only"));
+    let notes = r["notes"].to_string();
+    assert!(notes.contains("real_only skipped"), "{notes}");
+    // The naive baseline reads nothing but the box: its poses put objects roughly where the
+    // photographs have them (MSPD's 50 px), not within 5 cm and 5°.
+    let naive = rows["naive_box"]["all"]["ar_mspd"].as_f64().unwrap();
+    assert!((0.02..0.5).contains(&naive), "naive AR_MSPD {naive}");
+    // The synthetic sets: clean depth (the dense targets), as many frames as asked.
+    let set = std::fs::read_to_string(out.join("sources/synth_realistic.toml")).unwrap();
+    assert!(set.contains("depth = \"none\""), "{set}");
+    let o = go();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("(0 computed now)"), "{}", stderr(&o));
+}
+
+/// Issue 29: the RGB models with --fit (a scene fitted to real frames), --models (each
+/// object's replacement mesh) and --rows; the depth-model options are refused for them, and
+/// the RGB options for the depth models.
+#[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
+fn rgb_sim2real_fits_the_scene_and_takes_replacement_models() {
+    let real = ycbv_real();
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // The gelatin box (object 8, scene 0) replaced by a copy of its own mesh.
+    let models = d.join("models/009_gelatin_box");
+    std::fs::create_dir_all(&models).unwrap();
+    std::fs::copy(
+        real.join("models/009_gelatin_box/textured_simple.obj"),
+        models.join("box.obj"),
+    )
+    .unwrap();
+    let out = d.join("s2r");
+    let o = sim2real(
+        &real,
+        &real,
+        &out,
+        &[
+            "--model",
+            "rgb",
+            "--test-scenes",
+            "0",
+            "--frames",
+            "16",
+            "--cycles-frames",
+            "0",
+            "--rows",
+            "naive_box",
+            "--models",
+            d.join("models").to_str().unwrap(),
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(out.join("fit/scene.toml").is_file());
+    assert!(
+        !out.join("fit/sensor.toml").exists(),
+        "no sensor fit for RGB"
+    );
+    let set = std::fs::read_to_string(out.join("sources/synth_realistic.toml")).unwrap();
+    assert!(set.contains("009_gelatin_box/box.obj"), "{set}");
+    let r: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let rows: Vec<&String> = r["rows"].as_object().unwrap().keys().collect();
+    assert_eq!(rows, ["naive_box"], "only the rows asked for");
+    assert!(r["rows"]["naive_box"]["scenes"]["0"]["n"].as_u64().unwrap() > 0);
+    // Objects without a folder keep the dataset's model, and the report says so.
+    assert!(r["notes"].to_string().contains("--models: no folder for"));
+
+    for (extra, words) in [
+        (
+            vec!["--model", "rgb-dense", "--ablation"],
+            vec!["--ablation is a depth-model option"],
+        ),
+        (
+            vec!["--model", "tnet", "--cycles-frames", "2"],
+            vec!["--cycles-frames applies to the RGB models"],
+        ),
+    ] {
+        let mut args = vec!["--test-scenes", "0"];
+        args.extend(extra);
+        let o = sim2real(&real, &real, &d.join("refused"), &args);
+        refused(&o, &words);
+    }
+}

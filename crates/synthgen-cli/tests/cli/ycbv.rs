@@ -519,11 +519,17 @@ fn eval_reads_ycbv_models_in_metres() {
             .arg(&csv)
             .arg("--data")
             .arg(data)
-            .args(["--split", "train", "--min-visib-fract", "0", "--bop", "--json"])
+            .args([
+                "--split",
+                "train",
+                "--min-visib-fract",
+                "0",
+                "--bop",
+                "--json",
+            ])
             .arg(&json));
         assert!(o.status.success(), "{}", stderr(&o));
-        let mut v: Value =
-            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let mut v: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
         let bop = v.as_object_mut().unwrap().remove("bop").unwrap();
         (v, bop)
     };

@@ -431,7 +431,7 @@ pub fn run_mix(args: ExperimentMixArgs, printer: &Printer) -> Result<ExitStatus>
     Ok(ExitStatus::Success)
 }
 
-fn model_name(m: ModelArg) -> &'static str {
+pub(crate) fn model_name(m: ModelArg) -> &'static str {
     match m {
         ModelArg::Tnet => "tnet",
         ModelArg::Rnet => "rnet",

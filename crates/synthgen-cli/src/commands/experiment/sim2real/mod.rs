@@ -7,6 +7,7 @@
 //! `row.json`, written last), so a re-run with the same options resumes.
 
 mod report;
+mod rgb;
 mod rows;
 
 use std::collections::{BTreeMap, BTreeSet};
@@ -20,7 +21,7 @@ use synthgen_core::SceneSpec;
 use synthgen_dataset::io::atomic_write;
 use synthgen_dataset::output::{check_apart, OutputLock};
 use synthgen_dataset::source::{open_source, FrameSource, SourceFrame};
-use synthgen_pipeline::{Format, RenderJob, SinkOptions, WriteOptions};
+use synthgen_pipeline::{Backend, Format, RenderJob, SinkOptions, WriteOptions};
 use synthgen_train::data::Augment;
 
 use self::rows::{RowRecord, TrainSpec};
@@ -38,6 +39,16 @@ pub struct TestObject {
     pub model: PathBuf,
     /// `mm` or `m`.
     pub units: String,
+}
+
+impl TestObject {
+    /// The object as a scene's object entry (its model, id and units).
+    fn spec(&self) -> ObjectSpec {
+        let mut obj = ObjectSpec::new(&self.model);
+        obj.obj_id = Some(self.obj_id);
+        obj.units = Some(self.units.clone());
+        obj
+    }
 }
 
 /// Everything that decides the numbers.
@@ -208,6 +219,30 @@ const VARIANTS: &[Variant] = &[
 pub const REAL_ONLY: &str = "real_only";
 
 pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus> {
+    let Some(model) = args.model.depth_model() else {
+        return rgb::run(args, printer);
+    };
+    for (set, flag) in [
+        (args.scene.is_some(), "--scene"),
+        (args.models.is_some(), "--models"),
+        (args.cycles_frames.is_some(), "--cycles-frames"),
+    ] {
+        if set {
+            return Err(user_error(
+                format!(
+                    "{flag} applies to the RGB models (--model rgb|rgb-dense), not {}",
+                    super::model_name(model)
+                ),
+                "the depth models fit the scene and the sensor to --fit: drop the flag",
+            ));
+        }
+    }
+    let Some(fit_arg) = args.fit.clone() else {
+        return Err(user_error(
+            "--fit is required: the depth models fit the scene and the sensor to real frames",
+            "pass --fit DIR (real frames with depth and GT poses)",
+        ));
+    };
     let started = Instant::now();
     let out = args.out.clone();
     let frames = args.frames.unwrap_or(if args.quick { 48 } else { 1500 });
@@ -230,7 +265,7 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
             .num_threads(j)
             .build_global();
     }
-    let fit_dir = existing(&args.fit, "fit")?;
+    let fit_dir = existing(&fit_arg, "fit")?;
     let test_dir = existing(&args.test, "test")?;
     check_apart(
         &out,
@@ -305,7 +340,7 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
         test_scenes: args.test_scenes.clone(),
         fit_scenes: fit_scenes.clone(),
         objects,
-        model: super::model_name(args.model).into(),
+        model: super::model_name(model).into(),
         frames,
         epochs,
         batch,
@@ -360,7 +395,13 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
         test_src.camera().height,
     );
     let mut notes = Vec::new();
-    let mut base = base_scene(&settings, &fit_out, &test_k, &mut notes)?;
+    let mut base = base_scene(
+        &settings.objects,
+        settings.unseen_up,
+        &fit_out,
+        &test_k,
+        &mut notes,
+    )?;
     widen_distances(&mut base, &test_frames, &mut notes)?;
     let wanted = |name: &str| args.rows.is_empty() || args.rows.iter().any(|r| r == name);
     let variants: Vec<&Variant> = VARIANTS
@@ -382,7 +423,12 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
         };
         let t = Instant::now();
         let (dir, computed) = ensure_render(
-            &settings,
+            &RenderPlan {
+                frames: settings.frames,
+                seed: settings.seed,
+                quick: settings.quick,
+                backend: Backend::Cpu,
+            },
             &out,
             set_name,
             &spec,
@@ -721,7 +767,8 @@ fn ensure_fits(s: &Settings, dir: &Path, printer: &Printer) -> Result<bool> {
 /// where it saw the object; an object no fit frame shows gets `--unseen-up` (default +z, as
 /// scanned: chosen over `any` on the validation scene, docs/experiments.md).
 fn base_scene(
-    s: &Settings,
+    objects: &[TestObject],
+    unseen_up: UpAxis,
     fit: &Path,
     k: &synthgen_core::Intrinsics,
     notes: &mut Vec<String>,
@@ -734,25 +781,21 @@ fn base_scene(
         .iter()
         .filter_map(|o| Some((o.obj_id?, o.clone())))
         .collect();
-    spec.objects = s
-        .objects
+    spec.objects = objects
         .iter()
         .map(|o| {
-            let mut obj = ObjectSpec::new(&o.model);
-            obj.obj_id = Some(o.obj_id);
-            obj.units = Some(o.units.clone());
+            let mut obj = o.spec();
             match fitted.get(&o.obj_id) {
                 Some(f) => {
                     obj.up = f.up;
                     obj.tilt_deg = f.tilt_deg;
                 }
-                None => obj.up = s.unseen_up,
+                None => obj.up = unseen_up,
             }
             obj
         })
         .collect();
-    let unseen: Vec<String> = s
-        .objects
+    let unseen: Vec<String> = objects
         .iter()
         .filter(|o| !fitted.contains_key(&o.obj_id))
         .map(|o| o.obj_id.to_string())
@@ -761,7 +804,7 @@ fn base_scene(
         notes.push(format!(
             "objects {}: no fit frame shows them, so their rest pose is --unseen-up {} in the synthetic sets",
             unseen.join(", "),
-            s.unseen_up
+            unseen_up
         ));
     }
     set_camera(&mut spec, k);
@@ -914,8 +957,17 @@ fn textures_dir() -> Option<PathBuf> {
 /// finished render of the same scene, frames and seed is there (`sources/NAME.done`). The
 /// flag: rendered now. Up to `max_failed_fraction` of the frames may fail (they are left
 /// out, listed in the set's synthgen.json and the report's `skipped_frames`).
+/// How a synthetic set is rendered: frames `0..frames` of `seed`, at a quarter of the
+/// camera's resolution with `quick`, through `backend`.
+struct RenderPlan {
+    frames: usize,
+    seed: u64,
+    quick: bool,
+    backend: Backend,
+}
+
 fn ensure_render(
-    s: &Settings,
+    s: &RenderPlan,
     out: &Path,
     name: &str,
     spec: &SceneSpec,
@@ -940,9 +992,15 @@ fn ensure_render(
     }
     let scene_path = sources.join(format!("{name}.toml"));
     let scene_text = spec.to_toml();
-    let record = serde_json::to_string_pretty(&serde_json::json!({
-        "scene": scene_text, "frames": s.frames, "seed": s.seed
-    }))? + "\n";
+    let record = match s.backend {
+        Backend::Cpu => serde_json::json!({
+            "scene": scene_text, "frames": s.frames, "seed": s.seed
+        }),
+        ref b => serde_json::json!({
+            "scene": scene_text, "frames": s.frames, "seed": s.seed, "backend": b.name()
+        }),
+    };
+    let record = serde_json::to_string_pretty(&record)? + "\n";
     let marker = sources.join(format!("{name}.done"));
     if std::fs::read_to_string(&marker).is_ok_and(|t| t == record) && dir.is_dir() {
         printer.info(format!("reusing {} (rendered earlier)", dir.display()));
@@ -954,15 +1012,20 @@ fn ensure_render(
     }
     atomic_write(&scene_path, scene_text.as_bytes())?;
     printer.info(format!(
-        "rendering {name}: {} frames of {}, seed {}",
+        "rendering {name}: {} frames of {}, seed {}{}",
         s.frames,
         scene_path.display(),
-        s.seed
+        s.seed,
+        match s.backend {
+            Backend::Cpu => "",
+            Backend::Blender(_) => ", Blender Cycles",
+        }
     ));
     let t = Instant::now();
     let job = RenderJob::new(spec)
         .frames(0..s.frames as u64)
         .seed(s.seed)
+        .backend(s.backend.clone())
         .build(printer)
         .with_context(|| format!("cannot prepare the render of {name}"))?;
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;

@@ -141,9 +141,9 @@ pub fn load_test(s: &Settings, test: &dyn FrameSource, scenes: &[u32]) -> Result
 }
 
 /// Advances the bar once per epoch; the message shows the row and its loss.
-struct Observer<'a> {
-    printer: &'a Printer,
-    name: &'a str,
+pub(super) struct Observer<'a> {
+    pub printer: &'a Printer,
+    pub name: &'a str,
 }
 
 impl TrainObserver for Observer<'_> {

@@ -1,0 +1,1049 @@
+//! `synthgen experiment sim2real --model rgb|rgb-dense`: synthetic to real for the RGB models,
+//! on real test frames that need no depth (Linemod-Occluded's photographs). The scene comes
+//! from a scene fit to `--fit` (from the GT poses and cameras alone where there is no depth:
+//! no sensor fit, the RGB models read none) or from `--scene`; synthetic sets of the test
+//! objects are rendered with the realistic raster (the result), the plain raster, and at a
+//! smaller equal count with Cycles and both rasters; one RGB model per set is trained on
+//! synthetic frames only and scored on the real test frames with their GT visible boxes
+//! (5cm5°, ADD(-S), BOP's MSSD and MSPD) per object and per scene, beside the naive box
+//! baseline and, when `--fit` frames show the objects, a model trained on real frames. Every
+//! step is kept once done, so a re-run with the same options resumes.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use serde::{Deserialize, Serialize};
+use synthgen_core::scene::{DepthModel, Shading};
+use synthgen_core::{NoProgress, SceneSpec};
+use synthgen_dataset::io::atomic_write;
+use synthgen_dataset::output::{check_apart, OutputLock};
+use synthgen_dataset::source::{open_source, FrameSource};
+use synthgen_pipeline::{Backend, BlenderSettings};
+use synthgen_train::baseline::MeanBoxPose;
+use synthgen_train::bop::{prepare_bop, BopOptions, BopReport, BopSetup};
+use synthgen_train::data::{load_source_instances, DataOptions, Instance};
+use synthgen_train::eval::{
+    eval_objects, evaluate, prediction_estimates, read_gt, GtInstance, ObjectScores,
+};
+use synthgen_train::metrics::Rotations;
+use synthgen_train::models::rgb::{Translation, DEFAULT_RGB_CROP};
+use synthgen_train::models::ModelKind;
+use synthgen_train::pose_model::{load_dataset_objects, Objects, Prediction};
+use synthgen_train::results::Estimate;
+use synthgen_train::train::{self, load_model, Schedule, TrainConfig, MODEL_FILE};
+
+use super::{RenderPlan, TestObject};
+use crate::cli::{ExperimentSim2realArgs, Sim2realModelArg};
+use crate::commands::experiment::row::{read_row_file, row_dir, ROW_FILE};
+use crate::commands::user_error;
+use crate::{ExitStatus, Printer};
+
+/// Instances below this visible fraction are neither trained on nor scored (BOP's rule).
+const MIN_VISIB_FRACT: f64 = 0.1;
+/// Model points per object in the rotation loss.
+const LOSS_POINTS: usize = 100;
+/// Crops per prediction batch.
+const PREDICT_BATCH: usize = 64;
+/// The row whose numbers are the result.
+pub const MAIN_ROW: &str = "synth_realistic";
+/// The naive box baseline.
+pub const NAIVE_BOX: &str = "naive_box";
+/// A model trained on the --fit frames.
+pub const REAL_ONLY: &str = "real_only";
+
+/// Everything that decides the numbers of an RGB sim2real experiment.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RgbSettings {
+    pub model: String,
+    pub fit: Option<PathBuf>,
+    pub test: PathBuf,
+    pub test_scenes: Vec<u32>,
+    pub fit_scenes: Vec<u32>,
+    /// `--scene`'s text (the scene it renders), when given.
+    pub scene: Option<String>,
+    pub objects: Vec<TestObject>,
+    pub frames: usize,
+    pub cycles_frames: usize,
+    pub epochs: usize,
+    pub batch: usize,
+    pub lr: f64,
+    pub width: usize,
+    pub crop_size: u32,
+    pub seed: u64,
+    pub quick: bool,
+}
+
+impl RgbSettings {
+    fn kind(&self) -> ModelKind {
+        if self.model == "rgb" {
+            ModelKind::Rgb
+        } else {
+            ModelKind::RgbDense
+        }
+    }
+}
+
+/// The scores of a row on some GT instances (the names `report.json` promises).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Scores {
+    /// GT instances (visible fraction ≥ 0.1); one without an estimate is a miss.
+    pub n: usize,
+    /// BOP's average recall of MSPD and MSSD over the BOP targets among them (None: no target).
+    pub ar_mspd: Option<f64>,
+    pub ar_mssd: Option<f64>,
+    pub acc_5cm5deg: f64,
+    /// ADD(-S) below 10 % of the diameter.
+    pub add_s_acc: f64,
+    pub median_re_deg: Option<f64>,
+    pub median_te_cm: Option<f64>,
+}
+
+impl Scores {
+    fn new(s: &ObjectScores, mspd: Option<f64>, mssd: Option<f64>) -> Scores {
+        Scores {
+            n: s.n_gt,
+            ar_mspd: mspd,
+            ar_mssd: mssd,
+            acc_5cm5deg: s.acc_5cm5deg,
+            add_s_acc: s.add_s_acc,
+            median_re_deg: s.median_re_deg,
+            median_te_cm: s.median_te_cm,
+        }
+    }
+}
+
+/// `rows/NAME/row.json` of an RGB row.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RgbRow {
+    pub name: String,
+    pub what: String,
+    /// Synthetic frames rendered for it (None: real frames or no training).
+    pub frames: Option<usize>,
+    pub trained_on: Option<PathBuf>,
+    pub train_instances: usize,
+    pub epochs: usize,
+    pub all: Scores,
+    pub objects: BTreeMap<String, Scores>,
+    pub scenes: BTreeMap<String, Scores>,
+    pub seconds_train: f64,
+    pub seconds_eval: f64,
+}
+
+/// The real test frames, loaded once: instances with their GT visible boxes, the GT, the
+/// objects' models and the BOP setup (targets in the test scenes).
+struct TestSet {
+    instances: Vec<Instance>,
+    gts: Vec<GtInstance>,
+    objects: Objects,
+    bop: BopSetup,
+}
+
+/// A synthetic set of a row: its look and its size.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Look {
+    Realistic,
+    Plain,
+    Cycles,
+}
+
+struct SynthRow {
+    name: &'static str,
+    look: Look,
+    /// The Cycles row's count (`--cycles-frames`) instead of `--frames`.
+    small: bool,
+}
+
+const SYNTH_ROWS: &[SynthRow] = &[
+    SynthRow {
+        name: MAIN_ROW,
+        look: Look::Realistic,
+        small: false,
+    },
+    SynthRow {
+        name: "synth_plain",
+        look: Look::Plain,
+        small: false,
+    },
+    SynthRow {
+        name: "synth_cycles",
+        look: Look::Cycles,
+        small: true,
+    },
+    SynthRow {
+        name: "synth_realistic_small",
+        look: Look::Realistic,
+        small: true,
+    },
+    SynthRow {
+        name: "synth_plain_small",
+        look: Look::Plain,
+        small: true,
+    },
+];
+
+impl SynthRow {
+    fn what(&self, frames: usize) -> String {
+        let look = match self.look {
+            Look::Realistic => {
+                "realistic raster (shadows, ambient occlusion, environment light, GGX)"
+            }
+            Look::Plain => "plain raster (no shadows, no ambient occlusion, Phong)",
+            Look::Cycles => "Blender Cycles, 16 samples",
+        };
+        format!("synthetic, {frames} frames, {look}")
+    }
+}
+
+pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus> {
+    let started = Instant::now();
+    let model = match args.model {
+        Sim2realModelArg::Rgb => "rgb",
+        _ => "rgb-dense",
+    };
+    for (set, flag) in [
+        (args.ablation, "--ablation"),
+        (args.per_object, "--per-object"),
+        (args.ensemble.is_some(), "--ensemble"),
+        (args.mask_jitter_px != 3, "--mask-jitter-px"),
+        (args.mask_shift_px != 0, "--mask-shift-px"),
+        (args.occlusion_prob != 0.0, "--occlusion-prob"),
+        (args.point_dropout != 0.0, "--point-dropout"),
+    ] {
+        if set {
+            return Err(user_error(
+                format!("{flag} is a depth-model option; --model {model} does not take it"),
+                "drop the flag (the RGB models augment their crops themselves: colour, blur, noise, occluders, box jitter)",
+            ));
+        }
+    }
+    let out = args.out.clone();
+    let frames = args.frames.unwrap_or(if args.quick { 48 } else { 1500 });
+    let cycles_frames = args
+        .cycles_frames
+        .unwrap_or(if args.quick { 4 } else { 200 });
+    let budget = args.budget.resolve_rgb(args.quick);
+    if frames == 0 || budget.epochs == 0 || budget.batch == 0 || budget.width == 0 {
+        return Err(user_error(
+            "--frames, --epochs, --batch and --width must be positive",
+            "e.g. --frames 1500 --epochs 20",
+        ));
+    }
+    if let Some(j) = args.jobs {
+        let _ = rayon::ThreadPoolBuilder::new()
+            .num_threads(j)
+            .build_global();
+    }
+    let test_dir = super::existing(&args.test, "test")?;
+    let fit_dir = args
+        .fit
+        .as_ref()
+        .map(|f| super::existing(f, "fit"))
+        .transpose()?;
+    let mut apart = vec![("--test dataset", test_dir.as_path())];
+    if let Some(f) = &fit_dir {
+        apart.push(("--fit dataset", f.as_path()));
+    }
+    check_apart(&out, &apart)?;
+    let test_src = open_source(&test_dir)
+        .with_context(|| format!("cannot open the --test dataset {}", test_dir.display()))?;
+    let fit_src = fit_dir
+        .as_ref()
+        .map(|f| {
+            open_source(f).with_context(|| format!("cannot open the --fit dataset {}", f.display()))
+        })
+        .transpose()?;
+    let same = fit_dir.as_ref() == Some(&test_dir);
+    if same && args.test_scenes.is_empty() {
+        return Err(user_error(
+            "--test is the --fit dataset but no --test-scenes are held out",
+            "name the test scenes, e.g. --test-scenes 2, or render from a scene file with --scene instead of --fit",
+        ));
+    }
+    let test_frames = super::frames_in(test_src.as_ref(), &args.test_scenes, "--test")?;
+    let (fit_frames, fit_scenes) = match &fit_src {
+        None => (Vec::new(), Vec::new()),
+        Some(src) => {
+            let scenes: Vec<u32> = if same {
+                super::scenes_of(&src.frames(&[])?)
+                    .into_iter()
+                    .filter(|s| !args.test_scenes.contains(s))
+                    .collect()
+            } else {
+                Vec::new()
+            };
+            if same && scenes.is_empty() {
+                return Err(user_error(
+                    "every scene of the dataset is a test scene: nothing is left to fit to",
+                    "hold out fewer scenes with --test-scenes",
+                ));
+            }
+            (super::frames_in(src.as_ref(), &scenes, "--fit")?, scenes)
+        }
+    };
+    if !fit_frames.is_empty() {
+        let t: Vec<&_> = test_frames.iter().collect();
+        let f: Vec<&_> = fit_frames.iter().collect();
+        let shared = synthgen_dataset::shared_frames::same_images(&t, &f)?;
+        if let Some(&(j, i)) = shared.first() {
+            return Err(user_error(
+                format!(
+                    "the --fit dataset shares {} of its {} frames with the --test frames, e.g. {} is the test frame {}: the scene fit and the real-only row would see the test frames",
+                    shared.len(),
+                    f.len(),
+                    f[j].rgb.display(),
+                    t[i].rgb.display()
+                ),
+                "pass one folder as --fit and --test with --test-scenes, or fit to other frames",
+            ));
+        }
+    }
+    let scene_text = match &args.scene {
+        Some(p) => {
+            let spec = SceneSpec::from_toml_file(p)
+                .with_context(|| format!("cannot read the --scene file {}", p.display()))?;
+            Some((spec, std::fs::read_to_string(p)?))
+        }
+        None => None,
+    };
+    let fit_ref = fit_src.as_deref().unwrap_or(test_src.as_ref());
+    let mut objects = super::test_objects(test_src.as_ref(), fit_ref, &test_frames)?;
+    let mut notes = Vec::new();
+    if let Some(dir) = &args.models {
+        replace_models(test_src.as_ref(), dir, &mut objects, &mut notes)?;
+    }
+    let settings = RgbSettings {
+        model: model.to_string(),
+        fit: fit_dir.clone(),
+        test: test_dir.clone(),
+        test_scenes: args.test_scenes.clone(),
+        fit_scenes: fit_scenes.clone(),
+        scene: scene_text.as_ref().map(|(_, t)| t.clone()),
+        objects,
+        frames,
+        cycles_frames,
+        epochs: budget.epochs,
+        batch: budget.batch,
+        lr: budget.lr,
+        width: budget.width,
+        crop_size: DEFAULT_RGB_CROP,
+        seed: args.seed,
+        quick: args.quick,
+    };
+    let _lock = OutputLock::acquire(&out)?;
+    let mut inputs: Vec<(&str, &Path)> = vec![("--test", &settings.test)];
+    if let Some(f) = &settings.fit {
+        inputs.push(("--fit", f));
+    }
+    super::super::check_settings_file(
+        &out,
+        super::SETTINGS_FILE,
+        &settings,
+        &inputs,
+        args.force,
+        &["rows", "sources", "fit"],
+        true,
+    )?;
+    printer.info(format!(
+        "{model}: objects {} (from the test frames' GT); test frames: {}{}; {}",
+        settings
+            .objects
+            .iter()
+            .map(|o| o.obj_id.to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
+        test_frames.len(),
+        if args.test_scenes.is_empty() {
+            String::new()
+        } else {
+            format!(" (scenes {})", super::list(&args.test_scenes))
+        },
+        match (&settings.scene, &fit_dir) {
+            (Some(_), _) => format!(
+                "scene from {}",
+                args.scene.as_deref().unwrap_or(Path::new("")).display()
+            ),
+            (None, Some(f)) => format!(
+                "scene fitted to {} frames of {}",
+                fit_frames.len(),
+                f.display()
+            ),
+            (None, None) => String::new(),
+        }
+    ));
+
+    // 1. The scene: --scene, else fitted to --fit (GT poses and cameras; depth where there).
+    let test_k = super::most_common_k(
+        &test_frames,
+        test_src.camera().width,
+        test_src.camera().height,
+    );
+    let mut base = match scene_text {
+        Some((mut spec, _)) => {
+            spec.objects = settings.objects.iter().map(TestObject::spec).collect();
+            notes.push(
+                "the scene is --scene's (not fitted); its objects are the test objects".into(),
+            );
+            super::set_camera(&mut spec, &test_k);
+            spec
+        }
+        None => {
+            let (Some(fit), Some(_)) = (&settings.fit, &fit_src) else {
+                return Err(anyhow::anyhow!("internal: neither --scene nor --fit"));
+            };
+            let dir = out.join("fit");
+            ensure_scene_fit(fit, &settings.fit_scenes, &dir, printer)?;
+            let mut spec = super::base_scene(
+                &settings.objects,
+                synthgen_core::scene::UpAxis::Stable,
+                &dir,
+                &test_k,
+                &mut notes,
+            )?;
+            if test_frames.iter().all(|f| f.depth.is_some()) {
+                super::widen_distances(&mut spec, &test_frames, &mut notes)?;
+            }
+            spec
+        }
+    };
+    // The dense model's targets come from the rendered depth: clean, whatever the scene says.
+    base.sensor.depth = DepthModel::None;
+    base.validate()?;
+
+    // 2. The synthetic sets.
+    let wanted = |name: &str| args.rows.is_empty() || args.rows.iter().any(|r| r == name);
+    let blender = cfg!(feature = "blender");
+    let mut sets: Vec<(&SynthRow, usize, PathBuf)> = Vec::new();
+    for row in SYNTH_ROWS {
+        // The naive row reads the main row's set.
+        let needed = wanted(row.name) || (row.name == MAIN_ROW && wanted(NAIVE_BOX));
+        if !needed {
+            continue;
+        }
+        let n = if row.small { cycles_frames } else { frames };
+        if n == 0 {
+            continue;
+        }
+        if row.look == Look::Cycles && !blender {
+            notes.push(format!(
+                "{} skipped: this synthgen was built without the `blender` feature (docs/blender.md)",
+                row.name
+            ));
+            continue;
+        }
+        let mut spec = base.clone();
+        if row.look == Look::Plain {
+            plain_look(&mut spec);
+        }
+        let t = Instant::now();
+        let (dir, computed) = super::ensure_render(
+            &RenderPlan {
+                frames: n,
+                seed: settings.seed,
+                quick: settings.quick,
+                backend: if row.look == Look::Cycles {
+                    Backend::Blender(BlenderSettings::default())
+                } else {
+                    Backend::Cpu
+                },
+            },
+            &out,
+            row.name,
+            &spec,
+            args.max_failed_fraction,
+            printer,
+        )?;
+        if computed {
+            printer.info(format!(
+                "{}: rendered in {:.1} s",
+                row.name,
+                t.elapsed().as_secs_f64()
+            ));
+        }
+        sets.push((row, n, dir));
+    }
+
+    // 3. Train and score.
+    let test = load_test(&settings, test_src.as_ref())?;
+    printer.info(format!(
+        "{} real test instances (GT visible boxes: no detector), {} BOP targets",
+        test.gts.len(),
+        test.bop.targets.len()
+    ));
+    let mut rows: Vec<RgbRow> = Vec::new();
+    let mut computed = 0;
+    for (row, n, dir) in &sets {
+        if !wanted(row.name) {
+            continue;
+        }
+        let record = match read_row_file::<RgbRow>(&out, row.name) {
+            Some(r) => r,
+            None => {
+                computed += 1;
+                let src =
+                    open_source(dir).with_context(|| format!("cannot open {}", dir.display()))?;
+                printer.info(format!("training {} on {}", row.name, dir.display()));
+                let r = train_row(
+                    &settings,
+                    &out,
+                    row.name,
+                    row.what(*n),
+                    Some(*n),
+                    src.as_ref(),
+                    &[],
+                    &test,
+                    printer,
+                )?;
+                printer.info(format!("{}: {}", row.name, summary(&r.all)));
+                r
+            }
+        };
+        rows.push(record);
+    }
+    if wanted(NAIVE_BOX) {
+        let record = match read_row_file::<RgbRow>(&out, NAIVE_BOX) {
+            Some(r) => r,
+            None => {
+                let Some((_, _, dir)) = sets.iter().find(|(r, _, _)| r.name == MAIN_ROW) else {
+                    return Err(anyhow::anyhow!("internal: the naive row needs {MAIN_ROW}"));
+                };
+                computed += 1;
+                naive_row(&settings, &out, dir, &test)?
+            }
+        };
+        rows.push(record);
+    }
+    if wanted(REAL_ONLY) {
+        match (&fit_src, &fit_dir) {
+            (Some(src), Some(dir)) => {
+                let record = match read_row_file::<RgbRow>(&out, REAL_ONLY) {
+                    Some(r) => Some(r),
+                    None => {
+                        let has_depth = fit_frames.iter().all(|f| f.depth.is_some());
+                        if settings.kind() == ModelKind::RgbDense && !has_depth {
+                            notes.push(format!(
+                                "{REAL_ONLY} skipped: the dense model's targets need depth, and the --fit frames have none"
+                            ));
+                            None
+                        } else {
+                            computed += 1;
+                            printer.info(format!("training {REAL_ONLY} on the --fit frames"));
+                            Some(train_row(
+                                &settings,
+                                &out,
+                                REAL_ONLY,
+                                format!(
+                                    "real frames only ({}{})",
+                                    dir.display(),
+                                    if fit_scenes.is_empty() {
+                                        String::new()
+                                    } else {
+                                        format!(" scenes {}", super::list(&fit_scenes))
+                                    }
+                                ),
+                                None,
+                                src.as_ref(),
+                                &fit_scenes,
+                                &test,
+                                printer,
+                            )?)
+                        }
+                    }
+                };
+                rows.extend(record);
+            }
+            _ => notes.push(format!("{REAL_ONLY} skipped: no --fit frames to train on")),
+        }
+    }
+
+    let skipped: BTreeMap<String, Vec<u64>> = sets
+        .iter()
+        .map(|(row, _, dir)| (row.name.to_string(), failed_frames(dir)))
+        .collect();
+    let report = report_json(&settings, &rows, &notes, &skipped);
+    atomic_write(
+        &out.join("report.json"),
+        (serde_json::to_string_pretty(&report)? + "\n").as_bytes(),
+    )?;
+    let md = markdown(&settings, &rows, &notes);
+    atomic_write(&out.join("report.md"), md.as_bytes())?;
+    printer.data(md)?;
+    printer.info(format!(
+        "{} rows ({computed} computed now) in {:.0} s; wrote report.md and report.json in {}",
+        rows.len(),
+        started.elapsed().as_secs_f64(),
+        out.display()
+    ));
+    Ok(ExitStatus::Success)
+}
+
+/// `--models DIR`: each test object with a folder `DIR/<its name>/` holding one mesh is
+/// rendered from that mesh (units decided per file).
+fn replace_models(
+    test: &dyn FrameSource,
+    dir: &Path,
+    objects: &mut [TestObject],
+    notes: &mut Vec<String>,
+) -> Result<()> {
+    if !dir.is_dir() {
+        return Err(user_error(
+            format!("--models is not a folder: {}", dir.display()),
+            "give a folder with one subfolder per object (`synthgen model align --scans` writes one)",
+        ));
+    }
+    let mut kept = Vec::new();
+    for o in objects.iter_mut() {
+        let name = crate::commands::object_models::model_name(test, o.obj_id);
+        let folder = dir.join(&name);
+        if !folder.is_dir() {
+            kept.push(name);
+            continue;
+        }
+        let meshes = crate::commands::object_models::files_with_extensions(
+            &folder,
+            synthgen_assets::SUPPORTED_EXTENSIONS,
+        )
+        .with_context(|| format!("cannot read {}", folder.display()))?;
+        let [mesh] = meshes.as_slice() else {
+            return Err(user_error(
+                format!(
+                    "{} holds {} meshes; --models needs exactly one per object folder",
+                    folder.display(),
+                    meshes.len()
+                ),
+                "keep one mesh (.obj, .ply, .gltf, .glb) in each object's folder",
+            ));
+        };
+        o.model = mesh.canonicalize().unwrap_or_else(|_| mesh.clone());
+        o.units = "auto".into();
+    }
+    if !kept.is_empty() {
+        notes.push(format!(
+            "--models: no folder for {} in {}; their dataset models are rendered",
+            kept.join(", "),
+            dir.display()
+        ));
+    }
+    Ok(())
+}
+
+/// `scenes/plain.toml`'s look: no shadows, no ambient occlusion, a white environment, Phong,
+/// no metal.
+fn plain_look(spec: &mut SceneSpec) {
+    spec.lights.shadows = false;
+    spec.lights.ambient_occlusion = 0.0;
+    spec.lights.sky_color = Some([1.0; 3]);
+    spec.lights.ground_color = Some([1.0; 3]);
+    spec.materials.shading = Shading::Phong;
+    spec.materials.metallic = [0.0, 0.0];
+}
+
+/// `fit/scene.toml` fitted to the --fit frames (GT poses and cameras; the depth's plane where
+/// the frames have depth), unless a finished fit of the same frames is there.
+fn ensure_scene_fit(fit: &Path, scenes: &[u32], dir: &Path, printer: &Printer) -> Result<()> {
+    let record = serde_json::to_string_pretty(&serde_json::json!({
+        "fit": fit, "scenes": scenes, "sensor": null
+    }))? + "\n";
+    let marker = dir.join("fit.done");
+    if std::fs::read_to_string(&marker).is_ok_and(|t| t == record) {
+        printer.info(format!("reusing the scene fit in {}", dir.display()));
+        return Ok(());
+    }
+    if dir.exists() {
+        std::fs::remove_dir_all(dir).with_context(|| format!("cannot remove {}", dir.display()))?;
+    }
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    printer.info(format!("fitting the scene to {}", fit.display()));
+    let scene = crate::commands::scene::fit_to_file(
+        fit,
+        scenes,
+        None::<&Path>,
+        &dir.join("scene.toml"),
+        printer,
+    )?;
+    atomic_write(
+        &dir.join("scene_report.json"),
+        (serde_json::to_string_pretty(&scene)? + "\n").as_bytes(),
+    )?;
+    atomic_write(&marker, record.as_bytes())?;
+    Ok(())
+}
+
+/// The training configuration of every trained row (`data`: the set it trains on).
+fn train_config(s: &RgbSettings, data: &Path, split: String) -> TrainConfig {
+    let kind = s.kind();
+    TrainConfig {
+        model: kind,
+        width: s.width,
+        n_points: 1,
+        normalization_scale: synthgen_train::models::tnet::DEFAULT_SCALE,
+        epochs: s.epochs,
+        batch: s.batch,
+        lr: s.lr,
+        weight_decay: 1e-4,
+        schedule: Schedule::Cosine,
+        seed: s.seed,
+        val_fraction: 0.1,
+        min_visib_fract: MIN_VISIB_FRACT,
+        data: data.to_path_buf(),
+        split,
+        crop_size: s.crop_size,
+        loss_points: LOSS_POINTS,
+        init: Vec::new(),
+        plain_add_loss: false,
+        translation: (kind == ModelKind::Rgb).then_some(Translation::CentreTz),
+        // One head per test object, whatever the training set shows.
+        classes: s.objects.iter().map(|o| o.obj_id).collect(),
+    }
+}
+
+/// The test frames' instances (their GT visible boxes), GT and models, and the BOP targets
+/// of the test scenes.
+fn load_test(s: &RgbSettings, test: &dyn FrameSource) -> Result<TestSet> {
+    let opts = DataOptions {
+        dense_targets: false,
+        split: None,
+        ..train_config(s, test.root(), String::new()).data_options()
+    };
+    let keep = |scene: u32| s.test_scenes.is_empty() || s.test_scenes.contains(&scene);
+    let set = load_source_instances(test, &opts, &NoProgress)
+        .with_context(|| format!("cannot load the test frames of {}", test.root().display()))?;
+    let instances: Vec<Instance> = set
+        .instances
+        .into_iter()
+        .filter(|i| keep(i.scene_id))
+        .collect();
+    let gts: Vec<GtInstance> = read_gt(test, &set.split, MIN_VISIB_FRACT)?
+        .into_iter()
+        .filter(|g| keep(g.scene_id))
+        .collect();
+    if gts.is_empty() {
+        anyhow::bail!(
+            "no test instance with a visible fraction of at least {MIN_VISIB_FRACT} in {}",
+            test.root().display()
+        );
+    }
+    let ids: BTreeSet<u32> = gts.iter().map(|g| g.obj_id).collect();
+    let objects = load_dataset_objects(test, ids, LOSS_POINTS)
+        .with_context(|| format!("cannot load the object models of {}", test.root().display()))?;
+    let mut bop = prepare_bop(test, &set.split, None, &BopOptions::default())
+        .with_context(|| format!("cannot prepare BOP scoring of {}", test.root().display()))?;
+    bop.targets.retain(|t| keep(t.scene_id));
+    Ok(TestSet {
+        instances,
+        gts,
+        objects,
+        bop,
+    })
+}
+
+/// Trains the RGB model on `data` (the `scenes` of it, all when empty) and scores it on the
+/// test set (a row from scratch; `row.json` last).
+#[allow(clippy::too_many_arguments)]
+fn train_row(
+    s: &RgbSettings,
+    out: &Path,
+    name: &str,
+    what: String,
+    frames: Option<usize>,
+    data: &dyn FrameSource,
+    scenes: &[u32],
+    test: &TestSet,
+    printer: &Printer,
+) -> Result<RgbRow> {
+    let dir = row_dir(out, name);
+    if dir.exists() {
+        std::fs::remove_dir_all(&dir)
+            .with_context(|| format!("cannot remove {}", dir.display()))?;
+    }
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let t0 = Instant::now();
+    let cfg = train_config(s, data.root(), String::new());
+    let mut set = load_source_instances(data, &cfg.data_options(), &NoProgress)
+        .with_context(|| format!("cannot load {}", data.root().display()))?;
+    if !scenes.is_empty() {
+        set.instances.retain(|i| scenes.contains(&i.scene_id));
+    }
+    let classes: BTreeSet<u32> = cfg.classes.iter().copied().collect();
+    set.instances.retain(|i| classes.contains(&i.obj_id));
+    if set.instances.is_empty() {
+        anyhow::bail!(
+            "no usable training instance of the test objects in {}",
+            data.root().display()
+        );
+    }
+    let objects = load_dataset_objects(data, set.obj_ids(), LOSS_POINTS)
+        .with_context(|| format!("cannot load the object models of {}", data.root().display()))?;
+    let cfg = TrainConfig {
+        split: set.split.clone(),
+        ..cfg
+    };
+    let device = train::device(false)?;
+    let run_dir = dir.join("train");
+    let outcome = train::train(
+        &cfg,
+        &set,
+        Some(&objects),
+        &run_dir,
+        false,
+        &device,
+        &super::rows::Observer { printer, name },
+    )?;
+    let seconds_train = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    let net = load_model(&run_dir.join(MODEL_FILE), &cfg, &device)?;
+    let tested: Vec<&Instance> = test
+        .instances
+        .iter()
+        .filter(|i| classes.contains(&i.obj_id))
+        .collect();
+    let preds = net.predict(&tested, Some(&test.objects), PREDICT_BATCH)?;
+    let estimates = prediction_estimates(&preds, tested.iter().copied());
+    let (all, objects_s, scenes_s) = score(&estimates, test)?;
+    let record = RgbRow {
+        name: name.to_string(),
+        what,
+        frames,
+        trained_on: Some(data.root().to_path_buf()),
+        train_instances: outcome.n_train,
+        epochs: cfg.epochs,
+        all,
+        objects: objects_s,
+        scenes: scenes_s,
+        seconds_train,
+        seconds_eval: t1.elapsed().as_secs_f64(),
+    };
+    write_row(out, &record)?;
+    Ok(record)
+}
+
+/// The naive box baseline: per object the mean allocentric rotation and centre + Tz target
+/// of the main row's training instances, read back through each test box.
+fn naive_row(s: &RgbSettings, out: &Path, main_set: &Path, test: &TestSet) -> Result<RgbRow> {
+    let t0 = Instant::now();
+    let src =
+        open_source(main_set).with_context(|| format!("cannot open {}", main_set.display()))?;
+    let opts = DataOptions {
+        dense_targets: false,
+        ..train_config(s, main_set, String::new()).data_options()
+    };
+    let set = load_source_instances(src.as_ref(), &opts, &NoProgress)
+        .with_context(|| format!("cannot load {}", main_set.display()))?;
+    let mean = MeanBoxPose::fit(&set.instances);
+    let (preds, tested): (Vec<Prediction>, Vec<&Instance>) = test
+        .instances
+        .iter()
+        .filter_map(|i| Some((mean.predict(i)?, i)))
+        .unzip();
+    let estimates = prediction_estimates(&preds, tested.iter().copied());
+    let (all, objects, scenes) = score(&estimates, test)?;
+    let record = RgbRow {
+        name: NAIVE_BOX.into(),
+        what: format!(
+            "no image content: per object the mean rotation relative to the box's ray and the mean centre + Tz of the box, over {MAIN_ROW}'s instances"
+        ),
+        frames: None,
+        trained_on: Some(main_set.to_path_buf()),
+        train_instances: set.instances.len(),
+        epochs: 0,
+        all,
+        objects,
+        scenes,
+        seconds_train: 0.0,
+        seconds_eval: t0.elapsed().as_secs_f64(),
+    };
+    write_row(out, &record)?;
+    Ok(record)
+}
+
+fn write_row(out: &Path, r: &RgbRow) -> Result<()> {
+    let dir = row_dir(out, &r.name);
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    atomic_write(
+        &row_dir(out, &r.name).join(ROW_FILE),
+        (serde_json::to_string_pretty(r)? + "\n").as_bytes(),
+    )?;
+    Ok(())
+}
+
+/// Scores the estimates against the test GT: overall, per object and per scene (the
+/// 5cm5°/ADD(-S) matching of `synthgen eval`, and BOP's MSPD/MSSD over the targets).
+#[allow(clippy::type_complexity)]
+fn score(
+    estimates: &[Estimate],
+    test: &TestSet,
+) -> Result<(Scores, BTreeMap<String, Scores>, BTreeMap<String, Scores>)> {
+    let objs = eval_objects(&test.objects);
+    let report = evaluate(&test.gts, estimates, &objs, Rotations::default())?;
+    let bop: BopReport = test
+        .bop
+        .evaluate(estimates, None, &BopOptions::default(), &NoProgress)?;
+    let all = Scores::new(
+        &report.all,
+        Some(bop.mspd.mean_recall),
+        Some(bop.mssd.mean_recall),
+    );
+    let objects = report
+        .per_object
+        .iter()
+        .map(|(id, r)| {
+            (
+                id.to_string(),
+                Scores::new(
+                    r,
+                    bop.mspd.per_object_mean_recall.get(id).copied(),
+                    bop.mssd.per_object_mean_recall.get(id).copied(),
+                ),
+            )
+        })
+        .collect();
+    let scene_ids: BTreeSet<u32> = test.gts.iter().map(|g| g.scene_id).collect();
+    let mut scenes = BTreeMap::new();
+    for sc in scene_ids {
+        let gts: Vec<GtInstance> = test
+            .gts
+            .iter()
+            .filter(|g| g.scene_id == sc)
+            .cloned()
+            .collect();
+        let ests: Vec<Estimate> = estimates
+            .iter()
+            .filter(|e| e.scene_id == sc)
+            .cloned()
+            .collect();
+        let r = evaluate(&gts, &ests, &objs, Rotations::default())?;
+        scenes.insert(
+            sc.to_string(),
+            Scores::new(
+                &r.all,
+                bop.mspd.per_scene_mean_recall.get(&sc).copied(),
+                bop.mssd.per_scene_mean_recall.get(&sc).copied(),
+            ),
+        );
+    }
+    Ok((all, objects, scenes))
+}
+
+/// The frames a set's render left out (its synthgen.json's `failed_frames`).
+fn failed_frames(dir: &Path) -> Vec<u64> {
+    synthgen_dataset::read_manifest(dir)
+        .ok()
+        .and_then(|m| {
+            m.extra["failed_frames"]
+                .as_array()
+                .map(|a| a.iter().filter_map(serde_json::Value::as_u64).collect())
+        })
+        .unwrap_or_default()
+}
+
+fn summary(s: &Scores) -> String {
+    format!(
+        "AR_MSPD {} AR_MSSD {} 5cm5° {:.1}% ADD(-S) {:.1}% on {} real instances",
+        opt(s.ar_mspd, 3),
+        opt(s.ar_mssd, 3),
+        100.0 * s.acc_5cm5deg,
+        100.0 * s.add_s_acc,
+        s.n
+    )
+}
+
+fn opt(v: Option<f64>, digits: usize) -> String {
+    v.map_or("–".to_string(), |v| format!("{v:.digits$}"))
+}
+
+/// `report.json`: `all` / `objects` / `scenes` of the main row (the realistic raster), every
+/// row under `rows`, the settings, notes and skipped frames.
+fn report_json(
+    s: &RgbSettings,
+    rows: &[RgbRow],
+    notes: &[String],
+    skipped: &BTreeMap<String, Vec<u64>>,
+) -> serde_json::Value {
+    let main = rows.iter().find(|r| r.name == MAIN_ROW);
+    serde_json::json!({
+        "model": s.model,
+        "gt_boxes": true,
+        "main_row": MAIN_ROW,
+        "all": main.map(|r| &r.all),
+        "objects": main.map(|r| &r.objects),
+        "scenes": main.map(|r| &r.scenes),
+        "rows": rows.iter().map(|r| (r.name.clone(), r)).collect::<BTreeMap<_, _>>(),
+        "skipped_frames": skipped,
+        "notes": notes,
+        "settings": s,
+    })
+}
+
+fn markdown(s: &RgbSettings, rows: &[RgbRow], notes: &[String]) -> String {
+    let mut md = format!(
+        "# sim2real, {} (trained on synthetic frames only; scored on the real test frames with their GT visible boxes, no detector)\n\n",
+        s.model
+    );
+    md += "| row | frames | n | AR_MSPD | AR_MSSD | 5cm5° | ADD(-S) | median E_re | median E_te | train s |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+    for r in rows {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {} | {} | {:.1}% | {:.1}% | {} | {} | {:.0} |",
+            r.name,
+            r.frames.map_or("–".into(), |f| f.to_string()),
+            r.all.n,
+            opt(r.all.ar_mspd, 3),
+            opt(r.all.ar_mssd, 3),
+            100.0 * r.all.acc_5cm5deg,
+            100.0 * r.all.add_s_acc,
+            r.all
+                .median_re_deg
+                .map_or("–".into(), |v| format!("{v:.0}°")),
+            r.all
+                .median_te_cm
+                .map_or("–".into(), |v| format!("{v:.1} cm")),
+            r.seconds_train
+        );
+    }
+    // Per object and per scene: AR_MSPD of every row.
+    for (title, pick) in [
+        (
+            "object",
+            (|r: &RgbRow| &r.objects) as fn(&RgbRow) -> &BTreeMap<String, Scores>,
+        ),
+        ("scene", |r: &RgbRow| &r.scenes),
+    ] {
+        let keys: BTreeSet<&String> = rows.iter().flat_map(|r| pick(r).keys()).collect();
+        // Ids in numeric order (1, 5, 10, not 1, 10, 5).
+        let mut keys: Vec<&String> = keys.into_iter().collect();
+        keys.sort_by_key(|k| (k.parse::<u64>().unwrap_or(u64::MAX), (*k).clone()));
+        if keys.is_empty() {
+            continue;
+        }
+        let _ = write!(md, "\nAR_MSPD / 5cm5° per {title}:\n\n| {title} | n |");
+        for r in rows {
+            let _ = write!(md, " {} |", r.name);
+        }
+        md += "\n|---|---:|";
+        md += &"---:|".repeat(rows.len());
+        md += "\n";
+        for k in keys {
+            let n = rows
+                .iter()
+                .find_map(|r| pick(r).get(k).map(|v| v.n))
+                .unwrap_or(0);
+            let _ = write!(md, "| {k} | {n} |");
+            for r in rows {
+                let cell = pick(r).get(k).map_or("–".into(), |v| {
+                    format!("{} / {:.1}%", opt(v.ar_mspd, 3), 100.0 * v.acc_5cm5deg)
+                });
+                let _ = write!(md, " {cell} |");
+            }
+            md += "\n";
+        }
+    }
+    if !notes.is_empty() {
+        md += "\nNotes:\n";
+        for n in notes {
+            let _ = writeln!(md, "- {n}");
+        }
+    }
+    md
+}
