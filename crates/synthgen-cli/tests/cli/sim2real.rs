@@ -392,6 +392,26 @@ fn quick_rgb_dense_sim2real_on_real_lmo_photographs() {
     // The synthetic sets: clean depth (the dense targets), as many frames as asked.
     let set = std::fs::read_to_string(out.join("sources/synth_realistic.toml")).unwrap();
     assert!(set.contains("depth = \"none\""), "{set}");
+    // Each row's estimates as a BOP results CSV: `eval --results` scores them the same.
+    let json = dir.path().join("eval.json");
+    let o = run(synthgen()
+        .args(["eval", "-q", "--results"])
+        .arg(out.join("rows/synth_realistic/results.csv"))
+        .arg("--data")
+        .arg(&lmo)
+        .args(["--bop", "--json"])
+        .arg(&json));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let (a, b) = (
+        e["bop"]["mspd"]["mean_recall"].as_f64().unwrap(),
+        rows["synth_realistic"]["all"]["ar_mspd"].as_f64().unwrap(),
+    );
+    assert!(
+        (a - b).abs() < 0.005,
+        "eval --results {a} vs the report's {b}"
+    );
+    assert!(out.join("rows/naive_box/results.csv").is_file());
     let o = go();
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("(0 computed now)"), "{}", stderr(&o));

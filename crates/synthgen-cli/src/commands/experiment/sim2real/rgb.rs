@@ -32,7 +32,7 @@ use synthgen_train::metrics::Rotations;
 use synthgen_train::models::rgb::{Translation, DEFAULT_RGB_CROP};
 use synthgen_train::models::ModelKind;
 use synthgen_train::pose_model::{load_dataset_objects, Objects, Prediction};
-use synthgen_train::results::Estimate;
+use synthgen_train::results::{write_results_csv, Estimate};
 use synthgen_train::train::{self, load_model, Schedule, TrainConfig, MODEL_FILE};
 
 use super::{RenderPlan, TestObject};
@@ -53,6 +53,9 @@ pub const MAIN_ROW: &str = "synth_realistic";
 pub const NAIVE_BOX: &str = "naive_box";
 /// A model trained on the --fit frames.
 pub const REAL_ONLY: &str = "real_only";
+/// A row's estimates on the test frames, as a BOP results CSV (bop_toolkit reads it;
+/// `synthgen eval --results`, `scripts/overlay_estimates.py`).
+pub const RESULTS_FILE: &str = "results.csv";
 
 /// Everything that decides the numbers of an RGB sim2real experiment.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -801,6 +804,7 @@ fn train_row(
         .collect();
     let preds = net.predict(&tested, Some(&test.objects), PREDICT_BATCH)?;
     let estimates = prediction_estimates(&preds, tested.iter().copied());
+    write_results_csv(&dir.join(RESULTS_FILE), &estimates)?;
     let (all, objects_s, scenes_s) = score(&estimates, test)?;
     let record = RgbRow {
         name: name.to_string(),
@@ -838,6 +842,8 @@ fn naive_row(s: &RgbSettings, out: &Path, main_set: &Path, test: &TestSet) -> Re
         .filter_map(|i| Some((mean.predict(i)?, i)))
         .unzip();
     let estimates = prediction_estimates(&preds, tested.iter().copied());
+    std::fs::create_dir_all(row_dir(out, NAIVE_BOX))?;
+    write_results_csv(&row_dir(out, NAIVE_BOX).join(RESULTS_FILE), &estimates)?;
     let (all, objects, scenes) = score(&estimates, test)?;
     let record = RgbRow {
         name: NAIVE_BOX.into(),
