@@ -148,3 +148,35 @@ fn a_replay_renders_through_cycles() {
     let out = run(synthgen().arg("validate").arg(&b));
     assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
 }
+
+/// Issue 29: `experiment sim2real --model rgb-dense` renders its Cycles row through the
+/// Blender backend (`--cycles-frames`), trains on it and scores it on the real photographs.
+#[test]
+#[cfg_attr(
+    any(not(has_bpy), not(has_shared_data)),
+    ignore = "needs the bpy venv (scripts/setup-blender.sh) and ../shared/data (probed when the crate was built)"
+)]
+fn sim2real_rgb_trains_a_cycles_row() {
+    require_bpy();
+    let lmo = crate::common::shared_data().join("lmo");
+    let scene = crate::common::repo_root().join("scenes/linemod_rgb.toml");
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("s2r");
+    let o = run(synthgen()
+        .args(["experiment", "sim2real", "--quick", "--model", "rgb-dense"])
+        .arg("--scene")
+        .arg(&scene)
+        .arg("--test")
+        .arg(&lmo)
+        .args(["--cycles-frames", "2", "--rows", "synth_cycles", "--out"])
+        .arg(&out));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let done = std::fs::read_to_string(out.join("sources/synth_cycles.done")).unwrap();
+    assert!(done.contains("\"backend\": \"blender\""), "{done}");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let row = &r["rows"]["synth_cycles"];
+    assert_eq!(row["frames"], 2, "{row}");
+    assert_eq!(row["all"]["n"], 627);
+    assert!(row["what"].as_str().unwrap().contains("Cycles"));
+}
