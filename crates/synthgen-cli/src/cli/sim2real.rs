@@ -56,6 +56,16 @@ pub const SIM2REAL_EXAMPLES: &str = "Examples:
   # Also the ablation rows (no scene fit, distractors, textured surfaces, physics):
   synthgen experiment sim2real --fit REAL --test REAL --test-scenes 2 --ablation --out runs/s2r
 
+  # The RGB models on RGB-only real photographs (Linemod-Occluded: one real scene, so the
+  # scene comes from a scene file), scored with the GT boxes; rows realistic / plain raster,
+  # Cycles at --cycles-frames, the naive box baseline:
+  synthgen experiment sim2real --model rgb-dense --scene scenes/linemod_rgb.toml \\
+      --test ../shared/data/lmo --out runs/s2r_lmo
+
+  # YCB-Video with the textured scans (`synthgen model align --scans ... --out models_tex`):
+  synthgen experiment sim2real --model rgb-dense --fit REAL --test REAL --test-scenes 2 \\
+      --models models_tex --out runs/s2r_ycbv
+
   # The whole pipeline on tiny settings (quarter resolution, few frames and epochs):
   synthgen experiment sim2real --fit REAL --test REAL --test-scenes 2 --quick --out /tmp/s2r
 
@@ -72,7 +82,9 @@ trained on real frames only (the --fit frames outside the test scenes, as many s
 the synthetic rows), and with --ablation one row per knob.
 
 Output (in --out): report.md (printed), report.json ({\"all\", \"objects\", \"baselines\"}),
-plot.png (mean centre error per row), experiment.json (the settings).";
+plot.png (mean centre error per row), experiment.json (the settings). The RGB models:
+report.json ({\"all\", \"objects\", \"scenes\", \"rows\"}: AR_MSPD, AR_MSSD, 5cm5°, ADD(-S),
+medians; the main row is synth_realistic), rows/NAME/results.csv (BOP results format).";
 
 #[derive(Debug, Args)]
 pub struct ExperimentSim2realArgs {

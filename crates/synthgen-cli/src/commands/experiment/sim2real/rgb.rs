@@ -779,6 +779,19 @@ fn train_row(
     }
     let objects = load_dataset_objects(data, set.obj_ids(), LOSS_POINTS)
         .with_context(|| format!("cannot load the object models of {}", data.root().display()))?;
+    // Test objects the training set never shows keep untrained heads: say so in the row.
+    let unseen: Vec<String> = classes
+        .difference(&set.obj_ids())
+        .map(u32::to_string)
+        .collect();
+    let what = if unseen.is_empty() {
+        what
+    } else {
+        format!(
+            "{what}; no training instance of objects {} (their heads are untrained)",
+            unseen.join(", ")
+        )
+    };
     let cfg = TrainConfig {
         split: set.split.clone(),
         ..cfg
