@@ -554,17 +554,7 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
     // The frames each set's render left out (its synthgen.json's failed_frames).
     let skipped: BTreeMap<String, Vec<u64>> = sets
         .iter()
-        .map(|(v, dir)| {
-            let failed = synthgen_dataset::read_manifest(dir)
-                .ok()
-                .and_then(|m| {
-                    m.extra["failed_frames"]
-                        .as_array()
-                        .map(|a| a.iter().filter_map(serde_json::Value::as_u64).collect())
-                })
-                .unwrap_or_default();
-            (v.uses_set.unwrap_or(v.name).to_string(), failed)
-        })
+        .map(|(v, dir)| (v.uses_set.unwrap_or(v.name).to_string(), failed_frames(dir)))
         .collect();
     let rep = report::Report::new(&settings, records, timing, notes, skipped);
     rep.write(&out)?;
@@ -575,6 +565,18 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
         out.display()
     ));
     Ok(ExitStatus::Success)
+}
+
+/// The frames a set's render left out (its synthgen.json's `failed_frames`).
+fn failed_frames(dir: &Path) -> Vec<u64> {
+    synthgen_dataset::read_manifest(dir)
+        .ok()
+        .and_then(|m| {
+            m.extra["failed_frames"]
+                .as_array()
+                .map(|a| a.iter().filter_map(serde_json::Value::as_u64).collect())
+        })
+        .unwrap_or_default()
 }
 
 fn list(ids: &[u32]) -> String {

@@ -563,7 +563,7 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
 
     let skipped: BTreeMap<String, Vec<u64>> = sets
         .iter()
-        .map(|(row, _, dir)| (row.name.to_string(), failed_frames(dir)))
+        .map(|(row, _, dir)| (row.name.to_string(), super::failed_frames(dir)))
         .collect();
     let report = report_json(&settings, &rows, &notes, &skipped);
     atomic_write(
@@ -943,18 +943,6 @@ fn score(
         );
     }
     Ok((all, objects, scenes))
-}
-
-/// The frames a set's render left out (its synthgen.json's `failed_frames`).
-fn failed_frames(dir: &Path) -> Vec<u64> {
-    synthgen_dataset::read_manifest(dir)
-        .ok()
-        .and_then(|m| {
-            m.extra["failed_frames"]
-                .as_array()
-                .map(|a| a.iter().filter_map(serde_json::Value::as_u64).collect())
-        })
-        .unwrap_or_default()
 }
 
 fn summary(s: &Scores) -> String {
