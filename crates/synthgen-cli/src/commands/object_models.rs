@@ -72,3 +72,47 @@ pub fn files_with_extensions(
     v.sort();
     Ok(v)
 }
+
+/// The replacement meshes `flag` (`--replay-models`, `--models`) names for `ids`: per object
+/// the one mesh in `dir/<its name>/` (`model_name`), None where it has no folder there. A
+/// `dir` that is not a folder, or an object folder with other than one mesh, is an error.
+/// Also the names of the objects without a folder.
+#[allow(clippy::type_complexity)]
+pub fn replacement_meshes(
+    source: &dyn FrameSource,
+    dir: &std::path::Path,
+    ids: impl IntoIterator<Item = u32>,
+    flag: &str,
+) -> Result<(Vec<Option<std::path::PathBuf>>, Vec<String>)> {
+    if !dir.is_dir() {
+        return Err(crate::commands::user_error(
+            format!("{flag} is not a folder: {}", dir.display()),
+            "give a folder with one subfolder per object (`synthgen model align --scans` writes one)",
+        ));
+    }
+    let mut meshes = Vec::new();
+    let mut kept = Vec::new();
+    for id in ids {
+        let name = model_name(source, id);
+        let folder = dir.join(&name);
+        if !folder.is_dir() {
+            kept.push(name);
+            meshes.push(None);
+            continue;
+        }
+        let found = files_with_extensions(&folder, synthgen_assets::SUPPORTED_EXTENSIONS)
+            .with_context(|| format!("cannot read {}", folder.display()))?;
+        let [mesh] = found.as_slice() else {
+            return Err(crate::commands::user_error(
+                format!(
+                    "{} holds {} meshes; {flag} needs exactly one per object folder",
+                    folder.display(),
+                    found.len()
+                ),
+                "keep one mesh (.obj, .ply, .gltf, .glb) in each object's folder",
+            ));
+        };
+        meshes.push(Some(mesh.clone()));
+    }
+    Ok((meshes, kept))
+}

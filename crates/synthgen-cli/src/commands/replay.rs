@@ -21,7 +21,7 @@ use synthgen_pipeline::{render_annotated, ycbv_class_index, Layout, Sink};
 use synthgen_render::SensorModel;
 
 use crate::cli::{Backend, FormatArg, RenderArgs};
-use crate::commands::object_models::{files_with_extensions, frame_obj_ids, load_models};
+use crate::commands::object_models::{frame_obj_ids, load_models, replacement_meshes};
 use crate::commands::render_sink::sink_options;
 use crate::commands::{render_extras, user_error};
 use crate::{ExitStatus, Printer};
@@ -292,33 +292,11 @@ fn replace_models(
     loaded: &mut [(u32, synthgen_core::Model)],
     printer: &Printer,
 ) -> Result<()> {
-    if !dir.is_dir() {
-        return Err(user_error(
-            format!("--replay-models is not a folder: {}", dir.display()),
-            "give a folder with one subfolder per object (`synthgen model align --scans` writes one)",
-        ));
-    }
-    let mut kept = Vec::new();
-    for (id, model) in loaded.iter_mut() {
-        let name = crate::commands::object_models::model_name(source, *id);
-        let folder = dir.join(&name);
-        if !folder.is_dir() {
-            kept.push(name);
-            continue;
-        }
-        let meshes = files_with_extensions(&folder, synthgen_assets::SUPPORTED_EXTENSIONS)
-            .with_context(|| format!("cannot read {}", folder.display()))?;
-        let [mesh] = meshes.as_slice() else {
-            return Err(user_error(
-                format!(
-                    "{} holds {} meshes; --replay-models needs exactly one per object folder",
-                    folder.display(),
-                    meshes.len()
-                ),
-                "keep one mesh (.obj, .ply, .gltf, .glb) in each object's folder",
-            ));
-        };
-        let l = synthgen_assets::load_model(mesh, synthgen_assets::Units::Auto, printer)
+    let ids: Vec<u32> = loaded.iter().map(|(id, _)| *id).collect();
+    let (meshes, kept) = replacement_meshes(source, dir, ids, "--replay-models")?;
+    for ((id, model), mesh) in loaded.iter_mut().zip(meshes) {
+        let Some(mesh) = mesh else { continue };
+        let l = synthgen_assets::load_model(&mesh, synthgen_assets::Units::Auto, printer)
             .with_context(|| format!("cannot load the replacement model of object {id}"))?;
         *model = l.model;
     }

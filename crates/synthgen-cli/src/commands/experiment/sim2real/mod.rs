@@ -275,30 +275,14 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
         .with_context(|| format!("cannot open the --fit dataset {}", fit_dir.display()))?;
     let test_src = open_source(&test_dir)
         .with_context(|| format!("cannot open the --test dataset {}", test_dir.display()))?;
-    let same = fit_dir == test_dir;
-    if same && args.test_scenes.is_empty() {
-        return Err(user_error(
-            "--test is the --fit dataset but no --test-scenes are held out",
-            "name the test scenes, e.g. --test-scenes 0; they are left out of the scene and sensor \
-             fits and of the real-only baseline",
-        ));
-    }
-    let test_frames = frames_in(test_src.as_ref(), &args.test_scenes, "--test")?;
-    let fit_scenes: Vec<u32> = if same {
-        scenes_of(&fit_src.frames(&[])?)
-            .into_iter()
-            .filter(|s| !args.test_scenes.contains(s))
-            .collect()
-    } else {
-        Vec::new()
-    };
-    if same && fit_scenes.is_empty() {
-        return Err(user_error(
-            "every scene of the dataset is a test scene: nothing is left to fit to",
-            "hold out fewer scenes with --test-scenes",
-        ));
-    }
-    let fit_frames = frames_in(fit_src.as_ref(), &fit_scenes, "--fit")?;
+    let (test_frames, fit_frames, fit_scenes) = select_frames(
+        test_src.as_ref(),
+        Some(fit_src.as_ref()),
+        fit_dir == test_dir,
+        &args.test_scenes,
+        "name the test scenes, e.g. --test-scenes 0; they are left out of the scene and sensor \
+         fits and of the real-only baseline",
+    )?;
     for (what, frames, dir) in [
         ("--test", &test_frames, &test_dir),
         ("--fit", &fit_frames, &fit_dir),
@@ -317,23 +301,11 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
         }
     }
     let objects = test_objects(test_src.as_ref(), fit_src.as_ref(), &test_frames)?;
-    // A copy (or hard links) of the test frames as --fit: the fits and the real-only baseline
-    // would see the test frames.
-    let t: Vec<&_> = test_frames.iter().collect();
-    let f: Vec<&_> = fit_frames.iter().collect();
-    let shared = synthgen_dataset::shared_frames::same_images(&t, &f)?;
-    if let Some(&(j, i)) = shared.first() {
-        return Err(user_error(
-            format!(
-                "the --fit dataset shares {} of its {} frames with the --test frames (the same file, a hard link or the same bytes), e.g. {} is the test frame {}: the scene and sensor fits and the real-only baseline would see the test frames",
-                shared.len(),
-                f.len(),
-                f[j].rgb.display(),
-                t[i].rgb.display()
-            ),
-            "pass one folder as --fit and --test with --test-scenes (those scenes are left out of the fits), or fit to other frames",
-        ));
-    }
+    refuse_shared_frames(
+        &test_frames,
+        &fit_frames,
+        "the scene and sensor fits and the real-only baseline",
+    )?;
     let settings = Settings {
         fit: fit_dir.clone(),
         test: test_dir.clone(),
@@ -595,6 +567,66 @@ fn existing(path: &Path, flag: &str) -> Result<PathBuf> {
 fn scenes_of(frames: &[SourceFrame]) -> Vec<u32> {
     let s: BTreeSet<u32> = frames.iter().map(|f| f.location.scene_id).collect();
     s.into_iter().collect()
+}
+
+/// The test frames (of `test_scenes`, all when empty), the fit frames and the fit scenes
+/// (when `fit` is the test dataset, `same`: its scenes outside `test_scenes`, which must be
+/// named; none without `fit`). `held_out_hint` says how to name them.
+#[allow(clippy::type_complexity)]
+fn select_frames(
+    test: &dyn FrameSource,
+    fit: Option<&dyn FrameSource>,
+    same: bool,
+    test_scenes: &[u32],
+    held_out_hint: &str,
+) -> Result<(Vec<SourceFrame>, Vec<SourceFrame>, Vec<u32>)> {
+    if same && test_scenes.is_empty() {
+        return Err(user_error(
+            "--test is the --fit dataset but no --test-scenes are held out",
+            held_out_hint,
+        ));
+    }
+    let test_frames = frames_in(test, test_scenes, "--test")?;
+    let Some(fit) = fit else {
+        return Ok((test_frames, Vec::new(), Vec::new()));
+    };
+    let fit_scenes: Vec<u32> = if same {
+        scenes_of(&fit.frames(&[])?)
+            .into_iter()
+            .filter(|s| !test_scenes.contains(s))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    if same && fit_scenes.is_empty() {
+        return Err(user_error(
+            "every scene of the dataset is a test scene: nothing is left to fit to",
+            "hold out fewer scenes with --test-scenes",
+        ));
+    }
+    let fit_frames = frames_in(fit, &fit_scenes, "--fit")?;
+    Ok((test_frames, fit_frames, fit_scenes))
+}
+
+/// Refuses a `--fit` set that holds test frames (the same file, a hard link or the same
+/// bytes): `would_see` would see them.
+fn refuse_shared_frames(test: &[SourceFrame], fit: &[SourceFrame], would_see: &str) -> Result<()> {
+    let t: Vec<&_> = test.iter().collect();
+    let f: Vec<&_> = fit.iter().collect();
+    let shared = synthgen_dataset::shared_frames::same_images(&t, &f)?;
+    if let Some(&(j, i)) = shared.first() {
+        return Err(user_error(
+            format!(
+                "the --fit dataset shares {} of its {} frames with the --test frames (the same file, a hard link or the same bytes), e.g. {} is the test frame {}: {would_see} would see the test frames",
+                shared.len(),
+                f.len(),
+                f[j].rgb.display(),
+                t[i].rgb.display()
+            ),
+            "pass one folder as --fit and --test with --test-scenes (those scenes are left out of the fits), or fit to other frames",
+        ));
+    }
+    Ok(())
 }
 
 /// The frames with GT of `scenes` (all when empty); unknown scenes and no GT are errors.

@@ -258,50 +258,19 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
             open_source(f).with_context(|| format!("cannot open the --fit dataset {}", f.display()))
         })
         .transpose()?;
-    let same = fit_dir.as_ref() == Some(&test_dir);
-    if same && args.test_scenes.is_empty() {
-        return Err(user_error(
-            "--test is the --fit dataset but no --test-scenes are held out",
-            "name the test scenes, e.g. --test-scenes 2, or render from a scene file with --scene instead of --fit",
-        ));
-    }
-    let test_frames = super::frames_in(test_src.as_ref(), &args.test_scenes, "--test")?;
-    let (fit_frames, fit_scenes) = match &fit_src {
-        None => (Vec::new(), Vec::new()),
-        Some(src) => {
-            let scenes: Vec<u32> = if same {
-                super::scenes_of(&src.frames(&[])?)
-                    .into_iter()
-                    .filter(|s| !args.test_scenes.contains(s))
-                    .collect()
-            } else {
-                Vec::new()
-            };
-            if same && scenes.is_empty() {
-                return Err(user_error(
-                    "every scene of the dataset is a test scene: nothing is left to fit to",
-                    "hold out fewer scenes with --test-scenes",
-                ));
-            }
-            (super::frames_in(src.as_ref(), &scenes, "--fit")?, scenes)
-        }
-    };
+    let (test_frames, fit_frames, fit_scenes) = super::select_frames(
+        test_src.as_ref(),
+        fit_src.as_deref(),
+        fit_dir.as_ref() == Some(&test_dir),
+        &args.test_scenes,
+        "name the test scenes, e.g. --test-scenes 2, or render from a scene file with --scene instead of --fit",
+    )?;
     if !fit_frames.is_empty() {
-        let t: Vec<&_> = test_frames.iter().collect();
-        let f: Vec<&_> = fit_frames.iter().collect();
-        let shared = synthgen_dataset::shared_frames::same_images(&t, &f)?;
-        if let Some(&(j, i)) = shared.first() {
-            return Err(user_error(
-                format!(
-                    "the --fit dataset shares {} of its {} frames with the --test frames, e.g. {} is the test frame {}: the scene fit and the real-only row would see the test frames",
-                    shared.len(),
-                    f.len(),
-                    f[j].rgb.display(),
-                    t[i].rgb.display()
-                ),
-                "pass one folder as --fit and --test with --test-scenes, or fit to other frames",
-            ));
-        }
+        super::refuse_shared_frames(
+            &test_frames,
+            &fit_frames,
+            "the scene fit and the real-only row",
+        )?;
     }
     let scene_text = match &args.scene {
         Some(p) => {
@@ -590,36 +559,12 @@ fn replace_models(
     objects: &mut [TestObject],
     notes: &mut Vec<String>,
 ) -> Result<()> {
-    if !dir.is_dir() {
-        return Err(user_error(
-            format!("--models is not a folder: {}", dir.display()),
-            "give a folder with one subfolder per object (`synthgen model align --scans` writes one)",
-        ));
-    }
-    let mut kept = Vec::new();
-    for o in objects.iter_mut() {
-        let name = crate::commands::object_models::model_name(test, o.obj_id);
-        let folder = dir.join(&name);
-        if !folder.is_dir() {
-            kept.push(name);
-            continue;
-        }
-        let meshes = crate::commands::object_models::files_with_extensions(
-            &folder,
-            synthgen_assets::SUPPORTED_EXTENSIONS,
-        )
-        .with_context(|| format!("cannot read {}", folder.display()))?;
-        let [mesh] = meshes.as_slice() else {
-            return Err(user_error(
-                format!(
-                    "{} holds {} meshes; --models needs exactly one per object folder",
-                    folder.display(),
-                    meshes.len()
-                ),
-                "keep one mesh (.obj, .ply, .gltf, .glb) in each object's folder",
-            ));
-        };
-        o.model = mesh.canonicalize().unwrap_or_else(|_| mesh.clone());
+    let ids: Vec<u32> = objects.iter().map(|o| o.obj_id).collect();
+    let (meshes, kept) =
+        crate::commands::object_models::replacement_meshes(test, dir, ids, "--models")?;
+    for (o, mesh) in objects.iter_mut().zip(meshes) {
+        let Some(mesh) = mesh else { continue };
+        o.model = mesh.canonicalize().unwrap_or(mesh);
         o.units = "auto".into();
     }
     if !kept.is_empty() {
