@@ -68,7 +68,7 @@ pub fn fuzz_gltf(data: &[u8]) {
 
 /// Every BOP JSON reader on the same bytes.
 pub fn fuzz_bop_json(data: &[u8]) {
-    use synthgen_dataset::bop::reader as r;
+    use synthgen_formats::bop::reader as r;
     let dir = scratch();
     let p = dir.join("scene_gt.json");
     std::fs::write(&p, data).unwrap();
@@ -77,12 +77,12 @@ pub fn fuzz_bop_json(data: &[u8]) {
     let _ = r::read_scene_gt_info(&p);
     let _ = r::read_camera_info(&p);
     let _ = r::read_models_info(&p);
-    let _ = synthgen_dataset::manifest::read_manifest(&dir);
+    let _ = synthgen_formats::manifest::read_manifest(&dir);
 }
 
 /// Every Linemod YAML reader (and the id list) on the same bytes.
 pub fn fuzz_linemod_yaml(data: &[u8]) {
-    use synthgen_dataset::linemod::reader as r;
+    use synthgen_formats::linemod::reader as r;
     let dir = scratch();
     let p = dir.join("gt.yml");
     std::fs::write(&p, data).unwrap();
@@ -108,6 +108,6 @@ pub fn fuzz_ycbv_mat(data: &[u8]) {
     let dir = scratch();
     let p = dir.join("000001-meta.mat");
     std::fs::write(&p, data).unwrap();
-    let _ = synthgen_dataset::ycbv::read_meta(&p, Some(21));
-    let _ = synthgen_dataset::ycbv::mat::read_mat(std::io::Cursor::new(data), None);
+    let _ = synthgen_formats::ycbv::read_meta(&p, Some(21));
+    let _ = synthgen_mat::read_mat(std::io::Cursor::new(data), None);
 }

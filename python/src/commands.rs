@@ -7,9 +7,10 @@ use std::path::{Path, PathBuf};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use synthgen_core::{NoProgress, PoseRenderer, Progress};
-use synthgen_dataset::mix::{write_mix, Completion, MixCounts, MixOptions, SceneRef};
-use synthgen_dataset::output::{check_apart, OutputLock};
-use synthgen_dataset::source::{open_source, FrameSource};
+use synthgen_curate::mix::{write_mix, Completion, MixCounts, MixOptions, SceneRef};
+use synthgen_formats::layout::open_source;
+use synthgen_formats::output::{check_apart, OutputLock};
+use synthgen_formats::source::FrameSource;
 use synthgen_pipeline::{error_chain, Format, ImageFormat, SinkOptions, WriteOptions};
 use synthgen_render::ObjectRenderer;
 use synthgen_train::bop::{load_render_models, prepare_bop, BopOptions};
@@ -36,14 +37,14 @@ fn format_of(text: &str) -> PyResult<Format> {
 /// As `synthgen render` checks `--out`: empty, absent, or `force`.
 fn check_out_dir(out: &Path, force: bool) -> PyResult<()> {
     if out.is_dir() {
-        if !synthgen_dataset::output::is_empty(out) && !force {
+        if !synthgen_formats::output::is_empty(out) && !force {
             return Err(input_error(
                 format!("output folder is not empty: {}", out.display()),
                 Some("choose another out, or pass force=True to replace it"),
             ));
         }
         if force {
-            synthgen_dataset::output::check_force(out).map_err(|e| e.to_py_err())?;
+            synthgen_formats::output::check_force(out).map_err(|e| e.to_py_err())?;
         }
     } else if out.exists() {
         return Err(input_error(
@@ -127,7 +128,7 @@ fn render<'py>(
     let report = detached(py, || {
         let _lock = OutputLock::acquire(&out).map_err(synthgen_pipeline::Error::from)?;
         if force {
-            synthgen_dataset::output::clear_output(&out).map_err(synthgen_pipeline::Error::from)?;
+            synthgen_formats::output::clear_output(&out).map_err(synthgen_pipeline::Error::from)?;
         }
         let job = job.build(&progress)?;
         job.write(&options, &progress)

@@ -1,14 +1,15 @@
 //! `synthgen._native.Dataset`: a BOP, Linemod or YCB-Video folder through
-//! `synthgen_dataset::source` (the layout-independent reader `mix`, `train` and `eval` use):
+//! `synthgen_formats::source` (the layout-independent reader `mix`, `train` and `eval` use):
 //! annotations read once, images decoded on request with the GIL released.
 
 use std::path::PathBuf;
 
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use synthgen_dataset::bop::image::{read_depth_m, read_rgb};
-use synthgen_dataset::source::{open_source, FrameSource, MaskRef, SourceFrame};
-use synthgen_dataset::validate::{detect_layout, Layout};
+use synthgen_formats::bop::image::{read_depth_m, read_rgb};
+use synthgen_formats::layout::open_source;
+use synthgen_formats::layout::{detect_layout, Layout};
+use synthgen_formats::source::{FrameSource, MaskRef, SourceFrame};
 
 use crate::errors::input_error;
 use crate::frame::{cam_k, objects_list, stack_masks, Images, ObjectData};
@@ -41,14 +42,14 @@ struct Wanted {
 }
 
 /// The selected instances' masks of one kind, or `None` when any of them has none.
-fn read_masks(refs: &[Option<&MaskRef>]) -> synthgen_dataset::Result<Option<Vec<Vec<u8>>>> {
+fn read_masks(refs: &[Option<&MaskRef>]) -> synthgen_formats::Result<Option<Vec<Vec<u8>>>> {
     if refs.iter().any(Option::is_none) {
         return Ok(None);
     }
     refs.iter()
         .flatten()
         .map(|m| m.read().map(|p| p.data))
-        .collect::<synthgen_dataset::Result<Vec<_>>>()
+        .collect::<synthgen_formats::Result<Vec<_>>>()
         .map(Some)
 }
 
@@ -64,7 +65,7 @@ fn load_images(
     gt_ids: &[usize],
     want: Wanted,
     size: (u32, u32),
-) -> synthgen_dataset::Result<Images> {
+) -> synthgen_formats::Result<Images> {
     let mut im = Images {
         width: size.0 as usize,
         height: size.1 as usize,
@@ -88,7 +89,7 @@ fn load_images(
         let n_px = im.width * im.height;
         for m in full.iter().chain(&visib).flatten() {
             if m.len() != n_px {
-                return Err(synthgen_dataset::Error::Malformed {
+                return Err(synthgen_formats::Error::Malformed {
                     file: "mask".into(),
                     message: format!(
                         "{} pixels, the frame has {}x{}",
@@ -141,7 +142,7 @@ impl PyDataset {
         detached(py, || {
             let source = open_source(&path)?;
             let frames = source.frames(&splits)?;
-            Ok::<_, synthgen_dataset::Error>(PyDataset {
+            Ok::<_, synthgen_formats::Error>(PyDataset {
                 source,
                 frames,
                 layout: layout.to_string(),

@@ -95,7 +95,7 @@ macro_rules! input_errors {
 // Reading datasets, models, specs and results: their errors are about the files read.
 input_errors!(
     synthgen_core::Error,
-    synthgen_dataset::Error,
+    synthgen_formats::Error,
     synthgen_train::Error,
     synthgen_assets::Error
 );

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use synthgen_dataset::mix::SceneRef;
+use synthgen_curate::mix::SceneRef;
 
 mod experiment;
 mod model;

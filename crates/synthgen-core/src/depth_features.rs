@@ -1,6 +1,6 @@
 //! Per-pixel features of a depth image that depth-sensor models depend on, shared by the
 //! models that apply them (`synthgen_render::sensor`) and by the code that fits them to real
-//! frames and compares datasets (`synthgen_dataset::sensor`): depth discontinuities, the
+//! frames and compares datasets (`synthgen_fit::sensor`): depth discontinuities, the
 //! distance to the nearest one, the angle of incidence, the projector's (or a second
 //! camera's) shadow, and the brightness of the colour image.
 //!

@@ -43,7 +43,7 @@ pub enum Error {
     ReadSymmetries {
         path: PathBuf,
         #[source]
-        source: Box<synthgen_dataset::Error>,
+        source: Box<synthgen_formats::Error>,
     },
 
     #[error("cannot write model {path}")]
@@ -99,7 +99,7 @@ pub enum Error {
     Assets(#[from] synthgen_assets::Error),
 
     #[error(transparent)]
-    Dataset(#[from] synthgen_dataset::Error),
+    Dataset(#[from] synthgen_formats::Error),
 
     #[error(transparent)]
     Render(#[from] synthgen_render::Error),

@@ -102,7 +102,7 @@ fn id_from_name(path: &Path) -> Option<u32> {
 /// The YCB-Video class index of a model whose folder is named after the class.
 pub fn ycbv_class_index(path: &Path) -> Option<u32> {
     let folder = path.parent()?.file_name()?.to_str()?;
-    let i = synthgen_dataset::ycbv::YCBV_CLASSES
+    let i = synthgen_formats::ycbv::YCBV_CLASSES
         .iter()
         .position(|c| *c == folder)?;
     u32::try_from(i + 1).ok()
@@ -111,10 +111,10 @@ pub fn ycbv_class_index(path: &Path) -> Option<u32> {
 /// `classes.txt` of a YCB-Video output: YCB-Video's name for an object whose model sits in
 /// that class's folder under that class's id, else `obj_NNNNNN`; ids up to the largest.
 pub(crate) fn ycbv_classes(sources: &[ObjectSource], ids: &[u32]) -> Vec<String> {
-    let mut names = synthgen_dataset::ycbv::class_list(ids, false);
+    let mut names = synthgen_formats::ycbv::class_list(ids, false);
     for (s, &id) in sources.iter().zip(ids) {
         if ycbv_class_index(&s.path) == Some(id) {
-            names[id as usize - 1] = synthgen_dataset::ycbv::YCBV_CLASSES[id as usize - 1].into();
+            names[id as usize - 1] = synthgen_formats::ycbv::YCBV_CLASSES[id as usize - 1].into();
         }
     }
     names
@@ -218,7 +218,7 @@ pub(crate) fn source_symmetries(
     if !info_path.is_file() {
         return Ok(None);
     }
-    let infos = synthgen_dataset::bop::reader::read_models_info(&info_path).map_err(|e| {
+    let infos = synthgen_formats::bop::reader::read_models_info(&info_path).map_err(|e| {
         Error::ReadSymmetries {
             path: path.to_path_buf(),
             source: Box::new(e),

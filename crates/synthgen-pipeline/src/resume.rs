@@ -7,15 +7,15 @@
 use std::ops::Range;
 use std::path::Path;
 
-use synthgen_dataset::bop::DoneFrames;
-use synthgen_dataset::io::atomic_write;
-use synthgen_dataset::manifest::{Manifest, MANIFEST_FILE};
+use synthgen_formats::bop::DoneFrames;
+use synthgen_formats::io::atomic_write;
+use synthgen_formats::manifest::{Manifest, MANIFEST_FILE};
 
 use crate::error::{Error, Result};
 use crate::sink::Sink;
 
 /// File name of the run plan at the root of an unfinished output folder.
-pub use synthgen_dataset::output::RUN_PLAN_FILE as RUN_PLAN;
+pub use synthgen_formats::output::RUN_PLAN_FILE as RUN_PLAN;
 
 /// The parts of a manifest two runs must share to write the same dataset.
 fn run_identity(m: &Manifest) -> serde_json::Value {

@@ -6,12 +6,12 @@ use std::ops::Range;
 use std::path::Path;
 
 use synthgen_core::{FrameScene, Intrinsics, Model, ObjectAnnotation, RenderedFrame, Symmetries};
-use synthgen_dataset::bop::{
+use synthgen_formats::bop::{
     BopWriter, BopWriterOptions, DoneFrames, FrameRecord, ModelInfo, RgbFormat,
 };
-use synthgen_dataset::linemod::writer::LinemodRecord;
-use synthgen_dataset::linemod::{LinemodWriter, LinemodWriterOptions, ListFile};
-use synthgen_dataset::ycbv::{YcbvFrame, YcbvObject, YcbvPose, YcbvWriter, YcbvWriterOptions};
+use synthgen_formats::linemod::writer::LinemodRecord;
+use synthgen_formats::linemod::{LinemodWriter, LinemodWriterOptions, ListFile};
+use synthgen_formats::ycbv::{YcbvFrame, YcbvObject, YcbvPose, YcbvWriter, YcbvWriterOptions};
 
 use crate::error::{Error, Result};
 

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use rayon::prelude::*;
 use synthgen_core::Progress;
-use synthgen_dataset::manifest::{write_manifest, Manifest};
+use synthgen_formats::manifest::{write_manifest, Manifest};
 
 use crate::error::{Error, Result};
 use crate::job::PreparedJob;
@@ -237,8 +237,8 @@ impl PreparedJob {
 #[cfg(test)]
 mod tests {
     use synthgen_core::NoProgress;
-    use synthgen_dataset::bop::image::depth_to_png_values;
-    use synthgen_dataset::bop::reader::{read_scene_gt, read_scene_gt_info};
+    use synthgen_formats::bop::image::depth_to_png_values;
+    use synthgen_formats::bop::reader::{read_scene_gt, read_scene_gt_info};
 
     use super::*;
     use crate::test_support::job;

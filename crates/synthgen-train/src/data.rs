@@ -13,8 +13,9 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use synthgen_core::rng::splitmix64;
 use synthgen_core::{GtInfo, Pose, Progress};
-use synthgen_dataset::bop::{read_depth_m, read_rgb};
-use synthgen_dataset::source::{open_source, FrameSource, SourceFrame};
+use synthgen_formats::bop::{read_depth_m, read_rgb};
+use synthgen_formats::layout::open_source;
+use synthgen_formats::source::{FrameSource, SourceFrame};
 
 use crate::error::{Error, Result};
 use crate::eval::pick_split;
@@ -272,7 +273,7 @@ fn load_frame(frame: &SourceFrame, opts: &DataOptions) -> Result<Vec<Outcome>> {
                         data[(yy * img.width + xx) as usize] = 255;
                     }
                 }
-                let plane = synthgen_dataset::bop::Plane {
+                let plane = synthgen_formats::bop::Plane {
                     width: img.width,
                     height: img.height,
                     data,

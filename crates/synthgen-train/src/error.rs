@@ -4,7 +4,7 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
     #[error(transparent)]
-    Dataset(#[from] synthgen_dataset::Error),
+    Dataset(#[from] synthgen_formats::Error),
     #[error("cannot load model of object {obj_id}: {source}")]
     Model {
         obj_id: u32,

@@ -8,8 +8,8 @@ use rayon::prelude::*;
 use serde::Serialize;
 use synthgen_assets::Units;
 use synthgen_core::{Model, NoProgress, Pose};
-use synthgen_dataset::bop::ModelInfo;
-use synthgen_dataset::source::{FrameLocation, FrameSource};
+use synthgen_formats::bop::ModelInfo;
+use synthgen_formats::source::{FrameLocation, FrameSource};
 
 use crate::data::Instance;
 use crate::error::{Error, Result};

@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use synthgen_dataset::draw::Canvas;
+use synthgen_formats::draw::Canvas;
 
 use crate::error::Result;
 use crate::train::EpochMetrics;

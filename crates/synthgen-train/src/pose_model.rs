@@ -9,8 +9,8 @@ use candle_core::{DType, Device, Tensor};
 use candle_nn::VarMap;
 use synthgen_core::glam::{DMat3, DQuat, DVec3};
 use synthgen_core::Pose;
-use synthgen_dataset::bop::ModelInfo;
-use synthgen_dataset::source::FrameSource;
+use synthgen_formats::bop::ModelInfo;
+use synthgen_formats::source::FrameSource;
 
 use crate::data::Instance;
 use crate::error::{Error, Result};

@@ -6,9 +6,9 @@ use std::io::Cursor;
 use std::path::Path;
 
 use image::{ImageFormat, RgbaImage};
-use synthgen_dataset::bop::image::read_depth_raw;
-use synthgen_dataset::preview::PALETTE;
-use synthgen_dataset::source::SourceFrame;
+use synthgen_curate::preview::PALETTE;
+use synthgen_formats::bop::image::read_depth_raw;
+use synthgen_formats::source::SourceFrame;
 
 use crate::Error;
 

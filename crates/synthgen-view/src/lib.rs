@@ -26,7 +26,7 @@ use axum::{Json, Router};
 use serde_json::{json, Value};
 use synthgen_core::glam::DVec3;
 use synthgen_core::{Intrinsics, Pose};
-use synthgen_dataset::preview::{box_corners, EDGES};
+use synthgen_curate::preview::{box_corners, EDGES};
 
 pub use state::{Dataset, Filter, FrameSummary, Viewer};
 
@@ -330,9 +330,9 @@ async fn stats(State(v): State<Shared>) -> Result<Json<Value>, Error> {
     let viewer = v.clone();
     blocking(move || {
         let value = viewer.stats.get_or_init(|| {
-            let sources: Vec<&dyn synthgen_dataset::source::FrameSource> =
+            let sources: Vec<&dyn synthgen_formats::source::FrameSource> =
                 viewer.datasets.iter().map(|d| d.source.as_ref()).collect();
-            synthgen_dataset::stats::compare_stats(&sources)
+            synthgen_curate::stats::compare_stats(&sources)
                 .map(|all| {
                     let list: Vec<Value> = all
                         .iter()

@@ -7,8 +7,9 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 use serde::Serialize;
-use synthgen_dataset::bop::ModelInfo;
-use synthgen_dataset::source::{open_source, FrameSource, SourceFrame};
+use synthgen_formats::bop::ModelInfo;
+use synthgen_formats::layout::open_source;
+use synthgen_formats::source::{FrameSource, SourceFrame};
 use synthgen_train::eval::{evaluate, load_eval_objects, GtInstance};
 use synthgen_train::metrics::{PoseErrors, Rotations};
 use synthgen_train::results::{read_results_csv, Estimate};

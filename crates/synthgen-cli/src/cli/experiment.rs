@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
-use synthgen_dataset::mix::SceneRef;
+use synthgen_curate::mix::SceneRef;
 
 use super::ModelArg;
 

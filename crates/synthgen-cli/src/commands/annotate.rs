@@ -1,6 +1,6 @@
 //! `synthgen annotate`: masks and scene_gt_info.json for a BOP dataset that has only poses
 //! (real captures labelled with poses), computed as bop_toolkit's calc_gt_masks/calc_gt_info
-//! do (`synthgen_dataset::annotate`); and, on any layout, the comparison of those visible
+//! do (`synthgen_formats::annotate`); and, on any layout, the comparison of those visible
 //! masks with the dataset's own (YCB-Video's label.png, a BOP mask_visib), per scene and per
 //! object.
 
@@ -10,13 +10,14 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use serde::Serialize;
 use synthgen_core::{GtInfo, Progress};
-use synthgen_dataset::annotate::{annotate_frame, mask_iou, mask_overlay, percentile};
-use synthgen_dataset::bop::image::{encode_gray8_png, read_rgb};
-use synthgen_dataset::bop::{write_map, PngCompression, SCENE_GT_INFO};
-use synthgen_dataset::io::{atomic_write, create_dir_all};
-use synthgen_dataset::output::OutputLock;
-use synthgen_dataset::source::{open_source, FrameSource, SourceFrame};
-use synthgen_dataset::validate::{detect_layout, Layout};
+use synthgen_formats::annotate::{annotate_frame, mask_iou, mask_overlay, percentile};
+use synthgen_formats::bop::image::{encode_gray8_png, read_rgb};
+use synthgen_formats::bop::{write_map, PngCompression, SCENE_GT_INFO};
+use synthgen_formats::io::{atomic_write, create_dir_all};
+use synthgen_formats::layout::open_source;
+use synthgen_formats::layout::{detect_layout, Layout};
+use synthgen_formats::output::OutputLock;
+use synthgen_formats::source::{FrameSource, SourceFrame};
 use synthgen_render::ObjectRenderer;
 
 use crate::cli::AnnotateArgs;
@@ -77,7 +78,7 @@ struct Report {
 
 pub fn run(args: AnnotateArgs, printer: &Printer) -> Result<ExitStatus> {
     if !args.dir.is_dir() {
-        return Err(synthgen_dataset::Error::NoSuchDataset {
+        return Err(synthgen_formats::Error::NoSuchDataset {
             path: args.dir.clone(),
         }
         .into());

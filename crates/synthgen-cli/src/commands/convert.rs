@@ -5,13 +5,14 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use synthgen_core::Progress;
-use synthgen_dataset::convert::ycbv::{source_to_ycbv, ycbv_to_bop, YcbvConvertOptions};
-use synthgen_dataset::convert::{bop_to_linemod, linemod_to_bop, ConvertOptions, ConvertSummary};
-use synthgen_dataset::manifest::{write_manifest, Manifest};
-use synthgen_dataset::output::{check_apart, is_empty, OutputLock};
-use synthgen_dataset::source::{open_source, FrameSource};
-use synthgen_dataset::validate::{detect_layout, Layout};
-use synthgen_dataset::ycbv::{YcbvSource, YcbvWriterOptions};
+use synthgen_formats::convert::ycbv::{source_to_ycbv, ycbv_to_bop, YcbvConvertOptions};
+use synthgen_formats::convert::{bop_to_linemod, linemod_to_bop, ConvertOptions, ConvertSummary};
+use synthgen_formats::layout::open_source;
+use synthgen_formats::layout::{detect_layout, Layout};
+use synthgen_formats::manifest::{write_manifest, Manifest};
+use synthgen_formats::output::{check_apart, is_empty, OutputLock};
+use synthgen_formats::source::FrameSource;
+use synthgen_formats::ycbv::{YcbvSource, YcbvWriterOptions};
 use synthgen_render::ObjectRenderer;
 
 use crate::commands::object_models::{frame_obj_ids, object_renderer};
@@ -87,7 +88,7 @@ pub fn run(args: ConvertArgs, printer: &Printer) -> Result<ExitStatus> {
                 "choose another OUT, or pass --force to replace it",
             ));
         }
-        synthgen_dataset::output::check_force(&args.output)?;
+        synthgen_formats::output::check_force(&args.output)?;
     }
     let existed = args.output.exists();
     let lock = OutputLock::acquire(&args.output)?;
@@ -247,7 +248,7 @@ fn read_classes(path: &Path) -> Result<Vec<String>> {
     while classes.last().is_some_and(String::is_empty) {
         classes.pop();
     }
-    synthgen_dataset::ycbv::check_class_names(&classes).map_err(|m| {
+    synthgen_formats::ycbv::check_class_names(&classes).map_err(|m| {
         user_error(
             format!("{m}: {}", path.display()),
             "give each object a class name of its own",
@@ -258,7 +259,7 @@ fn read_classes(path: &Path) -> Result<Vec<String>> {
 
 /// The YCB-Video class list a conversion from YCB-Video recorded in the manifest.
 fn manifest_classes(src: &Path) -> Option<Vec<String>> {
-    let m = synthgen_dataset::read_manifest(src).ok()?;
+    let m = synthgen_formats::read_manifest(src).ok()?;
     let list = m.extra.get("convert")?.get("ycbv_classes")?.as_array()?;
     list.iter()
         .map(|v| v.as_str().map(str::to_string))

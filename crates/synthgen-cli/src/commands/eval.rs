@@ -4,7 +4,8 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use synthgen_dataset::source::{open_source, FrameSource};
+use synthgen_formats::layout::open_source;
+use synthgen_formats::source::FrameSource;
 use synthgen_train::bop::{load_render_models, prepare_bop, BopOptions, BopReport, TargetsFrom};
 use synthgen_train::data::{load_source_instances, DataOptions, Instance};
 use synthgen_train::eval::{

@@ -1,9 +1,9 @@
 //! `synthgen export coco`: COCO instance annotations from a BOP split.
 
 use anyhow::{Context, Result};
-use synthgen_dataset::bop::BopDataset;
-use synthgen_dataset::coco::{export_coco, CocoOptions, RleFormat};
-use synthgen_dataset::output::OutputLock;
+use synthgen_formats::bop::BopDataset;
+use synthgen_formats::coco::{export_coco, CocoOptions, RleFormat};
+use synthgen_formats::output::OutputLock;
 
 use crate::cli::{CocoArgs, RleArg};
 use crate::{ExitStatus, Printer};

@@ -4,11 +4,11 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
-use synthgen_dataset::bop::merge::{merge, MergeOptions};
-use synthgen_dataset::manifest::{read_manifest, write_manifest, Manifest};
+use synthgen_formats::bop::merge::{merge, MergeOptions};
+use synthgen_formats::manifest::{read_manifest, write_manifest, Manifest};
 
 use crate::cli::MergeArgs;
-use synthgen_dataset::output::{check_apart, is_empty, OutputLock};
+use synthgen_formats::output::{check_apart, is_empty, OutputLock};
 use synthgen_pipeline::RUN_PLAN;
 
 use crate::commands::user_error;
@@ -67,7 +67,7 @@ fn check_out(out: &Path, force: bool) -> Result<()> {
         ));
     }
     if force {
-        synthgen_dataset::output::check_force(out)?;
+        synthgen_formats::output::check_force(out)?;
     }
     Ok(())
 }

@@ -5,9 +5,10 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use synthgen_core::PoseRenderer;
-use synthgen_dataset::mix::{write_mix, Completion, MixCounts, MixOptions, PROVENANCE_FILE};
-use synthgen_dataset::output::{check_apart, OutputLock};
-use synthgen_dataset::source::{open_source, FrameSource};
+use synthgen_curate::mix::{write_mix, Completion, MixCounts, MixOptions, PROVENANCE_FILE};
+use synthgen_formats::layout::open_source;
+use synthgen_formats::output::{check_apart, OutputLock};
+use synthgen_formats::source::FrameSource;
 use synthgen_render::ObjectRenderer;
 
 use crate::cli::{MixArgs, PathOrCount};
@@ -72,18 +73,18 @@ pub fn run(args: MixArgs, printer: &Printer) -> Result<ExitStatus> {
         printer,
     )
     .map_err(|e| match e {
-        synthgen_dataset::Error::InvalidRequest(m) if m.contains("--force") => user_error(
+        synthgen_formats::Error::InvalidRequest(m) if m.contains("--force") => user_error(
             m,
             "choose another --out, or add --force to replace the mix there",
         ),
-        synthgen_dataset::Error::NotEnoughFrames { .. } => {
+        synthgen_formats::Error::NotEnoughFrames { .. } => {
             let msg = e.to_string();
             user_error(
                 msg,
                 "lower the counts (or --test-count, or hold out fewer --test-scenes), or render more frames",
             )
         }
-        synthgen_dataset::Error::UnknownScenes { .. } => {
+        synthgen_formats::Error::UnknownScenes { .. } => {
             let msg = e.to_string();
             user_error(msg, "pass --test-scenes with ids from that list")
         }
@@ -97,7 +98,7 @@ pub fn run(args: MixArgs, printer: &Printer) -> Result<ExitStatus> {
     } else {
         format!(
             " (every frame of scene(s) {})",
-            synthgen_dataset::mix::scene_list(&args.test_scenes)
+            synthgen_curate::mix::scene_list(&args.test_scenes)
         )
     };
     printer.info(format!(

@@ -30,7 +30,7 @@ pub fn exit_status_for(err: &anyhow::Error) -> ExitStatus {
     let user = err.chain().any(|c| {
         c.is::<synthgen_core::Error>()
             || c.is::<synthgen_assets::Error>()
-            || c.is::<synthgen_dataset::Error>()
+            || c.is::<synthgen_formats::Error>()
             || c.is::<synthgen_view::Error>()
             || is_train_user_error(c)
             || c.is::<std::io::Error>()

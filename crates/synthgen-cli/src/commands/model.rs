@@ -6,7 +6,7 @@ use serde_json::json;
 use std::path::{Path, PathBuf};
 use synthgen_assets::{load_model, Units};
 
-use synthgen_dataset::source::open_source;
+use synthgen_formats::layout::open_source;
 use synthgen_physics::align::{align, AlignOptions, Alignment};
 
 use crate::commands::object_models::{files_with_extensions, model_name};

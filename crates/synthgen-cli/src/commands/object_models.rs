@@ -3,7 +3,7 @@
 
 use anyhow::{Context, Result};
 use synthgen_core::Model;
-use synthgen_dataset::source::FrameSource;
+use synthgen_formats::source::FrameSource;
 use synthgen_render::ObjectRenderer;
 
 use crate::Printer;
@@ -35,7 +35,7 @@ pub fn load_models(
 }
 
 /// The distinct object ids of the frames, sorted.
-pub fn frame_obj_ids(frames: &[synthgen_dataset::source::SourceFrame]) -> Vec<u32> {
+pub fn frame_obj_ids(frames: &[synthgen_formats::source::SourceFrame]) -> Vec<u32> {
     let mut ids: Vec<u32> = frames.iter().flat_map(|f| f.object_set()).collect();
     ids.sort_unstable();
     ids.dedup();

@@ -1,8 +1,8 @@
 //! `synthgen preview`: a contact sheet PNG with the ground-truth poses drawn over the RGB.
 
 use anyhow::{Context, Result};
-use synthgen_dataset::preview::{contact_sheet, PreviewOptions};
-use synthgen_dataset::source::open_source;
+use synthgen_curate::preview::{contact_sheet, PreviewOptions};
+use synthgen_formats::layout::open_source;
 
 use crate::cli::PreviewArgs;
 use crate::commands::user_error;
@@ -22,7 +22,7 @@ pub fn run(args: PreviewArgs, printer: &Printer) -> Result<ExitStatus> {
     };
     let (sheet, frames) = contact_sheet(source.as_ref(), &opts, printer)?;
     if let Some(parent) = args.out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        synthgen_dataset::io::create_dir_all(parent)?;
+        synthgen_formats::io::create_dir_all(parent)?;
     }
     sheet.write_png(&args.out)?;
     printer.info(format!(

@@ -9,7 +9,7 @@ use anyhow::{Context, Result};
 use synthgen_assets::Units;
 use synthgen_core::scene::{BackgroundKind, Orientation};
 use synthgen_core::SceneSpec;
-use synthgen_dataset::output::OutputLock;
+use synthgen_formats::output::OutputLock;
 use synthgen_pipeline::{error_chain, Backend as JobBackend, BlenderSettings};
 use synthgen_pipeline::{ObjectSource, RenderJob, WriteOptions, WriteReport};
 
@@ -81,12 +81,12 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
             if let Some(top) = created {
                 let only_lock = std::fs::read_dir(&args.out).is_ok_and(|entries| {
                     entries.flatten().all(|e| {
-                        e.file_name() == std::ffi::OsStr::new(synthgen_dataset::output::LOCK_FILE)
+                        e.file_name() == std::ffi::OsStr::new(synthgen_formats::output::LOCK_FILE)
                     })
                 });
                 if only_lock {
                     let _ =
-                        std::fs::remove_file(args.out.join(synthgen_dataset::output::LOCK_FILE));
+                        std::fs::remove_file(args.out.join(synthgen_formats::output::LOCK_FILE));
                 }
                 drop(lock);
                 remove_empty_dirs(&args.out, &top);
@@ -360,7 +360,7 @@ fn collect_sources(args: &RenderArgs, spec: &SceneSpec) -> Result<Vec<ObjectSour
 
 fn check_out_dir(out: &Path, force: bool) -> Result<()> {
     if out.is_dir() {
-        if !synthgen_dataset::output::is_empty(out) && !force {
+        if !synthgen_formats::output::is_empty(out) && !force {
             return Err(user_error(
                 format!("output folder is not empty: {}", out.display()),
                 "if a render there was interrupted (Ctrl-C, a crash), continue it with the same \
@@ -368,7 +368,7 @@ fn check_out_dir(out: &Path, force: bool) -> Result<()> {
             ));
         }
         if force {
-            synthgen_dataset::output::check_force(out)?;
+            synthgen_formats::output::check_force(out)?;
         }
     } else if out.exists() {
         return Err(user_error(
@@ -382,7 +382,7 @@ fn check_out_dir(out: &Path, force: bool) -> Result<()> {
 /// `--force`, with the output's lock held: what an earlier run wrote there goes (the folder
 /// was checked to be synthgen's), so that the new output is not mixed with it.
 pub(crate) fn replace_output(out: &Path, printer: &Printer) -> Result<()> {
-    let n = synthgen_dataset::output::clear_output(out)?;
+    let n = synthgen_formats::output::clear_output(out)?;
     if n > 0 {
         printer.info(format!(
             "--force: removed the earlier output in {} ({n} entries)",

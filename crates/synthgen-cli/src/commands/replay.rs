@@ -13,10 +13,11 @@ use rayon::prelude::*;
 use synthgen_core::sample::ObjectInstance;
 use synthgen_core::scene::{DepthModel, SensorSpec};
 use synthgen_core::{FrameScene, Progress, Symmetries};
-use synthgen_dataset::manifest::{write_manifest, Manifest};
-use synthgen_dataset::output::{check_apart, is_empty, OutputLock};
-use synthgen_dataset::source::{open_source, FrameSource, SourceFrame};
-use synthgen_dataset::validate::{detect_layout, Layout as SourceLayout};
+use synthgen_formats::layout::open_source;
+use synthgen_formats::layout::{detect_layout, Layout as SourceLayout};
+use synthgen_formats::manifest::{write_manifest, Manifest};
+use synthgen_formats::output::{check_apart, is_empty, OutputLock};
+use synthgen_formats::source::{FrameSource, SourceFrame};
 use synthgen_pipeline::{render_annotated, ycbv_class_index, Layout, Sink};
 use synthgen_render::SensorModel;
 
@@ -93,7 +94,7 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
         ));
     }
     if args.force {
-        synthgen_dataset::output::check_force(&args.out)?;
+        synthgen_formats::output::check_force(&args.out)?;
     }
     if args.out.exists() && !args.out.is_dir() {
         return Err(user_error(
@@ -533,7 +534,7 @@ fn location(f: &SourceFrame) -> String {
 /// names (its model folders); else YCB-Video's name for a model kept in that class's folder
 /// under that class's index, `obj_NNNNNN` for the others.
 fn ycbv_classes(source: &dyn FrameSource, obj_ids: &[u32]) -> Vec<String> {
-    let mut names = synthgen_dataset::ycbv::class_list(obj_ids, false);
+    let mut names = synthgen_formats::ycbv::class_list(obj_ids, false);
     let from_ycbv = detect_layout(source.root()) == Some(SourceLayout::Ycbv);
     for (i, name) in names.iter_mut().enumerate() {
         let id = i as u32 + 1;
@@ -544,7 +545,7 @@ fn ycbv_classes(source: &dyn FrameSource, obj_ids: &[u32]) -> Vec<String> {
                 *name = class.to_string_lossy().into_owned();
             }
         } else if ycbv_class_index(&model) == Some(id) {
-            *name = synthgen_dataset::ycbv::YCBV_CLASSES[i].into();
+            *name = synthgen_formats::ycbv::YCBV_CLASSES[i].into();
         }
     }
     names

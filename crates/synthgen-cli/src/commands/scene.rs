@@ -1,4 +1,4 @@
-//! `synthgen scene fit`: a thin skin over `synthgen_dataset::scene_fit` (the fit, the TOML
+//! `synthgen scene fit`: a thin skin over `synthgen_fit::scene_fit` (the fit, the TOML
 //! text and its read-back check) with the dataset's own models.
 
 use std::collections::BTreeMap;
@@ -8,8 +8,8 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use synthgen_core::scene::SensorSpec;
 use synthgen_core::{PoseRenderer, Progress};
-use synthgen_dataset::scene_fit::{self, spec_text, Observed, SceneFit, SceneFitOptions};
-use synthgen_dataset::source::open_source;
+use synthgen_fit::scene_fit::{self, spec_text, Observed, SceneFit, SceneFitOptions};
+use synthgen_formats::layout::open_source;
 use synthgen_render::ObjectRenderer;
 
 use crate::cli::SceneFitArgs;
@@ -121,7 +121,7 @@ pub fn fit_to_file(
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     }
     let text = spec_text::spec_toml(&fit, out, sensor)?;
-    synthgen_dataset::io::atomic_write(out, text.as_bytes())?;
+    synthgen_formats::io::atomic_write(out, text.as_bytes())?;
     if let Err(e) = spec_text::check_written(&fit, out) {
         let _ = std::fs::remove_file(out);
         return Err(e.into());

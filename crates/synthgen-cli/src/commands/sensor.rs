@@ -1,5 +1,5 @@
 //! `synthgen sensor fit` and `synthgen sensor compare`: thin skins over
-//! `synthgen_dataset::sensor` (measure, fit, compare, plot) with each dataset's own models
+//! `synthgen_fit::sensor` (measure, fit, compare, plot) with each dataset's own models
 //! in an `ObjectRenderer`.
 
 use std::fmt::Write as _;
@@ -8,18 +8,19 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use synthgen_core::scene::{DepthModel, SensorSpec, StructuredLightSpec};
 use synthgen_core::Progress;
-use synthgen_dataset::sensor::{
+use synthgen_fit::sensor::{
     self, compare, fit, measure::DepthStats, plot, Comparison, FitOptions, FitReport,
     MeasureOptions,
 };
-use synthgen_dataset::source::{open_source, FrameSource};
+use synthgen_formats::layout::open_source;
+use synthgen_formats::source::FrameSource;
 
 use crate::cli::{SensorCompareArgs, SensorCompareRgbArgs, SensorFitArgs};
 use crate::commands::object_models::{frame_obj_ids, object_renderer};
 use crate::commands::user_error;
 use crate::{ExitStatus, Printer};
 
-/// Opens a dataset and measures its frames (see `synthgen_dataset::sensor::measure`).
+/// Opens a dataset and measures its frames (see `synthgen_fit::sensor::measure`).
 fn measure(
     dir: &Path,
     scenes: &[u32],
@@ -136,7 +137,7 @@ pub(crate) fn fit_to_file(
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     }
-    synthgen_dataset::io::atomic_write(out, text.as_bytes())?;
+    synthgen_formats::io::atomic_write(out, text.as_bytes())?;
     Ok(report)
 }
 
@@ -370,17 +371,17 @@ fn format_compare(c: &Comparison, a: &Path, b: &Path) -> String {
     o
 }
 
-/// `synthgen sensor compare-rgb`: a thin skin over `synthgen_dataset::rgb_compare`.
+/// `synthgen sensor compare-rgb`: a thin skin over `synthgen_fit::rgb_compare`.
 pub fn run_compare_rgb(args: SensorCompareRgbArgs, printer: &Printer) -> Result<ExitStatus> {
     let real =
         open_source(&args.real).with_context(|| format!("cannot open {}", args.real.display()))?;
     let synth = open_source(&args.synth)
         .with_context(|| format!("cannot open {}", args.synth.display()))?;
-    let opts = synthgen_dataset::rgb_compare::RgbCompareOptions {
+    let opts = synthgen_fit::rgb_compare::RgbCompareOptions {
         scenes: args.scenes.clone(),
         min_pixels: args.min_pixels,
     };
-    let c = synthgen_dataset::rgb_compare::compare_rgb(real.as_ref(), synth.as_ref(), &opts)?;
+    let c = synthgen_fit::rgb_compare::compare_rgb(real.as_ref(), synth.as_ref(), &opts)?;
     if c.frames == 0 {
         return Err(user_error(
             format!(

@@ -2,11 +2,12 @@
 //! datasets, side by side on shared bins.
 
 use anyhow::{Context, Result};
-use synthgen_dataset::source::{open_source, FrameSource};
-use synthgen_dataset::stats::{
+use synthgen_curate::stats::{
     compare_stats, compute_stats, format_comparison, format_stats, write_comparison_plots,
     write_plots,
 };
+use synthgen_formats::layout::open_source;
+use synthgen_formats::source::FrameSource;
 
 use crate::cli::StatsArgs;
 use crate::{ExitStatus, Printer};

@@ -1,11 +1,11 @@
 //! `synthgen train`: load a dataset's instances (BOP or Linemod), train a pose model, write the run.
 
 use std::time::Instant;
-use synthgen_dataset::output::{check_apart, OutputLock};
+use synthgen_formats::output::{check_apart, OutputLock};
 
 use anyhow::{Context, Result};
 use synthgen_core::Progress;
-use synthgen_dataset::source::open_source;
+use synthgen_formats::layout::open_source;
 use synthgen_train::data::load_source_instances;
 use synthgen_train::models::rgb::{Translation, DEFAULT_RGB_CROP};
 use synthgen_train::models::rnet::DEFAULT_CROP;

@@ -2,7 +2,7 @@
 
 use anyhow::{Context, Result};
 use synthgen_core::Progress;
-use synthgen_dataset::validate::{validate, Checks};
+use synthgen_formats::validate::{validate, Checks};
 
 use crate::cli::ValidateArgs;
 use crate::commands::convert::layout_of;

@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use serde_json::Value;
-use synthgen_dataset::bop::read_mask;
+use synthgen_formats::bop::read_mask;
 
 use crate::common::{run, shared_data, stderr, synthgen};
 

@@ -4,8 +4,8 @@
 use std::process::Command;
 
 use serde_json::Value;
-use synthgen_dataset::bop::read_mask;
-use synthgen_dataset::coco::rle_decode;
+use synthgen_formats::bop::read_mask;
+use synthgen_formats::coco::rle_decode;
 
 use crate::common::{run, stderr, synthgen};
 use crate::mix::render_tiny;

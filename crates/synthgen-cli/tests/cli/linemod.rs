@@ -4,8 +4,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use synthgen_dataset::bop::image::{read_depth_raw, read_mask, read_rgb};
-use synthgen_dataset::bop::BopDataset;
+use synthgen_formats::bop::image::{read_depth_raw, read_mask, read_rgb};
+use synthgen_formats::bop::BopDataset;
 
 use crate::common::{run, stderr, synthgen};
 use crate::render::write_box_ply;
@@ -318,7 +318,7 @@ fn validate_names_the_file_of_each_planted_bop_problem() {
         .iter()
         .map(|&v| if v > 0 { 60000 } else { 0 })
         .collect();
-    let png = synthgen_dataset::bop::image::encode_gray16_png(
+    let png = synthgen_formats::bop::image::encode_gray16_png(
         &far,
         d.width,
         d.height,

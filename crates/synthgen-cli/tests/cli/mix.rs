@@ -3,7 +3,7 @@
 use std::path::Path;
 
 use serde_json::Value;
-use synthgen_dataset::bop::BopDataset;
+use synthgen_formats::bop::BopDataset;
 
 use crate::common::{run, stderr, synthgen};
 use crate::render::write_box_ply;

@@ -7,7 +7,7 @@ use synthgen_core::glam::DVec3;
 use synthgen_core::mesh::point_triangle_distance;
 use synthgen_core::sample::SceneObject;
 use synthgen_core::{NoProgress, SceneSampler, SceneSpec};
-use synthgen_dataset::bop::{read_mask, BopDataset};
+use synthgen_formats::bop::{read_mask, BopDataset};
 
 use crate::common::{repo_root, run, shared_data, stderr, synthgen};
 

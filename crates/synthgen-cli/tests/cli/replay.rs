@@ -7,9 +7,10 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use serde_json::Value;
-use synthgen_dataset::annotate::{annotate_frame, mask_iou};
-use synthgen_dataset::bop::image::{read_depth_raw, read_mask};
-use synthgen_dataset::source::{open_source, SourceFrame};
+use synthgen_formats::annotate::{annotate_frame, mask_iou};
+use synthgen_formats::bop::image::{read_depth_raw, read_mask};
+use synthgen_formats::layout::open_source;
+use synthgen_formats::source::SourceFrame;
 use synthgen_render::ObjectRenderer;
 
 use crate::common::{refused, run, stderr, synthgen, ycbv_real};
@@ -39,7 +40,7 @@ fn frames_of(root: &Path, scenes: &[u32]) -> Vec<SourceFrame> {
 }
 
 /// The replay `out` of `scenes` of `real`: validates, has the source's scene and image ids,
-/// poses equal to 1e-6, and visible masks that are those `synthgen_dataset::annotate`
+/// poses equal to 1e-6, and visible masks that are those `synthgen_formats::annotate`
 /// computes for the real frames from the rendered depth (IoU >= 0.99 per instance).
 fn check_twin(real: &Path, out: &Path, scenes: &[u32], split: &str) {
     ok(synthgen().arg("validate").arg(out));

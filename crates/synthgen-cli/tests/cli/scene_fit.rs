@@ -489,7 +489,7 @@ fn frames_with_a_subset_of_the_objects_write_and_validate_in_every_format() {
     ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
 )]
 fn depth_at_the_wrong_scale_is_refused() {
-    use synthgen_dataset::ycbv::{encode_meta, read_meta};
+    use synthgen_formats::ycbv::{encode_meta, read_meta};
     let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let ds = dir.path().join("ycbv");

@@ -357,8 +357,8 @@ fn fit_and_compare_refuse_data_without_depth_or_gt() {
     ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
 )]
 fn replay_masks_agree_with_annotate_on_the_real_depth() {
-    use synthgen_dataset::annotate::{annotate_frame, mask_iou, percentile};
-    use synthgen_dataset::source::open_source;
+    use synthgen_formats::annotate::{annotate_frame, mask_iou, percentile};
+    use synthgen_formats::layout::open_source;
     let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("clean");
@@ -410,8 +410,8 @@ fn replay_masks_agree_with_annotate_on_the_real_depth() {
     ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
 )]
 fn fit_refuses_depth_without_readings_and_names_scenes_that_disagree() {
-    use synthgen_dataset::bop::image::encode_gray16_png;
-    use synthgen_dataset::bop::PngCompression;
+    use synthgen_formats::bop::image::encode_gray16_png;
+    use synthgen_formats::bop::PngCompression;
     let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let ds = dir.path().join("ycbv");

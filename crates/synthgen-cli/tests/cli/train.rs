@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use synthgen_dataset::bop::BopDataset;
+use synthgen_formats::bop::BopDataset;
 
 use crate::common::{refused, repo_root, run, stderr, synthgen};
 

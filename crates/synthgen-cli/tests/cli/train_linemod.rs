@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use synthgen_dataset::source::open_source;
+use synthgen_formats::layout::open_source;
 
 use crate::common::{repo_root, run, stderr, synthgen};
 use crate::render::write_box_ply;
@@ -183,7 +183,7 @@ fn linemod_frames_are_numbered_as_their_bop_conversion() {
         for (g, (mx, my)) in x.masks_visib.iter().zip(&y.masks_visib).enumerate() {
             // The conversion writes an empty mask where Linemod has none.
             if mx.is_some() {
-                let path = |m: &Option<synthgen_dataset::source::MaskRef>| {
+                let path = |m: &Option<synthgen_formats::source::MaskRef>| {
                     m.as_ref().map(|m| m.path().to_path_buf())
                 };
                 assert_eq!(

@@ -6,9 +6,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use serde_json::Value;
-use synthgen_dataset::bop::image::{read_depth_raw, read_label};
-use synthgen_dataset::bop::BopDataset;
-use synthgen_dataset::ycbv::read_meta;
+use synthgen_formats::bop::image::{read_depth_raw, read_label};
+use synthgen_formats::bop::BopDataset;
+use synthgen_formats::ycbv::read_meta;
 
 use crate::common::{run, stderr, synthgen, ycbv_real, ycbv_small_copy};
 
@@ -387,7 +387,7 @@ fn broken_ycbv_files_are_named_and_nothing_is_written() {
         (
             "no poses",
             |d| {
-                use synthgen_dataset::ycbv::mat::{read_mat, write_mat};
+                use synthgen_mat::{read_mat, write_mat};
                 let p = d.join("data/0000/000002-meta.mat");
                 let mut vars = read_mat(std::fs::File::open(&p).unwrap(), None).unwrap();
                 vars.remove("poses");
@@ -414,11 +414,11 @@ fn broken_ycbv_files_are_named_and_nothing_is_written() {
             "depth of the wrong size",
             |d| {
                 let p = d.join("data/0000/000002-depth.png");
-                let png = synthgen_dataset::bop::image::encode_gray16_png(
+                let png = synthgen_formats::bop::image::encode_gray16_png(
                     &vec![1000u16; 320 * 240],
                     320,
                     240,
-                    synthgen_dataset::bop::PngCompression::Fast,
+                    synthgen_formats::bop::PngCompression::Fast,
                     &p,
                 )
                 .unwrap();
@@ -648,7 +648,7 @@ fn two_instances_of_one_class_are_warned_about_and_split_by_the_render() {
         c.push(ci);
     }
     let vertmap = vec![0f32; 640 * 480 * 3];
-    let bytes = synthgen_dataset::ycbv::encode_meta(&m, &vertmap, 640, 480, &p).unwrap();
+    let bytes = synthgen_formats::ycbv::encode_meta(&m, &vertmap, 640, 480, &p).unwrap();
     std::fs::write(&p, bytes).unwrap();
     let o = run(synthgen().arg("validate").arg(&ds));
     let e = stderr(&o);
@@ -667,7 +667,7 @@ fn two_instances_of_one_class_are_warned_about_and_split_by_the_render() {
     assert!(o.status.success(), "{e}");
     assert!(e.contains("split along the render at the GT poses"), "{e}");
     let px = |g: usize| {
-        synthgen_dataset::bop::read_mask(
+        synthgen_formats::bop::read_mask(
             &bop.join(format!("train/000000/mask_visib/000001_{g:06}.png")),
         )
         .unwrap()
@@ -689,8 +689,8 @@ fn two_instances_of_one_class_are_warned_about_and_split_by_the_render() {
     ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
 )]
 fn frames_and_label_values_left_out_are_counted_and_named() {
-    use synthgen_dataset::bop::image::encode_gray8_png;
-    use synthgen_dataset::bop::PngCompression;
+    use synthgen_formats::bop::image::encode_gray8_png;
+    use synthgen_formats::bop::PngCompression;
     let real = ycbv_real();
     let dir = tempfile::tempdir().unwrap();
     let ds = dir.path().join("ycbv");

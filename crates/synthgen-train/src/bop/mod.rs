@@ -19,8 +19,8 @@ use serde::{Deserialize, Serialize};
 use synthgen_assets::Units;
 use synthgen_core::glam::DVec3;
 use synthgen_core::{DepthRenderer, DepthWindowMm, Intrinsics, NoProgress, Progress};
-use synthgen_dataset::bop::{GtEntry, ModelInfo};
-use synthgen_dataset::source::FrameSource;
+use synthgen_formats::bop::{GtEntry, ModelInfo};
+use synthgen_formats::source::FrameSource;
 
 use crate::error::{Error, Result};
 use crate::results::Estimate;
@@ -208,7 +208,7 @@ pub fn load_bop_objects(
     let infos = if info_path == ds.models_info_path() {
         ds.models_info()
     } else {
-        read = synthgen_dataset::bop::reader::read_models_info(&info_path)?;
+        read = synthgen_formats::bop::reader::read_models_info(&info_path)?;
         Some(&read)
     };
     // Units::M leaves the file's numbers as they are: millimetres in BOP's models (and
@@ -313,7 +313,7 @@ pub fn prepare_bop(
             .map(|m| m.keys().copied().collect())
             .unwrap_or_default()
     } else {
-        synthgen_dataset::bop::reader::read_models_info(&info_path)?
+        synthgen_formats::bop::reader::read_models_info(&info_path)?
             .into_keys()
             .collect()
     };
@@ -655,7 +655,7 @@ fn score_image(
     let mspd_factor = 640.0 / im.width as f64;
     let vsd_ctx = match (renderer, &im.depth) {
         (Some(r), Some(path)) => {
-            let raw = synthgen_dataset::bop::image::read_depth_raw(path)?;
+            let raw = synthgen_formats::bop::image::read_depth_raw(path)?;
             if raw.width != im.width || raw.height != im.height {
                 return Err(Error::Malformed {
                     what: "depth image",

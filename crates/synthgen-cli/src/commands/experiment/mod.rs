@@ -16,14 +16,14 @@ mod table;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use synthgen_dataset::output::{check_apart, OutputLock};
+use synthgen_formats::output::{check_apart, OutputLock};
 
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use synthgen_core::Progress;
-use synthgen_dataset::io::atomic_write;
-use synthgen_dataset::manifest::{write_manifest, Manifest};
-use synthgen_dataset::mix::{scene_list, SceneRef};
+use synthgen_curate::mix::{scene_list, SceneRef};
+use synthgen_formats::io::atomic_write;
+use synthgen_formats::manifest::{write_manifest, Manifest};
 
 use crate::cli::{ExperimentMixArgs, ModelArg, TrainBudget};
 use crate::commands::user_error;
@@ -333,9 +333,9 @@ pub fn run_mix(args: ExperimentMixArgs, printer: &Printer) -> Result<ExitStatus>
     }
     let real_dir = sources::ensure(&plan.real, &out, printer)?;
     let synth_dir = sources::ensure(&plan.synth, &out, printer)?;
-    let real = synthgen_dataset::source::open_source(&real_dir)
+    let real = synthgen_formats::layout::open_source(&real_dir)
         .with_context(|| format!("cannot open the real dataset {}", real_dir.display()))?;
-    let synth = synthgen_dataset::source::open_source(&synth_dir)
+    let synth = synthgen_formats::layout::open_source(&synth_dir)
         .with_context(|| format!("cannot open the synthetic dataset {}", synth_dir.display()))?;
     let n_real = real.frames(&[])?.len();
     let n_synth = synth.frames(&[])?.len();
@@ -475,7 +475,7 @@ struct Input {
     /// The flag that named it (`--test`, `--real`, ...).
     role: String,
     path: PathBuf,
-    fingerprint: synthgen_dataset::fingerprint::Fingerprint,
+    fingerprint: synthgen_formats::fingerprint::Fingerprint,
 }
 
 fn fingerprint_inputs(inputs: &[(&str, &Path)]) -> Result<Vec<Input>> {
@@ -487,7 +487,7 @@ fn fingerprint_inputs(inputs: &[(&str, &Path)]) -> Result<Vec<Input>> {
         out.push(Input {
             role: role.to_string(),
             path: path.to_path_buf(),
-            fingerprint: synthgen_dataset::fingerprint::fingerprint(path)?,
+            fingerprint: synthgen_formats::fingerprint::fingerprint(path)?,
         });
     }
     Ok(out)
@@ -573,7 +573,7 @@ where
                     .with_context(|| format!("cannot remove {}", p.display()))?;
             }
         }
-    } else if refuse_foreign && out.is_dir() && !synthgen_dataset::output::is_empty(out) && !force {
+    } else if refuse_foreign && out.is_dir() && !synthgen_formats::output::is_empty(out) && !force {
         return Err(user_error(
             format!("output folder is not empty: {}", out.display()),
             "choose another --out, or pass --force",

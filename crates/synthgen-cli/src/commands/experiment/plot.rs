@@ -8,7 +8,7 @@
 use std::path::Path;
 
 use anyhow::Result;
-use synthgen_dataset::draw::Canvas;
+use synthgen_formats::draw::Canvas;
 
 use super::table::{all_real, Line};
 

@@ -7,8 +7,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use synthgen_assets::Units;
-use synthgen_dataset::mix::{scene_list, scene_test_frames, SceneRef};
-use synthgen_dataset::source::{open_source, FrameLocation};
+use synthgen_curate::mix::{scene_list, scene_test_frames, SceneRef};
+use synthgen_formats::layout::open_source;
+use synthgen_formats::source::FrameLocation;
 
 use crate::commands::user_error;
 use crate::Printer;
@@ -61,7 +62,7 @@ impl RealInventory {
     pub fn test_frames(&self, scenes: &[SceneRef]) -> Result<Vec<usize>> {
         let locations: Vec<&FrameLocation> = self.locations.iter().collect();
         scene_test_frames(&locations, scenes, &self.root).map_err(|e| match e {
-            synthgen_dataset::Error::UnknownScenes { .. } => user_error(
+            synthgen_formats::Error::UnknownScenes { .. } => user_error(
                 format!("--test-scenes: {e}"),
                 "pass --test-scenes with ids from that list",
             ),

@@ -13,9 +13,10 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use synthgen_core::Progress;
-use synthgen_dataset::io::atomic_write;
-use synthgen_dataset::output::{check_apart, OutputLock};
-use synthgen_dataset::source::{open_source, FrameSource};
+use synthgen_formats::io::atomic_write;
+use synthgen_formats::layout::open_source;
+use synthgen_formats::output::{check_apart, OutputLock};
+use synthgen_formats::source::FrameSource;
 use synthgen_train::data::{load_source_instances, Instance, InstanceSet};
 use synthgen_train::eval::{eval_objects, pick_split, read_gt, score_predictions, Match};
 use synthgen_train::metrics::{EvalObject, Rotations, TE_THRESHOLD_M};
@@ -184,7 +185,7 @@ fn refuse_shared_frames(
     let train_frames = train.frames(&[train_split.to_string()])?;
     let t: Vec<&_> = test_frames.iter().collect();
     let tr: Vec<&_> = train_frames.iter().collect();
-    let shared = synthgen_dataset::shared_frames::same_images(&t, &tr)?;
+    let shared = synthgen_formats::shared_frames::same_images(&t, &tr)?;
     if let Some(&(j, i)) = shared.first() {
         return Err(user_error(
             format!(

@@ -7,12 +7,12 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use synthgen_core::NoProgress;
-use synthgen_dataset::bop::BopDataset;
-use synthgen_dataset::io::atomic_write;
-use synthgen_dataset::mix::{
+use synthgen_curate::mix::{
     write_mix, Completion, MixCounts, MixOptions, PROVENANCE_FILE, TEST_SPLIT, TRAIN_SPLIT,
 };
-use synthgen_dataset::source::FrameSource;
+use synthgen_formats::bop::BopDataset;
+use synthgen_formats::io::atomic_write;
+use synthgen_formats::source::FrameSource;
 use synthgen_train::data::{load_instances, DataOptions, Instance};
 use synthgen_train::eval::{read_gt, score_predictions, EvalReport, GtInstance};
 use synthgen_train::metrics::Rotations;
@@ -275,7 +275,7 @@ pub fn run(ctx: &RowContext, spec: &RowSpec) -> Result<RowRecord> {
     let objects = if model == ModelKind::Tnet {
         None
     } else {
-        let source = synthgen_dataset::source::open_source(&mix_dir)
+        let source = synthgen_formats::layout::open_source(&mix_dir)
             .with_context(|| format!("cannot open {}", mix_dir.display()))?;
         Some(load_dataset_objects(source.as_ref(), obj_ids, LOSS_POINTS)?)
     };
@@ -513,7 +513,7 @@ fn test_split(entries: &[serde_json::Value]) -> (String, Vec<String>) {
     (
         format!(
             "{:016x}",
-            synthgen_dataset::fingerprint::fnv1a(lines.join("\n").as_bytes())
+            synthgen_formats::fingerprint::fnv1a(lines.join("\n").as_bytes())
         ),
         lines,
     )

@@ -8,8 +8,8 @@ use anyhow::{Context, Result};
 use clap::Parser;
 use serde::{Deserialize, Serialize};
 use synthgen_core::SceneSpec;
-use synthgen_dataset::io::atomic_write;
-use synthgen_dataset::validate::Layout;
+use synthgen_formats::io::atomic_write;
+use synthgen_formats::layout::Layout;
 
 use super::absolute;
 use super::real::RenderObjects;

@@ -183,7 +183,7 @@ pub fn markdown(settings: &Settings, records: &[RowRecord], real: &Path, synth: 
         format!(
             "every real frame of the held-out scene(s) {} ({} frames; no row trains on a real \
              frame of them)",
-            synthgen_dataset::mix::scene_list(&settings.test_scenes),
+            synthgen_curate::mix::scene_list(&settings.test_scenes),
             settings.test_count
         )
     };

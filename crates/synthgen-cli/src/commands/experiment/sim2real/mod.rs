@@ -18,9 +18,10 @@ use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use synthgen_core::scene::{DepthModel, ObjectSpec, PlacementMode, SensorSpec, UpAxis};
 use synthgen_core::SceneSpec;
-use synthgen_dataset::io::atomic_write;
-use synthgen_dataset::output::{check_apart, OutputLock};
-use synthgen_dataset::source::{open_source, FrameSource, SourceFrame};
+use synthgen_formats::io::atomic_write;
+use synthgen_formats::layout::open_source;
+use synthgen_formats::output::{check_apart, OutputLock};
+use synthgen_formats::source::{FrameSource, SourceFrame};
 use synthgen_pipeline::{Backend, Format, RenderJob, SinkOptions, WriteOptions};
 use synthgen_train::data::Augment;
 
@@ -541,7 +542,7 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
 
 /// The frames a set's render left out (its synthgen.json's `failed_frames`).
 fn failed_frames(dir: &Path) -> Vec<u64> {
-    synthgen_dataset::read_manifest(dir)
+    synthgen_formats::read_manifest(dir)
         .ok()
         .and_then(|m| {
             m.extra["failed_frames"]
@@ -613,7 +614,7 @@ fn select_frames(
 fn refuse_shared_frames(test: &[SourceFrame], fit: &[SourceFrame], would_see: &str) -> Result<()> {
     let t: Vec<&_> = test.iter().collect();
     let f: Vec<&_> = fit.iter().collect();
-    let shared = synthgen_dataset::shared_frames::same_images(&t, &f)?;
+    let shared = synthgen_formats::shared_frames::same_images(&t, &f)?;
     if let Some(&(j, i)) = shared.first() {
         return Err(user_error(
             format!(
@@ -855,7 +856,7 @@ fn test_view_distances(frames: &[SourceFrame]) -> Result<Option<[f64; 2]>> {
         .filter_map(|f| {
             let path = f.depth.as_ref()?;
             Some(
-                synthgen_dataset::bop::read_depth_m(path, f.camera.depth_scale).map(|img| {
+                synthgen_formats::bop::read_depth_m(path, f.camera.depth_scale).map(|img| {
                     let (w, h) = (img.width as usize, img.height as usize);
                     let mut v: Vec<f32> = (2 * h / 5..3 * h / 5)
                         .flat_map(|y| (2 * w / 5..3 * w / 5).map(move |x| (x, y)))

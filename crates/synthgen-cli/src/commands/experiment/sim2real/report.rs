@@ -6,8 +6,8 @@ use std::path::Path;
 
 use anyhow::Result;
 use serde::{Deserialize, Serialize};
-use synthgen_dataset::draw::Canvas;
-use synthgen_dataset::io::atomic_write;
+use synthgen_formats::draw::Canvas;
+use synthgen_formats::io::atomic_write;
 
 use super::rows::{Metrics, RowRecord, NAIVE};
 use super::{Settings, REAL_ONLY};
