@@ -42,14 +42,14 @@ pub fn read_config(path: &Path) -> Result<Config> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
     let mut c: Config = toml::from_str(&text).map_err(|e| {
-        crate::commands::user_error(
+        anyhow::Error::new(synthgen_core::UserError::new(
             format!(
                 "malformed {CONFIG_FILE}: {}: {}",
                 e.message(),
                 path.display()
             ),
             "see `synthgen mix --help` for the format",
-        )
+        ))
     })?;
     let base = path.parent().unwrap_or(Path::new("."));
     for p in [&mut c.mix.real, &mut c.mix.synth, &mut c.mix.out]

@@ -154,6 +154,14 @@ impl Progress for Printer {
         Printer::info(self, message);
     }
 
+    fn hint(&self, message: &str) {
+        Printer::hint(self, message);
+    }
+
+    fn set_message(&self, message: &str) {
+        Printer::set_message(self, message);
+    }
+
     fn finish(&self) {
         if let Ok(mut b) = self.bar.lock() {
             if let Some(bar) = b.take() {

@@ -31,6 +31,7 @@ pub mod sample;
 pub mod scene;
 mod sensor_spec;
 pub mod symmetry;
+mod user_error;
 pub mod view;
 mod walls_spec;
 
@@ -45,6 +46,7 @@ pub use progress::{NoProgress, Progress};
 pub use sample::{FrameScene, ObjectInstance, SceneObject, SceneSampler, Settle};
 pub use scene::SceneSpec;
 pub use symmetry::Symmetries;
+pub use user_error::UserError;
 pub use view::{ViewCheck, Visibility};
 
 /// The synthgen version, written into every manifest.

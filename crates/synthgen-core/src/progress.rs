@@ -10,6 +10,10 @@ pub trait Progress: Sync {
     fn warn(&self, _message: &str) {}
     /// An informational line (which units a mesh was read in, what was loaded), for a log.
     fn info(&self, _message: &str) {}
+    /// What the user can do about the message just before (a flag to pass, a file to look at).
+    fn hint(&self, _message: &str) {}
+    /// A phase's label changed (which row, which epoch), without a new count.
+    fn set_message(&self, _message: &str) {}
     fn finish(&self) {}
 }
 

@@ -12,8 +12,9 @@ use synthgen_core::{
 };
 
 use crate::background::Background;
+use crate::bits::select;
 use crate::color::ColorLuts;
-use crate::ground::{select, Ground, GroundRow, TileTables};
+use crate::ground::{Ground, GroundRow, TileTables};
 use crate::prepare::{prepare, validate_texture, PreparedModel};
 use crate::raster::{canvas_and_image, raster_object, ObjScratch, Projection, Rect};
 use crate::shade::{shade_pixels, Light, ShadeBatch, ShadeParams};

@@ -9,7 +9,8 @@ use synthgen_core::glam::Vec3;
 use synthgen_core::sample::{GroundInstance, WallInstance};
 use synthgen_core::Pose;
 
-use crate::color::{srgb_index32, srgb_to_linear_f32, ColorLuts, MAGIC, TO_SRGB_MAX};
+use crate::bits::{floor_low_bits, select};
+use crate::color::{srgb_index32, srgb_to_linear_f32, ColorLuts, TO_SRGB_MAX};
 use crate::raster::Projection;
 use crate::shade::{Light, ShadeParams};
 use crate::surface::TexMap;
@@ -529,21 +530,6 @@ fn pack_chunk(ix: &[[u32; LIGHT_STEP]; 3], px: &mut [u8; 3 * LIGHT_STEP], luts: 
         out[4..8].copy_from_slice(&w1.to_le_bytes());
         out[8..12].copy_from_slice(&w2.to_le_bytes());
     }
-}
-
-/// `if c { a } else { b }` as bit operations. A plain `if` on a value loaded from the
-/// same slot gets turned into a conditional store, which does not vectorize.
-#[inline(always)]
-pub(crate) fn select(c: bool, a: f32, b: f32) -> f32 {
-    let m = 0u32.wrapping_sub(c as u32);
-    f32::from_bits((a.to_bits() & m) | (b.to_bits() & !m))
-}
-
-/// floor(x) modulo 2^16 (enough for the tile masks), for |x| < 2^21, without a float-to-int
-/// cast.
-#[inline(always)]
-pub(crate) fn floor_low_bits(x: f32) -> i32 {
-    ((x - 0.5 + MAGIC).to_bits() & 0xffff) as i32
 }
 
 /// Row buffers for `Ground::draw_row`, reused across rows and frames.

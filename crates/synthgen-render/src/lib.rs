@@ -123,6 +123,7 @@
 
 mod ao;
 mod background;
+mod bits;
 mod color;
 mod cpu;
 mod error;

@@ -8,7 +8,7 @@
 
 use synthgen_core::glam::{Mat3, Vec3};
 
-use crate::ground::select;
+use crate::bits::select;
 use crate::prepare::PreparedModel;
 
 /// Sub-pixel bits of the fixed-point screen coordinates.

@@ -8,8 +8,8 @@ use std::sync::Arc;
 use synthgen_core::sample::SurfaceTexture;
 use synthgen_core::Texture;
 
+use crate::bits::floor_low_bits;
 use crate::color::srgb_to_linear_f32;
-use crate::ground::floor_low_bits;
 use crate::prepare::validate_texture;
 use crate::Error;
 

@@ -2,6 +2,8 @@
 //! inputs and outputs are in metres and radians; BOP files' millimetres are converted by the
 //! readers before anything reaches this module. See docs/metrics.md.
 
+use serde::{Deserialize, Serialize};
+
 use synthgen_core::glam::{DMat3, DVec3};
 use synthgen_core::mesh::Model;
 use synthgen_core::Pose;
@@ -229,6 +231,30 @@ pub fn subsample_vertices(model: &Model, max: usize) -> Vec<DVec3> {
         return all;
     }
     (0..max).map(|i| all[i * all.len() / max]).collect()
+}
+
+/// One line of `metrics.jsonl`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EpochMetrics {
+    pub epoch: usize,
+    pub train_loss: f64,
+    pub val_loss: f64,
+    /// Mean ‖centre − ĉ‖ over the validation instances, metres (TNet, Full).
+    #[serde(default)]
+    pub val_centre_error_m: Option<f64>,
+    /// Fraction of validation instances with ADD(-S) below 10% of the diameter (RNet, Full;
+    /// RNet's poses use the GT translation).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub val_add_s_acc: Option<f64>,
+    /// Mean rotation error over the validation instances, degrees (RNet, Full, RGB).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub val_mean_re_deg: Option<f64>,
+    /// Fraction of validation instances within 5 cm and 5° (RGB).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub val_acc_5cm5deg: Option<f64>,
+    /// Learning rate at the epoch's last step.
+    pub lr: f64,
+    pub seconds: f64,
 }
 
 #[cfg(test)]

@@ -9,7 +9,7 @@ use std::path::Path;
 use synthgen_formats::draw::Canvas;
 
 use crate::error::Result;
-use crate::train::EpochMetrics;
+use crate::metrics::EpochMetrics;
 
 const W: u32 = 640;
 const H: u32 = 480;

@@ -17,6 +17,7 @@ use synthgen_core::rng::splitmix64;
 use crate::data::{DataOptions, Instance, InstanceSet};
 use crate::error::{Error, Result};
 use crate::metrics::is_5cm5deg;
+pub use crate::metrics::EpochMetrics;
 use crate::models::rgb::Translation;
 use crate::models::ModelKind;
 use crate::pose_model::{Objects, PoseModel, Prediction};
@@ -170,30 +171,6 @@ impl TrainConfig {
             }
         }
     }
-}
-
-/// One line of `metrics.jsonl`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct EpochMetrics {
-    pub epoch: usize,
-    pub train_loss: f64,
-    pub val_loss: f64,
-    /// Mean ‖centre − ĉ‖ over the validation instances, metres (TNet, Full).
-    #[serde(default)]
-    pub val_centre_error_m: Option<f64>,
-    /// Fraction of validation instances with ADD(-S) below 10% of the diameter (RNet, Full;
-    /// RNet's poses use the GT translation).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub val_add_s_acc: Option<f64>,
-    /// Mean rotation error over the validation instances, degrees (RNet, Full, RGB).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub val_mean_re_deg: Option<f64>,
-    /// Fraction of validation instances within 5 cm and 5° (RGB).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub val_acc_5cm5deg: Option<f64>,
-    /// Learning rate at the epoch's last step.
-    pub lr: f64,
-    pub seconds: f64,
 }
 
 /// `state.json`: where a run stands, for `--resume`.

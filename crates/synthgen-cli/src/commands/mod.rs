@@ -51,26 +51,10 @@ fn is_train_user_error(c: &(dyn std::error::Error + 'static)) -> bool {
         .is_some_and(|e| !matches!(e, synthgen_train::Error::Candle(_)))
 }
 
-/// A problem with what the user asked for, with a hint on what to do instead.
-#[derive(Debug)]
-pub struct UserError {
-    pub message: String,
-    pub hint: Option<String>,
-}
-
-impl std::fmt::Display for UserError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.message)
-    }
-}
-
-impl std::error::Error for UserError {}
+pub use synthgen_core::UserError;
 
 pub fn user_error(message: impl Into<String>, hint: impl Into<String>) -> anyhow::Error {
-    anyhow::Error::new(UserError {
-        message: message.into(),
-        hint: Some(hint.into()),
-    })
+    anyhow::Error::new(UserError::new(message, hint))
 }
 
 pub fn hint_for(err: &anyhow::Error) -> Option<String> {
