@@ -106,6 +106,20 @@ impl ToPyErr for synthgen_render::Error {
     }
 }
 
+/// The experiments' errors (anyhow, joining every crate's): the kind and the hint as the CLI
+/// decides its exit code and prints its hint.
+impl ToPyErr for anyhow::Error {
+    fn to_py_err(&self) -> PyErr {
+        let kind = if synthgen_experiment::is_user_error(self) {
+            Kind::Input
+        } else {
+            Kind::Internal
+        };
+        let e: &(dyn std::error::Error + 'static) = self.as_ref();
+        py_err(kind, e, synthgen_experiment::error_hint(self).as_deref())
+    }
+}
+
 /// `result.map_err(to_py)`.
 pub fn to_py<E: ToPyErr>(e: E) -> PyErr {
     e.to_py_err()

@@ -57,6 +57,9 @@ impl Progress for PyProgress {
     fn info(&self, message: &str) {
         self.call("info", message, 0);
     }
+    fn hint(&self, message: &str) {
+        self.call("info", &format!("hint: {message}"), 0);
+    }
     fn finish(&self) {
         self.call("finish", "", 0);
     }

@@ -11,6 +11,7 @@
 mod commands;
 mod dataset;
 mod errors;
+mod experiment;
 mod frame;
 mod gil;
 mod job;
@@ -25,6 +26,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<job::PyRenderJob>()?;
     m.add_class::<dataset::PyDataset>()?;
     commands::register(m)?;
+    experiment::register(m)?;
     metrics::register(m)?;
     Ok(())
 }

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use synthgen_curate::mix::SceneRef;
 
+mod budget;
 mod experiment;
 mod model;
 mod rgb;
@@ -13,7 +14,8 @@ mod scene;
 mod sensor;
 mod sim2real;
 mod train;
-pub use experiment::{ExperimentCommand, ExperimentMixArgs, TrainBudget, TrainBudgetArgs};
+pub use budget::TrainBudgetArgs;
+pub use experiment::{ExperimentCommand, ExperimentMixArgs};
 pub use model::{ModelAlignArgs, ModelCommand};
 pub use rgb::ExperimentRgbArgs;
 pub use scale::{MergeArgs, Shard, MERGE_EXAMPLES};

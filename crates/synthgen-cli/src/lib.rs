@@ -76,10 +76,10 @@ pub fn main() -> ExitCode {
             commands::experiment::run_mix(args, &printer)
         }
         cli::Command::Experiment(cli::ExperimentCommand::Sim2real(args)) => {
-            commands::experiment::sim2real::run(args, &printer)
+            commands::experiment::run_sim2real(args, &printer)
         }
         cli::Command::Experiment(cli::ExperimentCommand::Rgb(args)) => {
-            commands::experiment::rgb::run(args, &printer)
+            commands::experiment::run_rgb(args, &printer)
         }
         cli::Command::Sensor(cli::SensorCommand::Fit(args)) => {
             commands::sensor::run_fit(args, &printer)

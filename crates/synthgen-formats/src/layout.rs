@@ -22,6 +22,17 @@ pub enum Layout {
     Ycbv,
 }
 
+impl Layout {
+    /// The layout's name in commands and files (`bop`, `linemod`, `ycbv`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Layout::Bop => "bop",
+            Layout::Linemod => "linemod",
+            Layout::Ycbv => "ycbv",
+        }
+    }
+}
+
 impl std::fmt::Display for Layout {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(match self {

@@ -104,6 +104,20 @@ pub fn check_force(out: &Path) -> Result<()> {
     }
 }
 
+/// `--force`, with the output's lock held: what an earlier run wrote in `out` goes (the folder
+/// was checked to be synthgen's, [`check_force`]), so that the new output is not mixed with it;
+/// says so on `progress` when something was removed.
+pub fn replace_output(out: &Path, progress: &dyn synthgen_core::Progress) -> Result<()> {
+    let n = clear_output(out)?;
+    if n > 0 {
+        progress.info(&format!(
+            "--force: removed the earlier output in {} ({n} entries)",
+            out.display()
+        ));
+    }
+    Ok(())
+}
+
 /// `--force`'s replacement, with the folder's lock held: removes everything in `out` but the
 /// lock file, so that nothing of the old output is left among the new. Returns how many
 /// entries were removed.

@@ -13,6 +13,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use synthgen_core::rng::splitmix64;
+use synthgen_core::Progress;
 
 use crate::data::{DataOptions, Instance, InstanceSet};
 use crate::error::{Error, Result};
@@ -188,6 +189,67 @@ pub trait TrainObserver {
     fn epoch_end(&self, _m: &EpochMetrics) {}
     /// `--init`: `set` of the model's `total` variables came from `checkpoint`.
     fn initialized(&self, _checkpoint: &Path, _set: usize, _total: usize) {}
+}
+
+/// A [`TrainObserver`] that shows each epoch on a [`Progress`]: a bar per epoch labelled with
+/// the running loss, and a line per finished epoch (what `synthgen train` prints).
+pub struct ProgressObserver<'a> {
+    pub printer: &'a dyn Progress,
+    /// (epoch, epochs) of the running epoch.
+    pub epoch: std::cell::Cell<(usize, usize)>,
+}
+
+impl TrainObserver for ProgressObserver<'_> {
+    fn epoch_start(&self, epoch: usize, epochs: usize, steps: usize) {
+        self.epoch.set((epoch, epochs));
+        self.printer
+            .start(&format!("epoch {epoch}/{epochs}"), steps as u64);
+    }
+
+    fn step(&self, running_loss: f64) {
+        let (e, n) = self.epoch.get();
+        self.printer
+            .set_message(&format!("epoch {e}/{n} loss {running_loss:.4}"));
+        self.printer.advance(1);
+    }
+
+    fn epoch_end(&self, m: &EpochMetrics) {
+        self.printer.finish();
+        self.printer.info(&format!(
+            "epoch {:>3}: train loss {:.4}, val loss {:.4}{}, lr {:.2e}, {:.1} s",
+            m.epoch,
+            m.train_loss,
+            m.val_loss,
+            val_summary(m),
+            m.lr,
+            m.seconds
+        ));
+    }
+
+    fn initialized(&self, checkpoint: &Path, set: usize, total: usize) {
+        self.printer.info(&format!(
+            "initialized {set} of {total} variables from {}",
+            checkpoint.display()
+        ));
+    }
+}
+
+/// ", val centre error 0.24 cm, val ADD(-S) acc 93.0%, val E_re 3.1°" (what the run has).
+pub fn val_summary(m: &EpochMetrics) -> String {
+    let mut s = String::new();
+    if let Some(e) = m.val_centre_error_m {
+        s += &format!(", val centre error {:.2} cm", e * 100.0);
+    }
+    if let Some(a) = m.val_add_s_acc {
+        s += &format!(", val ADD(-S) acc {:.1}%", a * 100.0);
+    }
+    if let Some(r) = m.val_mean_re_deg {
+        s += &format!(", val E_re {r:.1}°");
+    }
+    if let Some(a) = m.val_acc_5cm5deg {
+        s += &format!(", val 5cm5° {:.1}%", a * 100.0);
+    }
+    s
 }
 
 pub struct NoObserver;

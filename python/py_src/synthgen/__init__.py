@@ -1,6 +1,7 @@
 """synthgen from Python: annotated RGB-D frames rendered in memory as numpy arrays, BOP /
-Linemod / YCB-Video datasets as the same frames, the CLI's render, mix and eval, the pose
-metrics, and PyTorch adapters in :mod:`synthgen.torch` (imported only when used).
+Linemod / YCB-Video datasets as the same frames, the CLI's render, mix and eval, its
+experiments (:mod:`synthgen.experiment`), the pose metrics, and PyTorch adapters in
+:mod:`synthgen.torch` (imported only when used).
 
 >>> import synthgen
 >>> gen = synthgen.Generator(objects=["driller.ply"], scene="scenes/tabletop.toml", seed=0)
@@ -14,7 +15,7 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from . import _native, metrics
+from . import _native, experiment, metrics
 from ._commands import evaluate, mix, render
 from ._dataset import Dataset, open_dataset
 from ._frame import Frame
@@ -34,6 +35,7 @@ __all__ = [
     "ProgressBar",
     "__version__",
     "evaluate",
+    "experiment",
     "metrics",
     "mix",
     "open_dataset",

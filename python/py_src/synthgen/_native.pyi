@@ -115,6 +115,12 @@ def mix(
     command_line: Sequence[str] = ...,
     progress: Optional[_Progress] = None,
 ) -> Dict[str, Any]: ...
+def run_experiment(
+    kind: str,
+    options: str,
+    *,
+    progress: Optional[_Progress] = None,
+) -> str: ...
 def evaluate(
     data: _Path,
     results: _Path,

@@ -5,74 +5,8 @@ use std::path::PathBuf;
 use clap::{Args, Subcommand};
 use synthgen_curate::mix::SceneRef;
 
+use super::budget::TrainBudgetArgs;
 use super::ModelArg;
-
-/// The training budget of every trained row, shared by `experiment mix` and `sim2real`.
-#[derive(Debug, Args)]
-pub struct TrainBudgetArgs {
-    /// Training epochs per trained row. [default: 8; 20 for the RGB models; 2 with --quick]
-    #[arg(long)]
-    pub epochs: Option<usize>,
-
-    /// Instances per step. [default: 32; 8 with --quick]
-    #[arg(long)]
-    pub batch: Option<usize>,
-
-    /// Peak learning rate (AdamW, cosine schedule). [default: 1e-3; 2e-3 for the RGB models]
-    #[arg(long, allow_negative_numbers = true)]
-    pub lr: Option<f64>,
-
-    /// Points sampled per object instance. [default: 500; 64 with --quick]
-    #[arg(long)]
-    pub points: Option<usize>,
-
-    /// Width of the global feature. [default: 128; 16 with --quick]
-    #[arg(long)]
-    pub width: Option<usize>,
-}
-
-/// [`TrainBudgetArgs`] with the defaults filled in.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct TrainBudget {
-    pub epochs: usize,
-    pub batch: usize,
-    pub lr: f64,
-    pub points: usize,
-    pub width: usize,
-}
-
-impl TrainBudgetArgs {
-    /// The budget: the flags, else the defaults (smaller with `--quick`).
-    pub fn resolve(&self, quick: bool) -> TrainBudget {
-        let pick = |v: Option<usize>, small: usize, normal: usize| {
-            v.unwrap_or(if quick { small } else { normal })
-        };
-        TrainBudget {
-            epochs: pick(self.epochs, 2, 8),
-            batch: pick(self.batch, 8, 32),
-            lr: self.lr.unwrap_or(1e-3),
-            points: pick(self.points, 64, 500),
-            width: pick(self.width, 16, 128),
-        }
-    }
-
-    /// The budget of the RGB models (`experiment sim2real --model rgb|rgb-dense`): the dense
-    /// model's settings of docs/experiments.md (20 epochs, lr 2e-3).
-    pub fn resolve_rgb(&self, quick: bool) -> TrainBudget {
-        TrainBudget {
-            epochs: self.epochs.unwrap_or(if quick { 2 } else { 20 }),
-            lr: self.lr.unwrap_or(2e-3),
-            ..self.resolve(quick)
-        }
-    }
-}
-
-impl TrainBudget {
-    /// Whether every count is positive.
-    pub fn is_positive(&self) -> bool {
-        self.epochs > 0 && self.batch > 0 && self.points > 0 && self.width > 0
-    }
-}
 
 #[derive(Debug, Subcommand)]
 pub enum ExperimentCommand {

@@ -131,7 +131,7 @@ pub struct ExperimentSim2realArgs {
     pub cycles_frames: Option<usize>,
 
     #[command(flatten)]
-    pub budget: super::experiment::TrainBudgetArgs,
+    pub budget: super::budget::TrainBudgetArgs,
 
     /// Also the ablation rows: the fitted set without the scene fit (synthgen's default
     /// scene, all objects standing on +z), with primitive distractors, with textured

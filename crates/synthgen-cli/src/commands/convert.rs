@@ -1,49 +1,15 @@
 //! `synthgen convert`: BOP ⇄ Linemod, YCB-Video → BOP and Linemod, BOP and Linemod → YCB-Video.
+//! A skin over `synthgen_experiment::steps::convert`.
 
-use std::path::{Path, PathBuf};
-use std::time::Instant;
-
-use anyhow::{Context, Result};
-use synthgen_core::Progress;
-use synthgen_formats::convert::ycbv::{source_to_ycbv, ycbv_to_bop, YcbvConvertOptions};
-use synthgen_formats::convert::{bop_to_linemod, linemod_to_bop, ConvertOptions, ConvertSummary};
-use synthgen_formats::layout::open_source;
-use synthgen_formats::layout::{detect_layout, Layout};
-use synthgen_formats::manifest::{write_manifest, Manifest};
-use synthgen_formats::output::{check_apart, is_empty, OutputLock};
-use synthgen_formats::source::FrameSource;
-use synthgen_formats::ycbv::{YcbvSource, YcbvWriterOptions};
-use synthgen_render::ObjectRenderer;
-
-use crate::commands::object_models::{frame_obj_ids, object_renderer};
+use anyhow::Result;
+use synthgen_experiment::steps::convert::{convert_dataset, ConvertRequest};
+use synthgen_formats::layout::Layout;
 
 use crate::cli::{ConvertArgs, FormatArg};
-use crate::commands::user_error;
 use crate::{ExitStatus, Printer};
 
-/// The layout of `dir`: `--format`/`--from` when given, else detected.
-pub fn layout_of(dir: &Path, given: Option<FormatArg>, flag: &str) -> Result<Layout> {
-    if let Some(f) = given {
-        return Ok(layout(f));
-    }
-    if !dir.is_dir() {
-        return Err(user_error(
-            format!("no such dataset folder: {}", dir.display()),
-            "check the path",
-        ));
-    }
-    detect_layout(dir).ok_or_else(|| {
-        user_error(
-            format!(
-                "cannot tell the layout of {}: no camera.json (BOP), no classes.txt beside data/ (YCB-Video) and no data/NN/gt.yml (Linemod)",
-                dir.display()
-            ),
-            format!("pass {flag} bop, {flag} linemod or {flag} ycbv"),
-        )
-    })
-}
-
-fn layout(f: FormatArg) -> Layout {
+/// The layout a `--format`/`--from`/`--to` flag names.
+pub fn layout(f: FormatArg) -> Layout {
     match f {
         FormatArg::Bop => Layout::Bop,
         FormatArg::Linemod => Layout::Linemod,
@@ -52,225 +18,17 @@ fn layout(f: FormatArg) -> Layout {
 }
 
 pub fn run(args: ConvertArgs, printer: &Printer) -> Result<ExitStatus> {
-    let started = Instant::now();
-    let from = layout_of(&args.input, args.from, "--from")?;
-    let to = layout(args.to);
-    if from == to {
-        return Err(user_error(
-            format!("{} is already a {from} dataset", args.input.display()),
-            "pick the other layout with --to, or copy the folder",
-        ));
-    }
-    if let Some(s) = args.depth_scale {
-        if !(s.is_finite() && s > 0.0) {
-            return Err(user_error(
-                format!("--depth-scale must be positive, got {s}"),
-                "1.0 stores millimetres, 0.1 tenths of a millimetre",
-            ));
-        }
-    }
-    if !(0.0..=1.0).contains(&args.min_visib_fract) {
-        return Err(user_error(
-            format!(
-                "--min-visib-fract must be in 0..1, got {}",
-                args.min_visib_fract
-            ),
-            "0.1 (the default) keeps objects at least 10% visible",
-        ));
-    }
-    check_apart(&args.output, &[("input", &args.input)])?;
-    // Empty or absent, or replaced (--force into what synthgen wrote): a failed conversion
-    // then leaves nothing behind.
-    if !is_empty(&args.output) {
-        if !args.force {
-            return Err(user_error(
-                format!("output folder is not empty: {}", args.output.display()),
-                "choose another OUT, or pass --force to replace it",
-            ));
-        }
-        synthgen_formats::output::check_force(&args.output)?;
-    }
-    let existed = args.output.exists();
-    let lock = OutputLock::acquire(&args.output)?;
-    if args.force {
-        super::render::replace_output(&args.output, printer)?;
-    }
-    let opts = ConvertOptions {
+    let request = ConvertRequest {
+        input: args.input,
+        output: args.output,
+        from: args.from.map(layout),
+        to: layout(args.to),
         depth_scale: args.depth_scale,
         min_visib_fract: args.min_visib_fract,
+        classes: args.classes,
+        force: args.force,
+        command_line: std::env::args().collect(),
     };
-    let result = convert(&args, from, to, &opts, printer);
-    printer.finish();
-    let (summary, classes) = match result {
-        Ok(r) => r,
-        Err(e) => {
-            discard_output(&args.output, existed);
-            drop(lock);
-            return Err(e.context(format!("cannot convert {} to {to}", args.input.display())));
-        }
-    };
-
-    let mut manifest = Manifest::new(std::env::args().collect(), 0);
-    manifest.frames = summary.frames;
-    manifest.extra = serde_json::json!({
-        "convert": {
-            "from": from,
-            "to": to,
-            "source": args.input,
-            "depth_scale": args.depth_scale,
-            "min_visib_fract": args.min_visib_fract,
-            "ycbv_classes": classes,
-        }
-    });
-    write_manifest(&args.output, &manifest)?;
-
-    if summary.depth_out_of_range_px > 0 {
-        printer.warning(format!(
-            "{} depth values did not fit 16 bits at the new depth scale and were written as 0",
-            summary.depth_out_of_range_px
-        ));
-    }
-    let note = match (to, summary.instances_without_mask) {
-        (_, 0) => String::new(),
-        (Layout::Linemod, n) => format!(
-            " {n} object instance{} below --min-visib-fract got no folder entry (their poses are kept in the other folders' gt.yml).",
-            if n == 1 { "" } else { "s" }
-        ),
-        (Layout::Bop, n) => format!(
-            " {n} object instance{} had no {from} mask and got an empty mask_visib.",
-            if n == 1 { "" } else { "s" }
-        ),
-        (Layout::Ycbv, n) => format!(
-            " {n} object instance{} had no visible pixel in the label image.",
-            if n == 1 { "" } else { "s" }
-        ),
-    };
-    printer.info(format!(
-        "Converted {} frames ({} object instances, {} models) from {from} to {to} in {:.1} s: {}.{note}",
-        summary.frames,
-        summary.instances,
-        summary.models,
-        started.elapsed().as_secs_f64(),
-        args.output.display()
-    ));
-    printer.hint(format!(
-        "check it with `synthgen validate {}`",
-        args.output.display()
-    ));
+    convert_dataset(&request, printer)?;
     Ok(ExitStatus::Success)
-}
-
-/// Runs the conversion; returns what it did and, when the source is YCB-Video, its class
-/// list (kept in the manifest, so a conversion back restores the names).
-fn convert(
-    args: &ConvertArgs,
-    from: Layout,
-    to: Layout,
-    opts: &ConvertOptions,
-    printer: &Printer,
-) -> Result<(ConvertSummary, Option<Vec<String>>)> {
-    let (src, dst) = (&args.input, &args.output);
-    Ok(match (from, to) {
-        (Layout::Bop, Layout::Linemod) => (bop_to_linemod(src, dst, opts, printer)?, None),
-        (Layout::Linemod, Layout::Bop) => (linemod_to_bop(src, dst, opts, printer)?, None),
-        (Layout::Ycbv, Layout::Bop) => {
-            let (renderer, classes) = ycbv_renderer(src, printer)?;
-            let s = ycbv_to_bop(src, dst, renderer.as_ref().map(|r| r as _), printer)?;
-            (s, Some(classes))
-        }
-        (Layout::Ycbv, Layout::Linemod) => {
-            // Through BOP, which carries the visible fractions Linemod's folders need.
-            let tmp = PathBuf::from(format!("{}.synthgen-tmp-bop", dst.display()));
-            if tmp.exists() {
-                std::fs::remove_dir_all(&tmp)
-                    .with_context(|| format!("cannot remove {}", tmp.display()))?;
-            }
-            let (renderer, classes) = ycbv_renderer(src, printer)?;
-            let r = ycbv_to_bop(src, &tmp, renderer.as_ref().map(|r| r as _), printer)
-                .map_err(anyhow::Error::from)
-                .and_then(|_| Ok(bop_to_linemod(&tmp, dst, opts, printer)?));
-            let _ = std::fs::remove_dir_all(&tmp);
-            (r?, Some(classes))
-        }
-        (Layout::Bop | Layout::Linemod, Layout::Ycbv) => {
-            // The class list first: a bad one is refused before any model is loaded.
-            let classes = match &args.classes {
-                Some(path) => Some(read_classes(path)?),
-                None => manifest_classes(src),
-            };
-            let source = open_source(src)?;
-            let frames = source.frames(&[])?;
-            let renderer = object_renderer(source.as_ref(), &frame_obj_ids(&frames), printer)?;
-            let factor_depth = 1000.0 / args.depth_scale.unwrap_or(0.1);
-            let yopts = YcbvConvertOptions {
-                classes,
-                writer: YcbvWriterOptions {
-                    factor_depth,
-                    ..YcbvWriterOptions::default()
-                },
-            };
-            let s = source_to_ycbv(source.as_ref(), dst, &yopts, &renderer, printer)?;
-            (s, None)
-        }
-        (a, b) => anyhow::bail!("internal: no conversion from {a} to {b}"),
-    })
-}
-
-/// The renderer of a YCB-Video dataset's used classes (for BOP's mask/ and scene_gt_info),
-/// `None` with a warning when a model is missing; and the class list.
-fn ycbv_renderer(src: &Path, printer: &Printer) -> Result<(Option<ObjectRenderer>, Vec<String>)> {
-    let source = YcbvSource::open(src)?;
-    let frames = source.frames(&[])?;
-    let ids = frame_obj_ids(&frames);
-    let missing: Vec<PathBuf> = ids
-        .iter()
-        .map(|&id| source.model_file(id))
-        .filter(|p| !p.is_file())
-        .collect();
-    let classes = source.dataset.classes.clone();
-    if let Some(first) = missing.first() {
-        printer.warning(format!(
-            "{} model file(s) missing (first: {}): mask/ and scene_gt_info.json are not written",
-            missing.len(),
-            first.display()
-        ));
-        printer.hint("add the models, or compute them later with `synthgen annotate OUT`");
-        return Ok((None, classes));
-    }
-    Ok((Some(object_renderer(&source, &ids, printer)?), classes))
-}
-
-/// `classes.txt`: one class name per line.
-fn read_classes(path: &Path) -> Result<Vec<String>> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("cannot read the class list {}", path.display()))?;
-    let mut classes: Vec<String> = text.lines().map(|l| l.trim().to_string()).collect();
-    while classes.last().is_some_and(String::is_empty) {
-        classes.pop();
-    }
-    synthgen_formats::ycbv::check_class_names(&classes).map_err(|m| {
-        user_error(
-            format!("{m}: {}", path.display()),
-            "give each object a class name of its own",
-        )
-    })?;
-    Ok(classes)
-}
-
-/// The YCB-Video class list a conversion from YCB-Video recorded in the manifest.
-fn manifest_classes(src: &Path) -> Option<Vec<String>> {
-    let m = synthgen_formats::read_manifest(src).ok()?;
-    let list = m.extra.get("convert")?.get("ycbv_classes")?.as_array()?;
-    list.iter()
-        .map(|v| v.as_str().map(str::to_string))
-        .collect()
-}
-
-/// Removes what a failed conversion wrote into a folder that was empty or absent (leaving an
-/// empty folder where there was one).
-fn discard_output(out: &Path, existed: bool) {
-    let _ = std::fs::remove_dir_all(out);
-    if existed {
-        let _ = std::fs::create_dir_all(out);
-    }
 }

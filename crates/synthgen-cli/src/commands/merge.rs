@@ -39,7 +39,7 @@ pub fn run(args: MergeArgs, printer: &Printer) -> Result<ExitStatus> {
     check_out(&args.out, args.force)?;
     let _lock = OutputLock::acquire(&args.out)?;
     if args.force {
-        super::render::replace_output(&args.out, printer)?;
+        synthgen_formats::output::replace_output(&args.out, printer)?;
     }
     let summary = merge(&args.dirs, &args.out, &MergeOptions { copy: args.copy })?;
     write_manifest(&args.out, &merged)?;

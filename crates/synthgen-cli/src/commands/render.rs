@@ -61,7 +61,7 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     // One writer per output folder; a crashed run's lock goes with its process.
     let lock = OutputLock::acquire(&args.out)?;
     if args.force && !args.resume {
-        replace_output(&args.out, printer)?;
+        synthgen_formats::output::replace_output(&args.out, printer)?;
     }
 
     let built = RenderJob::new(spec)
@@ -374,19 +374,6 @@ fn check_out_dir(out: &Path, force: bool) -> Result<()> {
         return Err(user_error(
             format!("output path exists and is not a folder: {}", out.display()),
             "choose another --out",
-        ));
-    }
-    Ok(())
-}
-
-/// `--force`, with the output's lock held: what an earlier run wrote there goes (the folder
-/// was checked to be synthgen's), so that the new output is not mixed with it.
-pub(crate) fn replace_output(out: &Path, printer: &Printer) -> Result<()> {
-    let n = synthgen_formats::output::clear_output(out)?;
-    if n > 0 {
-        printer.info(format!(
-            "--force: removed the earlier output in {} ({n} entries)",
-            out.display()
         ));
     }
     Ok(())

@@ -22,10 +22,10 @@ use synthgen_pipeline::{render_annotated, ycbv_class_index, Layout, Sink};
 use synthgen_render::SensorModel;
 
 use crate::cli::{Backend, FormatArg, RenderArgs};
-use crate::commands::object_models::{frame_obj_ids, load_models, replacement_meshes};
 use crate::commands::render_sink::sink_options;
 use crate::commands::{render_extras, user_error};
 use crate::{ExitStatus, Printer};
+use synthgen_experiment::steps::models::{frame_obj_ids, load_models, replacement_meshes};
 
 /// Images per scene folder in the output: frame index = scene_id × this + im_id, so the BOP
 /// and YCB-Video writers put every frame back under its own scene and image id (BOP image
@@ -107,7 +107,7 @@ pub fn run(args: RenderArgs, printer: &Printer) -> Result<ExitStatus> {
     }
     let _lock = OutputLock::acquire(&args.out)?;
     if args.force {
-        super::render::replace_output(&args.out, printer)?;
+        synthgen_formats::output::replace_output(&args.out, printer)?;
     }
 
     let (jobs, mut sinks) = plan(

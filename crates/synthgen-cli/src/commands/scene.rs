@@ -1,21 +1,16 @@
 //! `synthgen scene fit`: a thin skin over `synthgen_fit::scene_fit` (the fit, the TOML
 //! text and its read-back check) with the dataset's own models.
 
-use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
-use anyhow::{Context, Result};
-use synthgen_core::scene::SensorSpec;
-use synthgen_core::{PoseRenderer, Progress};
-use synthgen_fit::scene_fit::{self, spec_text, Observed, SceneFit, SceneFitOptions};
-use synthgen_formats::layout::open_source;
-use synthgen_render::ObjectRenderer;
+use anyhow::Result;
+use synthgen_fit::scene_fit::{self, Observed, SceneFit};
 
 use crate::cli::SceneFitArgs;
-use crate::commands::object_models::{frame_obj_ids, load_models};
 use crate::commands::user_error;
 use crate::{ExitStatus, Printer};
+use synthgen_experiment::steps::fit::fit_scene_to_file;
 
 pub fn run_fit(args: SceneFitArgs, printer: &Printer) -> Result<ExitStatus> {
     if args.out.exists() && !args.force {
@@ -24,7 +19,7 @@ pub fn run_fit(args: SceneFitArgs, printer: &Printer) -> Result<ExitStatus> {
             "pass --force to overwrite it, or choose another --out",
         ));
     }
-    let fit = fit_to_file(
+    let fit = fit_scene_to_file(
         &args.data,
         &args.scenes,
         args.sensor.as_deref(),
@@ -48,85 +43,6 @@ pub fn run_fit(args: SceneFitArgs, printer: &Printer) -> Result<ExitStatus> {
         ));
     }
     Ok(ExitStatus::Success)
-}
-
-/// Fits a scene to the frames of `data` (in `scenes`, all when empty) and writes it to `out`
-/// (overwriting it; its folder is created), with `[sensor] file` pointing at `sensor` when
-/// given; warnings (skipped frames, several cameras) go to `printer`. Returns the fit.
-pub fn fit_to_file(
-    data: &Path,
-    scenes: &[u32],
-    sensor: Option<impl AsRef<Path>>,
-    out: &Path,
-    printer: &Printer,
-) -> Result<SceneFit> {
-    let sensor = sensor.as_ref().map(AsRef::as_ref);
-    if let Some(s) = sensor {
-        SensorSpec::from_toml_file(s)
-            .with_context(|| format!("cannot read the sensor file {}", s.display()))?;
-    }
-    let source =
-        open_source(data).with_context(|| format!("cannot open dataset {}", data.display()))?;
-    let frames = scene_fit::select_frames(source.as_ref(), scenes)?;
-    let models: BTreeMap<_, _> = load_models(source.as_ref(), &frame_obj_ids(&frames), printer)?
-        .into_iter()
-        .collect();
-    // The objects rendered at their GT poses: the check of the depth against them, and the
-    // silhouettes of frames without `scene_gt_info` (their visib_fract).
-    let renderer = ObjectRenderer::new(models.iter().map(|(&id, m)| (id, m.clone())).collect())?;
-    let options = SceneFitOptions {
-        scenes: scenes.to_vec(),
-        ..SceneFitOptions::default()
-    };
-    printer.start("fitting", frames.len() as u64);
-    let fit = scene_fit::fit_scene(
-        source.as_ref(),
-        &frames,
-        &models,
-        Some(&renderer as &dyn PoseRenderer),
-        &options,
-        printer,
-    );
-    printer.finish();
-    let fit = fit?;
-    for s in &fit.frames_skipped {
-        printer.warning(format!(
-            "skipped {}/{:06} image {}: {}",
-            s.location.split, s.location.scene_id, s.location.im_id, s.reason
-        ));
-    }
-    if !fit.camera.others.is_empty() {
-        printer.warning(format!(
-            "the frames have {} different intrinsics; the scene uses those of {} of the {} frames",
-            fit.camera.others.len() + 1,
-            fit.camera.frames,
-            fit.frames_used
-        ));
-    }
-    if fit.frames_plane_from_poses > 0 {
-        printer.info(format!(
-            "{} of the {} frames have no depth: their table planes come from the objects' lowest \
-             points at the GT poses (docs/scenes.md)",
-            fit.frames_plane_from_poses, fit.frames_used
-        ));
-    }
-    if fit.frames_without_masks > 0 {
-        printer.warning(format!(
-            "{} frames have no visible masks for every object: their table planes were fitted to \
-             the objects' depth too",
-            fit.frames_without_masks
-        ));
-    }
-    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    }
-    let text = spec_text::spec_toml(&fit, out, sensor)?;
-    synthgen_formats::io::atomic_write(out, text.as_bytes())?;
-    if let Err(e) = spec_text::check_written(&fit, out) {
-        let _ = std::fs::remove_file(out);
-        return Err(e.into());
-    }
-    Ok(fit)
 }
 
 fn spread(o: &Observed, scale: f64, digits: usize, unit: &str) -> String {

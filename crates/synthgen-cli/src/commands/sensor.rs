@@ -6,45 +6,14 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use synthgen_core::scene::{DepthModel, SensorSpec, StructuredLightSpec};
-use synthgen_core::Progress;
-use synthgen_fit::sensor::{
-    self, compare, fit, measure::DepthStats, plot, Comparison, FitOptions, FitReport,
-    MeasureOptions,
-};
+use synthgen_core::scene::{SensorSpec, StructuredLightSpec};
+use synthgen_fit::sensor::{compare, plot, Comparison, FitReport};
 use synthgen_formats::layout::open_source;
-use synthgen_formats::source::FrameSource;
 
 use crate::cli::{SensorCompareArgs, SensorCompareRgbArgs, SensorFitArgs};
-use crate::commands::object_models::{frame_obj_ids, object_renderer};
 use crate::commands::user_error;
 use crate::{ExitStatus, Printer};
-
-/// Opens a dataset and measures its frames (see `synthgen_fit::sensor::measure`).
-fn measure(
-    dir: &Path,
-    scenes: &[u32],
-    max_frame_residual_m: f64,
-    printer: &Printer,
-) -> Result<(Box<dyn FrameSource>, DepthStats)> {
-    let source =
-        open_source(dir).with_context(|| format!("cannot open dataset {}", dir.display()))?;
-    let frames = sensor::select_frames(source.as_ref(), scenes)?;
-    let renderer = object_renderer(source.as_ref(), &frame_obj_ids(&frames), printer)?;
-    printer.start("measuring", frames.len() as u64);
-    let stats = sensor::measure_frames(
-        source.as_ref(),
-        &frames,
-        &renderer,
-        &MeasureOptions {
-            scenes: scenes.to_vec(),
-            max_frame_residual_m,
-        },
-        printer,
-    )?;
-    printer.finish();
-    Ok((source, stats))
-}
+use synthgen_experiment::steps::fit::{fit_sensor_to_file, measure};
 
 fn thread_pool(jobs: Option<usize>) -> Result<rayon::ThreadPool> {
     rayon::ThreadPoolBuilder::new()
@@ -79,7 +48,7 @@ pub fn run_fit(args: SensorFitArgs, printer: &Printer) -> Result<ExitStatus> {
     };
     let pool = thread_pool(args.jobs)?;
     let report = pool.install(|| {
-        fit_to_file(
+        fit_sensor_to_file(
             &args.data,
             &args.scenes,
             args.max_frame_residual_mm / 1000.0,
@@ -105,103 +74,6 @@ pub fn run_fit(args: SensorFitArgs, printer: &Printer) -> Result<ExitStatus> {
         args.data.display()
     ));
     Ok(ExitStatus::Success)
-}
-
-/// Measures `data` (the chosen scenes), fits the structured-light model and writes the sensor
-/// file `out`; frames left out are warned about. What `sensor fit` and `experiment sim2real`
-/// run.
-pub(crate) fn fit_to_file(
-    data: &Path,
-    scenes: &[u32],
-    max_frame_residual_m: f64,
-    base: StructuredLightSpec,
-    out: &Path,
-    printer: &Printer,
-) -> Result<FitReport> {
-    let (_, stats) = measure(data, scenes, max_frame_residual_m, printer)?;
-    let report = fit(&stats, &FitOptions { base })?;
-    for f in &report.frames_excluded {
-        printer.warning(format!(
-            "left out {}/{:06} image {}: median |depth - GT render| {:.1} mm > {:.0} mm (GT obviously off)",
-            f.location.split,
-            f.location.scene_id,
-            f.location.im_id,
-            f.median_abs_m * 1000.0,
-            max_frame_residual_m * 1000.0
-        ));
-    }
-    for w in &report.warnings {
-        printer.warning(w);
-    }
-    let text = sensor_file_text(&report, data, scenes)?;
-    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    }
-    synthgen_formats::io::atomic_write(out, text.as_bytes())?;
-    Ok(report)
-}
-
-/// The sensor file: provenance comments, `depth = "structured_light"` and the fitted
-/// `[structured_light]` table.
-fn sensor_file_text(report: &FitReport, data: &Path, scenes: &[u32]) -> Result<String> {
-    let spec = SensorSpec {
-        depth: DepthModel::StructuredLight,
-        structured_light: report.spec.clone(),
-        ..SensorSpec::default()
-    };
-    spec.validate()
-        .context("the fit produced an invalid sensor (please report this)")?;
-    let mut table = toml::Table::new();
-    table.insert(
-        "depth".into(),
-        toml::Value::String("structured_light".into()),
-    );
-    table.insert(
-        "structured_light".into(),
-        toml::Value::try_from(&report.spec).context("cannot serialize the fitted sensor")?,
-    );
-    let mut text = String::new();
-    let _ = writeln!(
-        text,
-        "# Structured-light depth sensor fitted by `synthgen sensor fit` (synthgen {}) to",
-        synthgen_core::VERSION
-    );
-    let _ = writeln!(
-        text,
-        "# {} ({} frames{}, {} instances, {} object pixels; {} frames left out).",
-        data.display(),
-        report.frames_used,
-        if scenes.is_empty() {
-            String::new()
-        } else {
-            format!(
-                ", scenes {}",
-                scenes
-                    .iter()
-                    .map(u32::to_string)
-                    .collect::<Vec<_>>()
-                    .join(",")
-            )
-        },
-        report.instances,
-        report.pixels,
-        report.frames_excluded.len()
-    );
-    for w in &report.warnings {
-        let _ = writeln!(text, "# warning: {w}");
-    }
-    let _ = writeln!(
-        text,
-        "# Use it with `synthgen render --sensor FILE` or `[sensor] file = \"FILE\"` in a scene.\n# Parameters: docs/sensors.md.\n"
-    );
-    text.push_str(&toml::to_string_pretty(&table).context("cannot write the sensor file")?);
-    // The file must read back as what was fitted.
-    let back = SensorSpec::from_toml_str(&text)
-        .context("the written sensor file does not read back (please report this)")?;
-    if back.structured_light != report.spec {
-        anyhow::bail!("the written sensor file does not read back as fitted (please report this)");
-    }
-    Ok(text)
 }
 
 fn pct(v: f64) -> String {

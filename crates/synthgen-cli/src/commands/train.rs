@@ -13,72 +13,13 @@ use synthgen_train::models::tnet::DEFAULT_SCALE;
 use synthgen_train::models::ModelKind;
 use synthgen_train::pose_model::load_dataset_objects;
 use synthgen_train::train::{
-    self, read_config, EpochMetrics, Schedule, TrainConfig, TrainObserver, CONFIG_FILE, CURVE_FILE,
-    METRICS_FILE, MODEL_FILE,
+    self, read_config, val_summary, ProgressObserver, Schedule, TrainConfig, CONFIG_FILE,
+    CURVE_FILE, METRICS_FILE, MODEL_FILE,
 };
 
 use crate::cli::{DeviceArg, ScheduleArg, TrainArgs, TrainModelArg, TranslationArg};
 use crate::commands::user_error;
 use crate::{ExitStatus, Printer};
-
-/// Shows each epoch as a progress bar labelled with the running loss.
-pub(crate) struct BarObserver<'a> {
-    pub printer: &'a Printer,
-    pub epoch: std::cell::Cell<(usize, usize)>,
-}
-
-impl TrainObserver for BarObserver<'_> {
-    fn epoch_start(&self, epoch: usize, epochs: usize, steps: usize) {
-        self.epoch.set((epoch, epochs));
-        self.printer
-            .start(&format!("epoch {epoch}/{epochs}"), steps as u64);
-    }
-
-    fn step(&self, running_loss: f64) {
-        let (e, n) = self.epoch.get();
-        self.printer
-            .set_message(format!("epoch {e}/{n} loss {running_loss:.4}"));
-        self.printer.advance(1);
-    }
-
-    fn epoch_end(&self, m: &EpochMetrics) {
-        self.printer.finish();
-        self.printer.info(format!(
-            "epoch {:>3}: train loss {:.4}, val loss {:.4}{}, lr {:.2e}, {:.1} s",
-            m.epoch,
-            m.train_loss,
-            m.val_loss,
-            val_summary(m),
-            m.lr,
-            m.seconds
-        ));
-    }
-
-    fn initialized(&self, checkpoint: &std::path::Path, set: usize, total: usize) {
-        self.printer.info(format!(
-            "initialized {set} of {total} variables from {}",
-            checkpoint.display()
-        ));
-    }
-}
-
-/// ", val centre error 0.24 cm, val ADD(-S) acc 93.0%, val E_re 3.1°" (what the run has).
-fn val_summary(m: &EpochMetrics) -> String {
-    let mut s = String::new();
-    if let Some(e) = m.val_centre_error_m {
-        s += &format!(", val centre error {:.2} cm", e * 100.0);
-    }
-    if let Some(a) = m.val_add_s_acc {
-        s += &format!(", val ADD(-S) acc {:.1}%", a * 100.0);
-    }
-    if let Some(r) = m.val_mean_re_deg {
-        s += &format!(", val E_re {r:.1}°");
-    }
-    if let Some(a) = m.val_acc_5cm5deg {
-        s += &format!(", val 5cm5° {:.1}%", a * 100.0);
-    }
-    s
-}
 
 pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
     let started = Instant::now();
@@ -245,7 +186,7 @@ pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
         classes,
         ..cfg
     };
-    let observer = BarObserver {
+    let observer = ProgressObserver {
         printer,
         epoch: std::cell::Cell::new((0, cfg.epochs)),
     };

@@ -5,11 +5,15 @@ use synthgen_core::Progress;
 use synthgen_formats::validate::{validate, Checks};
 
 use crate::cli::ValidateArgs;
-use crate::commands::convert::layout_of;
 use crate::{ExitStatus, Printer};
+use synthgen_experiment::steps::convert::layout_of;
 
 pub fn run(args: ValidateArgs, printer: &Printer) -> Result<ExitStatus> {
-    let layout = layout_of(&args.dir, args.format, "--format")?;
+    let layout = layout_of(
+        &args.dir,
+        args.format.map(super::convert::layout),
+        "--format",
+    )?;
     let checks = Checks::default();
     let report = validate(&args.dir, layout, &checks, printer);
     printer.finish();

@@ -37,10 +37,10 @@ use synthgen_train::results::{write_results_csv, Estimate};
 use synthgen_train::train::{self, load_model, Schedule, TrainConfig, MODEL_FILE};
 
 use super::{RenderPlan, TestObject};
-use crate::cli::{ExperimentSim2realArgs, Sim2realModelArg};
-use crate::commands::experiment::row::{read_row_file, row_dir, ROW_FILE};
-use crate::commands::user_error;
-use crate::{ExitStatus, Printer};
+use crate::options::{Sim2realModel, Sim2realOptions};
+use crate::settings::{read_row_file, row_dir, ROW_FILE};
+use crate::user_error;
+use crate::Log;
 
 /// Instances below this visible fraction are neither trained on nor scored (BOP's rule).
 const MIN_VISIB_FRACT: f64 = 0.1;
@@ -201,10 +201,12 @@ impl SynthRow {
     }
 }
 
-pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus> {
+/// `experiment sim2real` with the RGB models; returns the report (Markdown) it also wrote to
+/// `report.md`.
+pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
     let started = Instant::now();
     let model = match args.model {
-        Sim2realModelArg::Rgb => "rgb",
+        Sim2realModel::Rgb => "rgb",
         _ => "rgb-dense",
     };
     for (set, flag) in [
@@ -310,7 +312,7 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
     if let Some(f) = &settings.fit {
         inputs.push(("--fit", f));
     }
-    super::super::check_settings_file(
+    crate::settings::check_settings_file(
         &out,
         super::SETTINGS_FILE,
         &settings,
@@ -421,6 +423,7 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
                 } else {
                     Backend::Cpu
                 },
+                command_line: args.command_line.clone(),
             },
             &out,
             row.name,
@@ -542,14 +545,13 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
     )?;
     let md = markdown(&settings, &rows, &notes);
     atomic_write(&out.join("report.md"), md.as_bytes())?;
-    printer.data(md)?;
     printer.info(format!(
         "{} rows ({computed} computed now) in {:.0} s; wrote report.md and report.json in {}",
         rows.len(),
         started.elapsed().as_secs_f64(),
         out.display()
     ));
-    Ok(ExitStatus::Success)
+    Ok(md)
 }
 
 /// `--models DIR`: each test object with a folder `DIR/<its name>/` holding one mesh is
@@ -561,8 +563,7 @@ fn replace_models(
     notes: &mut Vec<String>,
 ) -> Result<()> {
     let ids: Vec<u32> = objects.iter().map(|o| o.obj_id).collect();
-    let (meshes, kept) =
-        crate::commands::object_models::replacement_meshes(test, dir, ids, "--models")?;
+    let (meshes, kept) = crate::steps::models::replacement_meshes(test, dir, ids, "--models")?;
     for (o, mesh) in objects.iter_mut().zip(meshes) {
         let Some(mesh) = mesh else { continue };
         o.model = mesh.canonicalize().unwrap_or(mesh);
@@ -591,7 +592,7 @@ fn plain_look(spec: &mut SceneSpec) {
 
 /// `fit/scene.toml` fitted to the --fit frames (GT poses and cameras; the depth's plane where
 /// the frames have depth), unless a finished fit of the same frames is there.
-fn ensure_scene_fit(fit: &Path, scenes: &[u32], dir: &Path, printer: &Printer) -> Result<()> {
+fn ensure_scene_fit(fit: &Path, scenes: &[u32], dir: &Path, printer: &Log) -> Result<()> {
     let record = serde_json::to_string_pretty(&serde_json::json!({
         "fit": fit, "scenes": scenes, "sensor": null
     }))? + "\n";
@@ -605,7 +606,7 @@ fn ensure_scene_fit(fit: &Path, scenes: &[u32], dir: &Path, printer: &Printer) -
     }
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     printer.info(format!("fitting the scene to {}", fit.display()));
-    let scene = crate::commands::scene::fit_to_file(
+    let scene = crate::steps::fit::fit_scene_to_file(
         fit,
         scenes,
         None::<&Path>,
@@ -700,7 +701,7 @@ fn train_row(
     data: &dyn FrameSource,
     scenes: &[u32],
     test: &TestSet,
-    printer: &Printer,
+    printer: &Log,
 ) -> Result<RgbRow> {
     let dir = row_dir(out, name);
     if dir.exists() {

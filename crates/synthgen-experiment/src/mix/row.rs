@@ -1,7 +1,7 @@
 //! One row of the experiment: mix, train, evaluate; `row.json` written last marks it done.
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
@@ -25,11 +25,10 @@ use synthgen_train::train::{
 };
 
 use super::{Settings, TEST_SPLIT_FILE};
-use crate::Printer;
+use crate::settings::{read_row_file, row_dir, ROW_FILE};
+use crate::Log;
 use synthgen_core::Progress;
 
-/// The completion record of a row, in `rows/NAME/`.
-pub const ROW_FILE: &str = "row.json";
 /// Instances below this visible fraction are neither trained on nor scored.
 const MIN_VISIB_FRACT: f64 = 0.1;
 /// Model points per object in the full model's loss.
@@ -143,19 +142,9 @@ pub struct RowRecord {
     pub seconds: Seconds,
 }
 
-pub fn row_dir(out: &Path, name: &str) -> PathBuf {
-    out.join("rows").join(name)
-}
-
 /// The finished row's record, if it has one that reads.
 pub fn read_record(out: &Path, name: &str) -> Option<RowRecord> {
     read_row_file(out, name)
-}
-
-/// `rows/NAME/row.json` as `T`, if it reads (an experiment's completion record of a row).
-pub fn read_row_file<T: serde::de::DeserializeOwned>(out: &Path, name: &str) -> Option<T> {
-    let text = std::fs::read_to_string(row_dir(out, name).join(ROW_FILE)).ok()?;
-    serde_json::from_str(&text).ok()
 }
 
 pub struct RowContext<'a> {
@@ -163,12 +152,14 @@ pub struct RowContext<'a> {
     pub out: &'a Path,
     pub real: &'a dyn FrameSource,
     pub synth: &'a dyn FrameSource,
-    pub printer: &'a Printer,
+    /// The experiment's reproducing command, recorded in each row's mix.
+    pub command_line: &'a [String],
+    pub printer: &'a Log<'a>,
 }
 
 /// Advances the experiment's bar by one per epoch; the label shows the row and its loss.
 struct RowObserver<'a> {
-    printer: &'a Printer,
+    printer: &'a Log<'a>,
     name: &'a str,
     epoch: std::cell::Cell<(usize, usize)>,
 }
@@ -214,7 +205,7 @@ pub fn run(ctx: &RowContext, spec: &RowSpec) -> Result<RowRecord> {
             test: (!by_scenes).then_some(s.test_count),
         },
         seed: s.seed,
-        command_line: std::env::args().collect(),
+        command_line: ctx.command_line.to_vec(),
         force: false,
         exclude_shared: false,
         test_scenes: s.test_scenes.clone(),

@@ -1,22 +1,19 @@
-//! `synthgen experiment mix`: the study's real/synthetic mixing table in one command. For
-//! each composition of a fixed-size training set: `synthgen mix` (the same held-out real test
-//! split for every row), `synthgen train`, then the errors on the trained frames and on the
-//! real test frames. Rows are resumable: a row is done when its `row.json` exists (written
-//! atomically, last); an unfinished row is redone from scratch. With `--test-scenes` the test
-//! split is whole scenes of the real set, and `--plus-synth` adds rows "all the real training
-//! frames + K× as many synthetic".
+//! `experiment mix`: the study's real/synthetic mixing table in one call. For each composition
+//! of a fixed-size training set: `synthgen_curate::mix` (the same held-out real test split for
+//! every row), `synthgen_train`, then the errors on the trained frames and on the real test
+//! frames. Rows are resumable: a row is done when its `row.json` exists (written atomically,
+//! last); an unfinished row is redone from scratch. With `test_scenes` the test split is whole
+//! scenes of the real set, and `plus_synth` adds rows "all the real training frames + K× as
+//! many synthetic".
 
 mod plot;
 mod real;
-pub mod rgb;
-mod row;
-pub mod sim2real;
+pub(crate) mod row;
 mod sources;
 mod table;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
-use synthgen_formats::output::{check_apart, OutputLock};
 
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
@@ -24,12 +21,13 @@ use synthgen_core::Progress;
 use synthgen_curate::mix::{scene_list, SceneRef};
 use synthgen_formats::io::atomic_write;
 use synthgen_formats::manifest::{write_manifest, Manifest};
+use synthgen_formats::output::{check_apart, OutputLock};
 
-use crate::cli::{ExperimentMixArgs, ModelArg, TrainBudget};
-use crate::commands::user_error;
-use crate::{ExitStatus, Printer};
+use crate::options::{MixOptions, TrainBudget};
+use crate::settings::check_settings_file;
+use crate::{user_error, Log};
 
-pub use row::{RowRecord, ROW_FILE};
+pub use row::RowRecord;
 
 /// The settings file at the output's root; a re-run must match it to resume.
 pub const SETTINGS_FILE: &str = "experiment.json";
@@ -142,7 +140,8 @@ pub fn parse_rows(items: &[String]) -> Result<Vec<(usize, usize)>> {
         .collect()
 }
 
-pub fn run_mix(args: ExperimentMixArgs, printer: &Printer) -> Result<ExitStatus> {
+/// Runs `experiment mix`; returns the table (Markdown) it also wrote to `table.md`.
+pub fn run_mix(args: MixOptions, printer: &Log) -> Result<String> {
     let started = Instant::now();
     let out = args.out.clone();
     // The real set as it is (before any conversion): its scenes and annotated objects.
@@ -288,7 +287,7 @@ pub fn run_mix(args: ExperimentMixArgs, printer: &Printer) -> Result<ExitStatus>
         &objects,
     )?;
     let settings = Settings {
-        model: model_name(args.model).into(),
+        model: args.model.name().into(),
         rows: rows.clone(),
         test_count,
         epochs,
@@ -331,8 +330,8 @@ pub fn run_mix(args: ExperimentMixArgs, printer: &Printer) -> Result<ExitStatus>
              not captures; the table says so",
         );
     }
-    let real_dir = sources::ensure(&plan.real, &out, printer)?;
-    let synth_dir = sources::ensure(&plan.synth, &out, printer)?;
+    let real_dir = sources::ensure(&plan.real, &out, &args.command_line, printer)?;
+    let synth_dir = sources::ensure(&plan.synth, &out, &args.command_line, printer)?;
     let real = synthgen_formats::layout::open_source(&real_dir)
         .with_context(|| format!("cannot open the real dataset {}", real_dir.display()))?;
     let synth = synthgen_formats::layout::open_source(&synth_dir)
@@ -378,6 +377,7 @@ pub fn run_mix(args: ExperimentMixArgs, printer: &Printer) -> Result<ExitStatus>
         out: &out,
         real: real.as_ref(),
         synth: synth.as_ref(),
+        command_line: &args.command_line,
         printer,
     };
     let mut records = Vec::with_capacity(specs.len());
@@ -410,11 +410,10 @@ pub fn run_mix(args: ExperimentMixArgs, printer: &Printer) -> Result<ExitStatus>
         table::objects_csv(&settings, &records).as_bytes(),
     )?;
     plot::write(&out.join(PLOT_FILE), &table::aggregate(&settings, &records))?;
-    let mut manifest = Manifest::new(std::env::args().collect(), args.seed);
+    let mut manifest = Manifest::new(args.command_line.clone(), args.seed);
     manifest.extra = serde_json::json!({ "experiment": settings });
     write_manifest(&out, &manifest)?;
 
-    printer.data(&md)?;
     printer.info(format!(
         "{} rows: {computed} computed, {skipped} skipped (finished earlier); {:.0} s",
         records.len(),
@@ -428,15 +427,7 @@ pub fn run_mix(args: ExperimentMixArgs, printer: &Printer) -> Result<ExitStatus>
         printer
             .hint("the real side is a proxy; for captures pass --real DIR (docs/experiments.md)");
     }
-    Ok(ExitStatus::Success)
-}
-
-pub(crate) fn model_name(m: ModelArg) -> &'static str {
-    match m {
-        ModelArg::Tnet => "tnet",
-        ModelArg::Rnet => "rnet",
-        ModelArg::Full => "full",
-    }
+    Ok(md)
 }
 
 /// Writes the settings, or checks them against those of the experiment already in `out`.
@@ -466,125 +457,6 @@ fn check_settings(out: &Path, settings: &Settings, force: bool) -> Result<()> {
     )
 }
 
-/// What an experiment read, beside its settings: `inputs.json`.
-const INPUTS_FILE: &str = "inputs.json";
-
-/// One dataset an experiment reads, and what it held.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-struct Input {
-    /// The flag that named it (`--test`, `--real`, ...).
-    role: String,
-    path: PathBuf,
-    fingerprint: synthgen_formats::fingerprint::Fingerprint,
-}
-
-fn fingerprint_inputs(inputs: &[(&str, &Path)]) -> Result<Vec<Input>> {
-    let mut out: Vec<Input> = Vec::new();
-    for &(role, path) in inputs {
-        if out.iter().any(|i| i.path == path) {
-            continue;
-        }
-        out.push(Input {
-            role: role.to_string(),
-            path: path.to_path_buf(),
-            fingerprint: synthgen_formats::fingerprint::fingerprint(path)?,
-        });
-    }
-    Ok(out)
-}
-
-/// The first input whose files changed since `out`'s experiment recorded them, as a message;
-/// None when they are the same (or an experiment from before inputs were recorded).
-fn changed_input(out: &Path, now: &[Input]) -> Option<String> {
-    let text = std::fs::read_to_string(out.join(INPUTS_FILE)).ok()?;
-    let then: Vec<Input> = serde_json::from_str(&text).ok()?;
-    now.iter().find_map(|n| {
-        let t = then.iter().find(|t| t.role == n.role)?;
-        (t.fingerprint != n.fingerprint).then(|| {
-            format!(
-                "the {} dataset {} changed since this experiment's finished steps read it (then {} files, {} bytes; now {} files, {} bytes): their results are not this data's",
-                n.role,
-                n.path.display(),
-                t.fingerprint.files,
-                t.fingerprint.bytes,
-                n.fingerprint.files,
-                n.fingerprint.bytes
-            )
-        })
-    })
-}
-
-fn write_inputs(out: &Path, inputs: &[Input]) -> Result<()> {
-    let text = serde_json::to_string_pretty(inputs)? + "\n";
-    atomic_write(&out.join(INPUTS_FILE), text.as_bytes())?;
-    Ok(())
-}
-
-/// Writes an experiment's settings `file` in `out` and the fingerprints of the datasets it
-/// reads (`inputs`: flag and folder; `inputs.json`), or checks both against those already
-/// there: the same settings on the same data resume; other settings, or data that changed
-/// (frames deleted, another dataset under the same path), are refused unless `force`, which
-/// removes the old run's `stale` folders and files first. With `refuse_foreign`, a non-empty
-/// `out` without a settings file is refused too (unless `force`).
-pub(crate) fn check_settings_file<S>(
-    out: &Path,
-    file: &str,
-    settings: &S,
-    inputs: &[(&str, &Path)],
-    force: bool,
-    stale: &[&str],
-    refuse_foreign: bool,
-) -> Result<()>
-where
-    S: Serialize + serde::de::DeserializeOwned + PartialEq,
-{
-    let path = out.join(file);
-    let now = fingerprint_inputs(inputs)?;
-    if let Ok(text) = std::fs::read_to_string(&path) {
-        let same = serde_json::from_str::<S>(&text).is_ok_and(|s| &s == settings);
-        let changed = if same { changed_input(out, &now) } else { None };
-        if same && changed.is_none() {
-            // (An experiment from before inputs were recorded gets its record now.)
-            return write_inputs(out, &now);
-        }
-        if !force {
-            return Err(match changed {
-                Some(msg) => user_error(
-                    msg,
-                    "restore the dataset, pass --force to redo every step on the data as it is now, or choose another --out",
-                ),
-                None => user_error(
-                    format!(
-                        "{} holds an experiment with other settings ({file} differs)",
-                        out.display()
-                    ),
-                    "pass the same options to resume it, choose another --out, or add --force to start over",
-                ),
-            });
-        }
-        let _ = std::fs::remove_file(out.join(INPUTS_FILE));
-        for name in stale {
-            let p = out.join(name);
-            if p.is_dir() {
-                std::fs::remove_dir_all(&p)
-                    .with_context(|| format!("cannot remove {}", p.display()))?;
-            } else if p.is_file() {
-                std::fs::remove_file(&p)
-                    .with_context(|| format!("cannot remove {}", p.display()))?;
-            }
-        }
-    } else if refuse_foreign && out.is_dir() && !synthgen_formats::output::is_empty(out) && !force {
-        return Err(user_error(
-            format!("output folder is not empty: {}", out.display()),
-            "choose another --out, or pass --force",
-        ));
-    }
-    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
-    let text = serde_json::to_string_pretty(settings)? + "\n";
-    atomic_write(&path, text.as_bytes())?;
-    write_inputs(out, &now)
-}
-
 /// Every row must have been tested on the same real frames.
 fn check_same_test_split(records: &[RowRecord]) -> Result<()> {
     if let Some(first) = records.first() {
@@ -601,11 +473,6 @@ fn check_same_test_split(records: &[RowRecord]) -> Result<()> {
         }
     }
     Ok(())
-}
-
-/// `dir` made absolute (it may not exist yet).
-fn absolute(dir: &Path) -> PathBuf {
-    std::path::absolute(dir).unwrap_or_else(|_| dir.to_path_buf())
 }
 
 #[cfg(test)]

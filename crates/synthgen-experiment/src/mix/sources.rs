@@ -1,24 +1,27 @@
 //! The two datasets of an experiment: given folders, or sets rendered into `OUT/sources/`
-//! by `synthgen render` (called in-process), cached so that a resumed run does not render
-//! again.
+//! through `synthgen_pipeline::RenderJob` (as `synthgen render` with the recorded arguments
+//! would render them), cached so that a resumed run does not render again.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
-use clap::Parser;
 use serde::{Deserialize, Serialize};
+use synthgen_assets::Units;
 use synthgen_core::SceneSpec;
 use synthgen_formats::io::atomic_write;
 use synthgen_formats::layout::Layout;
+use synthgen_formats::output::OutputLock;
+use synthgen_pipeline::{Backend, Format, ObjectSource, RenderJob, SinkOptions, WriteOptions};
 
-use super::absolute;
 use super::real::RenderObjects;
-use crate::cli::{Cli, Command, ExperimentMixArgs};
-use crate::commands::user_error;
-use crate::{ExitStatus, Printer};
+use crate::options::MixOptions;
+use crate::settings::absolute;
+use crate::steps::convert::{convert_dataset, ConvertRequest};
+use crate::user_error;
+use crate::Log;
 
 /// The stand-in for real captures (`--real-proxy`).
-pub const REAL_PROXY_TOML: &str = include_str!("../../../../../scenes/real_proxy.toml");
+pub const REAL_PROXY_TOML: &str = include_str!("../../../../scenes/real_proxy.toml");
 /// The proxy renders with the experiment's seed plus this, so its scenes differ from the
 /// synthetic set's even where the specs agree.
 pub const PROXY_SEED_OFFSET: u64 = 1_000_003;
@@ -45,6 +48,8 @@ pub struct SourceSettings {
 pub struct SourcePlan {
     pub name: &'static str,
     pub settings: SourceSettings,
+    /// What to render (a rendered source): `settings.rendered`'s arguments as data.
+    pub call: Option<RenderCall>,
     /// The scene spec text to write beside a rendered source (the proxy's).
     pub scene_text: Option<&'static str>,
 }
@@ -57,7 +62,7 @@ pub struct Plan {
 /// Decides the sources: `real_frames` / `synth_frames` are what a rendered set needs, and
 /// `objects` what it shows (the caller has checked there are some where a set is rendered).
 pub fn plan(
-    args: &ExperimentMixArgs,
+    args: &MixOptions,
     out: &Path,
     real_frames: usize,
     synth_frames: usize,
@@ -67,7 +72,7 @@ pub fn plan(
     let real = match &args.real {
         Some(dir) => {
             let dir = existing(dir, "real")?;
-            let layout = crate::commands::convert::layout_of(&dir, None, "--real")?;
+            let layout = crate::steps::convert::layout_of(&dir, None, "--real")?;
             // Linemod and YCB-Video sets are converted to BOP once: the mixes need BOP's
             // mask/ and scene_gt_info, which the conversion computes.
             let settings = if matches!(layout, Layout::Linemod | Layout::Ycbv) {
@@ -86,6 +91,7 @@ pub fn plan(
             SourcePlan {
                 name: "real_bop",
                 settings,
+                call: None,
                 scene_text: None,
             }
         }
@@ -95,21 +101,16 @@ pub fn plan(
             let spec = SceneSpec::from_toml_str(REAL_PROXY_TOML)
                 .context("internal: scenes/real_proxy.toml does not parse")?;
             let seed = args.seed.wrapping_add(PROXY_SEED_OFFSET);
+            let (rendered, call) =
+                render_settings(args, objects, Some(&scene), &spec, &dir, real_frames, seed)?;
             SourcePlan {
                 name: "real_proxy",
                 settings: SourceSettings {
                     path: dir.clone(),
-                    rendered: Some(render_settings(
-                        args,
-                        objects,
-                        Some(&scene),
-                        &spec,
-                        &dir,
-                        real_frames,
-                        seed,
-                    )?),
+                    rendered: Some(rendered),
                     converted_from: None,
                 },
+                call: Some(call),
                 scene_text: Some(REAL_PROXY_TOML),
             }
         }
@@ -122,6 +123,7 @@ pub fn plan(
                 rendered: None,
                 converted_from: None,
             },
+            call: None,
             scene_text: None,
         },
         None => {
@@ -135,21 +137,23 @@ pub fn plan(
                     .with_context(|| format!("invalid scene spec {}", p.display()))?,
                 None => SceneSpec::default(),
             };
+            let (rendered, call) = render_settings(
+                args,
+                objects,
+                scene.as_deref(),
+                &spec,
+                &dir,
+                synth_frames,
+                args.seed,
+            )?;
             SourcePlan {
                 name: "synth",
                 settings: SourceSettings {
                     path: dir.clone(),
-                    rendered: Some(render_settings(
-                        args,
-                        objects,
-                        scene.as_deref(),
-                        &spec,
-                        &dir,
-                        synth_frames,
-                        args.seed,
-                    )?),
+                    rendered: Some(rendered),
                     converted_from: None,
                 },
+                call: Some(call),
                 scene_text: None,
             }
         }
@@ -166,15 +170,32 @@ pub(super) fn existing(path: &Path, flag: &str) -> Result<PathBuf> {
     })
 }
 
+/// A rendered source's render: the `synthgen render` arguments it records, and the same
+/// as data for the pipeline.
 fn render_settings(
-    args: &ExperimentMixArgs,
+    args: &MixOptions,
     objects: &RenderObjects,
     scene: Option<&Path>,
     spec: &SceneSpec,
     dir: &Path,
     frames: usize,
     seed: u64,
-) -> Result<RenderSettings> {
+) -> Result<(RenderSettings, RenderCall)> {
+    let mut call = RenderCall {
+        scene: scene.map(Path::to_path_buf),
+        objects: Vec::new(),
+        obj_ids: objects.ids.clone(),
+        units: match objects.units {
+            Some("mm") => Units::Mm,
+            Some("m") => Units::M,
+            _ => Units::Auto,
+        },
+        frames: frames as u64,
+        seed,
+        out: dir.to_path_buf(),
+        quarter: None,
+        jobs: args.jobs,
+    };
     let mut argv: Vec<String> = vec!["render".into()];
     if let Some(s) = scene {
         argv.push("--scene".into());
@@ -182,7 +203,9 @@ fn render_settings(
     }
     argv.push("--objects".into());
     for o in &objects.paths {
-        argv.push(existing(o, "objects")?.display().to_string());
+        let path = existing(o, "objects")?;
+        argv.push(path.display().to_string());
+        call.objects.push(path);
     }
     if !objects.ids.is_empty() {
         let ids: Vec<String> = objects.ids.iter().map(u32::to_string).collect();
@@ -203,6 +226,10 @@ fn render_settings(
     if args.quick {
         // A quarter of the resolution, with the intrinsics scaled to match.
         let k = spec.camera.intrinsics()?;
+        call.quarter = Some((
+            [(k.width / 4).max(8), (k.height / 4).max(8)],
+            [k.fx / 4.0, k.fy / 4.0, k.cx / 4.0, k.cy / 4.0],
+        ));
         argv.extend([
             "--image-size".into(),
             format!("{},{}", (k.width / 4).max(8), (k.height / 4).max(8)),
@@ -219,21 +246,129 @@ fn render_settings(
     if let Some(j) = args.jobs {
         argv.extend(["--jobs".into(), j.to_string()]);
     }
-    Ok(RenderSettings {
-        argv,
-        frames: frames as u64,
-        seed,
-    })
+    Ok((
+        RenderSettings {
+            argv,
+            frames: frames as u64,
+            seed,
+        },
+        call,
+    ))
 }
+
+/// A rendered source's `synthgen render` call as data.
+pub struct RenderCall {
+    /// `--scene` (else the default scene).
+    scene: Option<PathBuf>,
+    objects: Vec<PathBuf>,
+    obj_ids: Vec<u32>,
+    units: Units,
+    frames: u64,
+    seed: u64,
+    out: PathBuf,
+    /// `--image-size` and `--camera-k` (the quick runs' quarter resolution).
+    quarter: Option<([u32; 2], [f64; 4])>,
+    jobs: Option<usize>,
+}
+
+impl RenderCall {
+    /// The scene spec the call renders: the scene file (or the default scene) with the image
+    /// size and intrinsics of `quarter`, as `synthgen render --image-size --camera-k` sets them.
+    fn spec(&self) -> Result<SceneSpec> {
+        let mut spec = match &self.scene {
+            Some(path) => SceneSpec::from_toml_file(path)
+                .with_context(|| format!("invalid scene spec {}", path.display()))?,
+            None => SceneSpec::default(),
+        };
+        if let Some((size, k)) = self.quarter {
+            spec.camera.width = Some(size[0]);
+            spec.camera.height = Some(size[1]);
+            spec.camera.fx = Some(k[0]);
+            spec.camera.fy = Some(k[1]);
+            spec.camera.cx = Some(k[2]);
+            spec.camera.cy = Some(k[3]);
+        }
+        spec.validate()?;
+        Ok(spec)
+    }
+
+    /// Renders the set (BOP, `train_pbr`) into `self.out`, which must not exist; a frame that
+    /// fails is an error past `synthgen render`'s default 1 % (`--max-failed-fraction`).
+    fn run(&self, command_line: &[String], printer: &Log) -> Result<()> {
+        let spec = self.spec()?;
+        let sources: Vec<ObjectSource> = self
+            .objects
+            .iter()
+            .enumerate()
+            .map(|(i, p)| ObjectSource {
+                obj_id: self.obj_ids.get(i).copied(),
+                ..ObjectSource::new(p.clone(), self.units)
+            })
+            .collect();
+        let _lock = OutputLock::acquire(&self.out)?;
+        let job = RenderJob::new(spec)
+            .objects(&sources)
+            .units(self.units)
+            .frames(0..self.frames)
+            .seed(self.seed)
+            .threads(self.jobs.unwrap_or(0))
+            .backend(Backend::Cpu)
+            .visib_delta_m(RENDER_VISIB_DELTA_M)
+            .build(printer)?;
+        let options = WriteOptions {
+            out: self.out.clone(),
+            sink: SinkOptions::new(Format::Bop),
+            resume: false,
+            fail_fast: false,
+            command_line: command_line.to_vec(),
+            first_frame: Some(0),
+            shard: None,
+        };
+        let t = std::time::Instant::now();
+        let report = job.write(&options, printer)?;
+        if let Some((i, e)) = report.failures.first() {
+            let what = format!(
+                "{} of {} frames of {} failed to render (first: frame {i}: {})",
+                report.failures.len(),
+                self.frames,
+                self.out.display(),
+                synthgen_pipeline::error_chain(e)
+            );
+            if report.failures.len() as f64 > RENDER_MAX_FAILED_FRACTION * self.frames as f64 {
+                return Err(user_error(what, "see the warnings above"));
+            }
+            printer.warning(format!("{what}; left out"));
+        }
+        printer.info(format!(
+            "rendered {} frames of {} into {} in {:.1} s",
+            report.written,
+            job.object_names().join(", "),
+            self.out.display(),
+            t.elapsed().as_secs_f64()
+        ));
+        Ok(())
+    }
+}
+
+/// `synthgen render`'s `--visib-delta-m` default (bop_toolkit's 15 mm), as the recorded
+/// command renders it.
+const RENDER_VISIB_DELTA_M: f64 = 0.015;
+/// `synthgen render`'s `--max-failed-fraction` default.
+const RENDER_MAX_FAILED_FRACTION: f64 = 0.01;
 
 /// The dataset folder of `plan`, rendering it first unless a finished render with the same
 /// arguments is there (its `OUT/sources/NAME.done` record).
-pub fn ensure(plan: &SourcePlan, out: &Path, printer: &Printer) -> Result<PathBuf> {
+pub fn ensure(
+    plan: &SourcePlan,
+    out: &Path,
+    command_line: &[String],
+    printer: &Log,
+) -> Result<PathBuf> {
     let dir = plan.settings.path.clone();
     let sources = out.join("sources");
     let marker = sources.join(format!("{}.done", plan.name));
     if let Some(from) = &plan.settings.converted_from {
-        return convert(from, &dir, &marker, printer);
+        return convert(from, &dir, &marker, command_line, printer);
     }
     let Some(r) = &plan.settings.rendered else {
         return Ok(dir);
@@ -269,25 +404,24 @@ pub fn ensure(plan: &SourcePlan, out: &Path, printer: &Printer) -> Result<PathBu
         },
         r.argv.join(" ")
     ));
-    let cli = Cli::try_parse_from(std::iter::once("synthgen".to_string()).chain(r.argv.clone()))
-        .context("internal: the render arguments do not parse")?;
-    let Command::Render(args) = cli.command else {
-        return Err(anyhow::anyhow!("internal: not a render command"));
-    };
-    let status = crate::commands::render::run(*args, printer)?;
-    if status != ExitStatus::Success {
-        return Err(user_error(
-            format!("some frames of {} failed to render", dir.display()),
-            "see the warnings above",
-        ));
-    }
+    let call = plan
+        .call
+        .as_ref()
+        .context("internal: a rendered source without its render call")?;
+    call.run(command_line, printer)?;
     atomic_write(&marker, record.as_bytes())?;
     Ok(dir)
 }
 
 /// Converts a Linemod- or YCB-Video-layout real set to BOP once (`OUT/sources/real_bop`),
 /// for `mix`.
-fn convert(from: &Path, dir: &Path, marker: &Path, printer: &Printer) -> Result<PathBuf> {
+fn convert(
+    from: &Path,
+    dir: &Path,
+    marker: &Path,
+    command_line: &[String],
+    printer: &Log,
+) -> Result<PathBuf> {
     let record = format!("{}\n", from.display());
     if std::fs::read_to_string(marker).is_ok_and(|t| t == record) && dir.is_dir() {
         printer.info(format!("reusing {} (converted earlier)", dir.display()));
@@ -296,28 +430,18 @@ fn convert(from: &Path, dir: &Path, marker: &Path, printer: &Printer) -> Result<
     if dir.exists() {
         std::fs::remove_dir_all(dir).with_context(|| format!("cannot remove {}", dir.display()))?;
     }
-    let argv = [
-        "synthgen".to_string(),
-        "convert".into(),
-        "--to".into(),
-        "bop".into(),
-        from.display().to_string(),
-        dir.display().to_string(),
-    ];
+    let mut request = ConvertRequest::new(from, dir, Layout::Bop);
     printer.info(format!(
         "the real set is not in the BOP layout: {}",
-        argv[1..].join(" ")
+        request.command_line[1..].join(" ")
     ));
-    let cli = Cli::try_parse_from(argv).context("internal: the convert arguments do not parse")?;
-    let Command::Convert(args) = cli.command else {
-        return Err(anyhow::anyhow!("internal: not a convert command"));
-    };
-    if crate::commands::convert::run(args, printer)? != ExitStatus::Success {
-        return Err(user_error(
-            format!("converting {} to BOP failed", from.display()),
-            "see the messages above; `synthgen validate` shows what is wrong",
-        ));
-    }
+    request.command_line = command_line.to_vec();
+    convert_dataset(&request, printer).with_context(|| {
+        format!(
+            "converting {} to BOP failed (`synthgen validate` shows what is wrong)",
+            from.display()
+        )
+    })?;
     if let Some(parent) = marker.parent() {
         std::fs::create_dir_all(parent)
             .with_context(|| format!("cannot create {}", parent.display()))?;

@@ -23,13 +23,12 @@ use synthgen_train::metrics::{EvalObject, Rotations, TE_THRESHOLD_M};
 use synthgen_train::models::rgb::Translation;
 use synthgen_train::models::ModelKind;
 use synthgen_train::pose_model::{load_dataset_objects, Objects};
-use synthgen_train::train::{self, Schedule, TrainConfig, MODEL_FILE};
+use synthgen_train::train::{self, ProgressObserver, Schedule, TrainConfig, MODEL_FILE};
 
-use super::check_settings_file;
-use crate::cli::{ExperimentRgbArgs, TranslationArg};
-use crate::commands::train::BarObserver;
-use crate::commands::user_error;
-use crate::{ExitStatus, Printer};
+use crate::options::RgbOptions;
+use crate::settings::check_settings_file;
+use crate::user_error;
+use crate::Log;
 
 /// The settings file at the output's root; a re-run must match it to resume.
 pub const SETTINGS_FILE: &str = "experiment.json";
@@ -95,13 +94,6 @@ pub struct VariantScores {
     pub train_seconds: f64,
     /// Wall time of the predictions over the test crops, per crop (batches of 64).
     pub predict_ms_per_crop: f64,
-}
-
-fn translation(a: TranslationArg) -> Translation {
-    match a {
-        TranslationArg::CentreTz => Translation::CentreTz,
-        TranslationArg::Xyz => Translation::Xyz,
-    }
 }
 
 /// The scores of `matches` (GT instances with their estimates, if any).
@@ -211,7 +203,8 @@ fn open(dir: &Path, what: &str) -> Result<Box<dyn FrameSource>> {
     open_source(dir).with_context(|| format!("cannot open the {what} set {}", dir.display()))
 }
 
-pub fn run(args: ExperimentRgbArgs, printer: &Printer) -> Result<ExitStatus> {
+/// Runs `experiment rgb`; returns the table (Markdown) it also wrote to `table.md`.
+pub fn run(args: RgbOptions, printer: &Log) -> Result<String> {
     let started = Instant::now();
     let q = args.quick;
     let pick =
@@ -235,7 +228,7 @@ pub fn run(args: ExperimentRgbArgs, printer: &Printer) -> Result<ExitStatus> {
         ));
     }
     let mut variants: Vec<Translation> = Vec::new();
-    for v in args.variants.iter().map(|&v| translation(v)) {
+    for v in args.variants.iter().copied() {
         if !variants.contains(&v) {
             variants.push(v);
         }
@@ -388,7 +381,6 @@ pub fn run(args: ExperimentRgbArgs, printer: &Printer) -> Result<ExitStatus> {
         &out.join("report.json"),
         (serde_json::to_string_pretty(&report)? + "\n").as_bytes(),
     )?;
-    printer.data(&md)?;
     if let Some(v) = &verdict {
         printer.info(v.clone());
     }
@@ -397,7 +389,7 @@ pub fn run(args: ExperimentRgbArgs, printer: &Printer) -> Result<ExitStatus> {
         out.display(),
         started.elapsed().as_secs_f64()
     ));
-    Ok(ExitStatus::Success)
+    Ok(md)
 }
 
 fn cfg_valid(cfg: &TrainConfig) -> Result<()> {
@@ -417,7 +409,7 @@ fn load_test(
     src: &dyn FrameSource,
     probe: &TrainConfig,
     classes: &[u32],
-    printer: &Printer,
+    printer: &Log,
 ) -> Result<TestSet> {
     let opts = synthgen_train::data::DataOptions {
         split: Some(s.test_split.clone()),
@@ -490,7 +482,7 @@ fn run_variant(
     train_set: &InstanceSet,
     train_objects: &Objects,
     test: &TestSet,
-    printer: &Printer,
+    printer: &Log,
 ) -> Result<VariantScores> {
     let v = cfg.translation.unwrap_or(Translation::CentreTz);
     let dir = out.join("variants").join(v.name());
@@ -507,7 +499,7 @@ fn run_variant(
         cfg.epochs
     ));
     let t = Instant::now();
-    let observer = BarObserver {
+    let observer = ProgressObserver {
         printer,
         epoch: std::cell::Cell::new((0, cfg.epochs)),
     };

@@ -22,8 +22,8 @@ use synthgen_train::train::{
 };
 
 use super::Settings;
-use crate::commands::experiment::row::{read_row_file, row_dir, ROW_FILE};
-use crate::Printer;
+use crate::settings::{read_row_file, row_dir, ROW_FILE};
+use crate::Log;
 
 /// Instances below this visible fraction are neither trained on nor scored (BOP's rule).
 pub const MIN_VISIB_FRACT: f64 = 0.1;
@@ -142,7 +142,7 @@ pub fn load_test(s: &Settings, test: &dyn FrameSource, scenes: &[u32]) -> Result
 
 /// Advances the bar once per epoch; the message shows the row and its loss.
 pub(super) struct Observer<'a> {
-    pub printer: &'a Printer,
+    pub printer: &'a Log<'a>,
     pub name: &'a str,
 }
 
@@ -183,7 +183,7 @@ pub fn train_row(
     out: &Path,
     spec: &TrainSpec,
     test: &TestSet,
-    printer: &Printer,
+    printer: &Log,
 ) -> Result<RowRecord> {
     let dir = row_dir(out, spec.name);
     if dir.exists() {

@@ -1,33 +1,36 @@
-//! The object models of a dataset loaded into an [`ObjectRenderer`], for the commands that
-//! render real frames at their GT poses (annotate, convert, render --replay).
+//! The object models of a dataset loaded into an [`ObjectRenderer`], for the steps that
+//! render real frames at their GT poses (annotate, convert, the fits, render --replay), and
+//! the replacement meshes of `render --replay-models` and `sim2real --models`.
 
 use anyhow::{Context, Result};
 use synthgen_core::Model;
 use synthgen_formats::source::FrameSource;
 use synthgen_render::ObjectRenderer;
 
-use crate::Printer;
+use synthgen_core::Progress;
 
 /// Loads the model of every object in `obj_ids` from the dataset's model files (in the
 /// dataset's units; a missing texture is a warning, a missing model an error naming it).
 pub fn object_renderer(
     source: &dyn FrameSource,
     obj_ids: &[u32],
-    printer: &Printer,
+    progress: &dyn Progress,
 ) -> Result<ObjectRenderer> {
-    Ok(ObjectRenderer::new(load_models(source, obj_ids, printer)?)?)
+    Ok(ObjectRenderer::new(load_models(
+        source, obj_ids, progress,
+    )?)?)
 }
 
 /// The models of `obj_ids` (metres), in that order, as [`object_renderer`] loads them.
 pub fn load_models(
     source: &dyn FrameSource,
     obj_ids: &[u32],
-    printer: &Printer,
+    progress: &dyn Progress,
 ) -> Result<Vec<(u32, Model)>> {
     let mut models = Vec::with_capacity(obj_ids.len());
     for &id in obj_ids {
         let model = source
-            .load_model(id, printer)
+            .load_model(id, progress)
             .with_context(|| format!("cannot load the model of object {id}"))?;
         models.push((id, model));
     }
@@ -85,7 +88,7 @@ pub fn replacement_meshes(
     flag: &str,
 ) -> Result<(Vec<Option<std::path::PathBuf>>, Vec<String>)> {
     if !dir.is_dir() {
-        return Err(crate::commands::user_error(
+        return Err(crate::user_error(
             format!("{flag} is not a folder: {}", dir.display()),
             "give a folder with one subfolder per object (`synthgen model align --scans` writes one)",
         ));
@@ -103,7 +106,7 @@ pub fn replacement_meshes(
         let found = files_with_extensions(&folder, synthgen_assets::SUPPORTED_EXTENSIONS)
             .with_context(|| format!("cannot read {}", folder.display()))?;
         let [mesh] = found.as_slice() else {
-            return Err(crate::commands::user_error(
+            return Err(crate::user_error(
                 format!(
                     "{} holds {} meshes; {flag} needs exactly one per object folder",
                     folder.display(),

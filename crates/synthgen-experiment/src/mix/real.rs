@@ -11,8 +11,8 @@ use synthgen_curate::mix::{scene_list, scene_test_frames, SceneRef};
 use synthgen_formats::layout::open_source;
 use synthgen_formats::source::FrameLocation;
 
-use crate::commands::user_error;
-use crate::Printer;
+use crate::user_error;
+use crate::Log;
 
 /// The objects the synthetic set is rendered from: `render --objects PATHS --obj-ids IDS`.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -91,7 +91,7 @@ impl RealInventory {
         &self,
         test: Option<&[usize]>,
         scenes: &[SceneRef],
-        printer: &Printer,
+        printer: &Log,
     ) -> Result<RenderObjects> {
         let missing: Vec<u32> = self
             .models

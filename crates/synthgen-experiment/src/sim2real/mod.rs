@@ -26,9 +26,9 @@ use synthgen_pipeline::{Backend, Format, RenderJob, SinkOptions, WriteOptions};
 use synthgen_train::data::Augment;
 
 use self::rows::{RowRecord, TrainSpec};
-use crate::cli::{ExperimentSim2realArgs, TrainBudget};
-use crate::commands::user_error;
-use crate::{ExitStatus, Printer};
+use crate::options::{Sim2realOptions, TrainBudget};
+use crate::user_error;
+use crate::Log;
 
 /// The settings file at the output's root; a re-run must match it to resume.
 pub const SETTINGS_FILE: &str = "experiment.json";
@@ -219,7 +219,8 @@ const VARIANTS: &[Variant] = &[
 /// The row of a model trained on real frames only.
 pub const REAL_ONLY: &str = "real_only";
 
-pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus> {
+/// Runs `experiment sim2real`; returns the report (Markdown) it also wrote to `report.md`.
+pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
     let Some(model) = args.model.depth_model() else {
         return rgb::run(args, printer);
     };
@@ -232,7 +233,7 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
             return Err(user_error(
                 format!(
                     "{flag} applies to the RGB models (--model rgb|rgb-dense), not {}",
-                    super::model_name(model)
+                    model.name()
                 ),
                 "the depth models fit the scene and the sensor to --fit: drop the flag",
             ));
@@ -313,7 +314,7 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
         test_scenes: args.test_scenes.clone(),
         fit_scenes: fit_scenes.clone(),
         objects,
-        model: super::model_name(model).into(),
+        model: model.name().into(),
         frames,
         epochs,
         batch,
@@ -401,6 +402,7 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
                 seed: settings.seed,
                 quick: settings.quick,
                 backend: Backend::Cpu,
+                command_line: args.command_line.clone(),
             },
             &out,
             set_name,
@@ -531,13 +533,13 @@ pub fn run(args: ExperimentSim2realArgs, printer: &Printer) -> Result<ExitStatus
         .collect();
     let rep = report::Report::new(&settings, records, timing, notes, skipped);
     rep.write(&out)?;
-    printer.data(rep.markdown())?;
+    let md = rep.markdown();
     printer.info(format!(
         "{} rows ({computed} computed now) in {elapsed:.0} s; wrote report.md, report.json, plot.png in {}",
         rep.rows.len(),
         out.display()
     ));
-    Ok(ExitStatus::Success)
+    Ok(md)
 }
 
 /// The frames a set's render left out (its synthgen.json's `failed_frames`).
@@ -725,7 +727,7 @@ fn most_common_k(frames: &[SourceFrame], w: u32, h: u32) -> synthgen_core::Intri
 /// Writes the settings, or checks them (and the fit and test data) against those of the
 /// experiment already in `out`.
 fn check_settings(out: &Path, settings: &Settings, force: bool) -> Result<()> {
-    super::check_settings_file(
+    crate::settings::check_settings_file(
         out,
         SETTINGS_FILE,
         settings,
@@ -756,7 +758,7 @@ fn write_timing(out: &Path, t: &report::Timing) -> Result<()> {
 
 /// `fit/scene.toml` and `fit/sensor.toml` (with their reports), unless a finished fit of
 /// the same frames is there (`fit/fit.done`). True when they were fitted now.
-fn ensure_fits(s: &Settings, dir: &Path, printer: &Printer) -> Result<bool> {
+fn ensure_fits(s: &Settings, dir: &Path, printer: &Log) -> Result<bool> {
     let record = serde_json::to_string_pretty(&serde_json::json!({
         "fit": s.fit, "scenes": s.fit_scenes
     }))? + "\n";
@@ -770,7 +772,7 @@ fn ensure_fits(s: &Settings, dir: &Path, printer: &Printer) -> Result<bool> {
     }
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     printer.info(format!("fitting the sensor to {}", s.fit.display()));
-    let sensor = crate::commands::sensor::fit_to_file(
+    let sensor = crate::steps::fit::fit_sensor_to_file(
         &s.fit,
         &s.fit_scenes,
         0.02,
@@ -783,7 +785,7 @@ fn ensure_fits(s: &Settings, dir: &Path, printer: &Printer) -> Result<bool> {
         (serde_json::to_string_pretty(&sensor)? + "\n").as_bytes(),
     )?;
     printer.info(format!("fitting the scene to {}", s.fit.display()));
-    let scene = crate::commands::scene::fit_to_file(
+    let scene = crate::steps::fit::fit_scene_to_file(
         &s.fit,
         &s.fit_scenes,
         Some(&dir.join("sensor.toml")),
@@ -999,6 +1001,8 @@ struct RenderPlan {
     seed: u64,
     quick: bool,
     backend: Backend,
+    /// The experiment's reproducing command, recorded in the set's manifest.
+    command_line: Vec<String>,
 }
 
 fn ensure_render(
@@ -1007,7 +1011,7 @@ fn ensure_render(
     name: &str,
     spec: &SceneSpec,
     max_failed_fraction: f64,
-    printer: &Printer,
+    printer: &Log,
 ) -> Result<(PathBuf, bool)> {
     let sources = out.join("sources");
     std::fs::create_dir_all(&sources)
@@ -1066,7 +1070,7 @@ fn ensure_render(
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let _lock = OutputLock::acquire(&dir)?;
     let mut options = WriteOptions::new(&dir, SinkOptions::new(Format::Bop));
-    options.command_line = std::env::args().collect();
+    options.command_line = s.command_line.clone();
     let report = job.write(&options, printer)?;
     if let Some((i, e)) = report.failures.first() {
         let share = report.failures.len() as f64 / s.frames.max(1) as f64;
