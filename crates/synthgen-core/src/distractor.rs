@@ -6,9 +6,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::color::srgb_to_linear;
+use crate::distractor_spec::{DistractorShape, DistractorSpec};
+use crate::frame_scene::SceneObject;
 use crate::mesh::{Material, Model, Primitive};
-use crate::sample::SceneObject;
-use crate::scene::{DistractorShape, DistractorSpec};
 
 /// Segments around a cylinder or sphere.
 const SEGMENTS: u32 = 24;

@@ -6,8 +6,7 @@ use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 
-use crate::scene::{Range, SceneSpec};
-use crate::Error;
+use crate::range::Range;
 
 /// A primitive distractor shape.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
@@ -62,77 +61,6 @@ impl Default for DistractorSpec {
             units: None,
             mesh_probability: 0.5,
         }
-    }
-}
-
-fn check_range(name: &str, r: Range, min: f64, max: f64) -> Result<(), Error> {
-    let [lo, hi] = r;
-    if !(lo.is_finite() && hi.is_finite() && min <= lo && lo <= hi && hi <= max) {
-        return Err(Error::InvalidSpec(format!(
-            "{name} must be [min, max] with {min} <= min <= max <= {max}, got [{lo}, {hi}]"
-        )));
-    }
-    Ok(())
-}
-
-impl SceneSpec {
-    /// Checks view rejection, distractors, light temperature and material jitter fields.
-    pub(crate) fn validate_scene_extras(&self) -> Result<(), Error> {
-        let c = &self.camera;
-        if !(c.min_visib_fract.is_finite() && (0.0..=1.0).contains(&c.min_visib_fract)) {
-            return Err(Error::InvalidSpec(format!(
-                "camera.min_visib_fract must lie within 0..1, got {}",
-                c.min_visib_fract
-            )));
-        }
-        if c.max_view_tries == 0 || c.max_view_tries > 10_000 {
-            return Err(Error::InvalidSpec(format!(
-                "camera.max_view_tries must lie within 1..10000, got {}",
-                c.max_view_tries
-            )));
-        }
-        if let Some(t) = self.lights.temperature_k {
-            check_range("lights.temperature_k", t, 1000.0, 40_000.0)?;
-        }
-        if let Some(r) = self.materials.roughness {
-            check_range("materials.roughness", r, 0.01, 1.0)?;
-        }
-        check_range("materials.hue_deg", self.materials.hue_deg, -180.0, 180.0)?;
-        let d = &self.distractors;
-        if d.count[0] > d.count[1] || d.count[1] > 256 {
-            return Err(Error::InvalidSpec(format!(
-                "distractors.count must be [min, max] with min <= max <= 256, got {:?}",
-                d.count
-            )));
-        }
-        check_range("distractors.size_m", d.size_m, 1e-3, 10.0)?;
-        if d.variants == 0 || d.variants > 64 {
-            return Err(Error::InvalidSpec(format!(
-                "distractors.variants must lie within 1..64, got {}",
-                d.variants
-            )));
-        }
-        for i in 0..3 {
-            let (lo, hi) = (d.color_min[i], d.color_max[i]);
-            if !(lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo <= hi && hi <= 1.0) {
-                return Err(Error::InvalidSpec(format!(
-                    "distractors.color_min and color_max must be sRGB 0..1 with min <= max, got {:?} and {:?}",
-                    d.color_min, d.color_max
-                )));
-            }
-        }
-        if !(0.0..=1.0).contains(&d.mesh_probability) {
-            return Err(Error::InvalidSpec(format!(
-                "distractors.mesh_probability must lie within 0..1, got {}",
-                d.mesh_probability
-            )));
-        }
-        if d.count[1] > 0 && d.shapes.is_empty() && d.meshes.is_empty() {
-            return Err(Error::InvalidSpec(
-                "distractors.count > 0 needs distractors.shapes or distractors.meshes".into(),
-            ));
-        }
-        Ok(())
     }
 }
 

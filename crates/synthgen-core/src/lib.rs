@@ -12,6 +12,7 @@
 
 pub mod annotate;
 pub mod atomic;
+mod bin;
 pub mod bin_spec;
 pub mod camera;
 pub mod color;
@@ -19,12 +20,14 @@ pub mod depth_features;
 pub mod distractor;
 mod distractor_spec;
 mod error;
+mod frame_scene;
 pub mod jacobi;
 pub mod mesh;
 pub mod pnp;
 pub mod pose;
 pub mod pose_render;
 pub mod progress;
+mod range;
 pub mod rest;
 pub mod rng;
 pub mod sample;
@@ -33,6 +36,7 @@ mod sensor_spec;
 pub mod symmetry;
 mod user_error;
 pub mod view;
+mod walls;
 mod walls_spec;
 
 pub use annotate::{annotate, AloneDepth, GtInfo, ObjectAnnotation, RenderedFrame};

@@ -8,15 +8,15 @@ use serde::{Deserialize, Serialize};
 pub use crate::bin_spec::BinSpec;
 use crate::camera::Intrinsics;
 pub use crate::distractor_spec::{DistractorShape, DistractorSpec};
+pub use crate::range::Range;
+use crate::range::{check_nothing_dropped, check_range};
 pub use crate::rest::UpAxis;
 pub use crate::sensor_spec::{
     D455Spec, DepthModel, RgbNoiseSpec, SensorSpec, StructuredLightSpec, TofSpec,
 };
 pub use crate::walls_spec::WallSpec;
+use crate::walls_spec::{check_colors, check_scale};
 use crate::Error;
-
-/// A closed range `[min, max]` sampled uniformly.
-pub type Range = [f64; 2];
 
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -499,41 +499,6 @@ fn one() -> u32 {
     1
 }
 
-/// An error naming the first array of `given` (the file as written) that the parsed spec
-/// holds fewer values of, e.g. `camera_pose.distance_m = [0.5, 0.8, 1.2]`.
-pub(crate) fn check_nothing_dropped(
-    given: &toml::Value,
-    kept: &toml::Value,
-    path: &str,
-) -> Result<(), Error> {
-    use toml::Value;
-    match (given, kept) {
-        (Value::Table(g), Value::Table(k)) => {
-            for (key, gv) in g {
-                if let Some(kv) = k.get(key) {
-                    let p = if path.is_empty() {
-                        key.clone()
-                    } else {
-                        format!("{path}.{key}")
-                    };
-                    check_nothing_dropped(gv, kv, &p)?;
-                }
-            }
-            Ok(())
-        }
-        (Value::Array(g), Value::Array(k)) if g.len() > k.len() => Err(Error::InvalidSpec(
-            format!("{path} has {} values but takes {}", g.len(), k.len()),
-        )),
-        (Value::Array(g), Value::Array(k)) => {
-            for (i, (gv, kv)) in g.iter().zip(k).enumerate() {
-                check_nothing_dropped(gv, kv, &format!("{path}[{i}]"))?;
-            }
-            Ok(())
-        }
-        _ => Ok(()),
-    }
-}
-
 impl SceneSpec {
     /// Reads a TOML spec. Object paths are resolved relative to the file's folder.
     pub fn from_toml_file(path: &Path) -> Result<SceneSpec, Error> {
@@ -741,6 +706,89 @@ impl SceneSpec {
                 "background.kind = \"images\" needs background.images_dir".into(),
             ));
         }
+        Ok(())
+    }
+}
+
+impl SceneSpec {
+    /// Checks view rejection, distractors, light temperature and material jitter fields.
+    pub(crate) fn validate_scene_extras(&self) -> Result<(), Error> {
+        let c = &self.camera;
+        if !(c.min_visib_fract.is_finite() && (0.0..=1.0).contains(&c.min_visib_fract)) {
+            return Err(Error::InvalidSpec(format!(
+                "camera.min_visib_fract must lie within 0..1, got {}",
+                c.min_visib_fract
+            )));
+        }
+        if c.max_view_tries == 0 || c.max_view_tries > 10_000 {
+            return Err(Error::InvalidSpec(format!(
+                "camera.max_view_tries must lie within 1..10000, got {}",
+                c.max_view_tries
+            )));
+        }
+        if let Some(t) = self.lights.temperature_k {
+            check_range("lights.temperature_k", t, 1000.0, 40_000.0)?;
+        }
+        if let Some(r) = self.materials.roughness {
+            check_range("materials.roughness", r, 0.01, 1.0)?;
+        }
+        check_range("materials.hue_deg", self.materials.hue_deg, -180.0, 180.0)?;
+        let d = &self.distractors;
+        if d.count[0] > d.count[1] || d.count[1] > 256 {
+            return Err(Error::InvalidSpec(format!(
+                "distractors.count must be [min, max] with min <= max <= 256, got {:?}",
+                d.count
+            )));
+        }
+        check_range("distractors.size_m", d.size_m, 1e-3, 10.0)?;
+        if d.variants == 0 || d.variants > 64 {
+            return Err(Error::InvalidSpec(format!(
+                "distractors.variants must lie within 1..64, got {}",
+                d.variants
+            )));
+        }
+        for i in 0..3 {
+            let (lo, hi) = (d.color_min[i], d.color_max[i]);
+            if !(lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo <= hi && hi <= 1.0) {
+                return Err(Error::InvalidSpec(format!(
+                    "distractors.color_min and color_max must be sRGB 0..1 with min <= max, got {:?} and {:?}",
+                    d.color_min, d.color_max
+                )));
+            }
+        }
+        if !(0.0..=1.0).contains(&d.mesh_probability) {
+            return Err(Error::InvalidSpec(format!(
+                "distractors.mesh_probability must lie within 0..1, got {}",
+                d.mesh_probability
+            )));
+        }
+        if d.count[1] > 0 && d.shapes.is_empty() && d.meshes.is_empty() {
+            return Err(Error::InvalidSpec(
+                "distractors.count > 0 needs distractors.shapes or distractors.meshes".into(),
+            ));
+        }
+        Ok(())
+    }
+}
+
+impl SceneSpec {
+    /// Checks the ground texture and `[walls]` fields.
+    pub(crate) fn validate_surfaces(&self) -> Result<(), Error> {
+        check_scale("ground.texture_scale_m", self.ground.texture_scale_m)?;
+        check_colors("ground", self.ground.color_min, self.ground.color_max)?;
+        let bg = &self.background;
+        check_colors("background", bg.color_min, bg.color_max)?;
+        let w = &self.walls;
+        if w.count[0] > w.count[1] || w.count[1] > 4 {
+            return Err(Error::InvalidSpec(format!(
+                "walls.count must be [min, max] with min <= max <= 4, got {:?}",
+                w.count
+            )));
+        }
+        check_range("walls.distance_m", w.distance_m, 0.05, 1000.0)?;
+        check_range("walls.height_m", w.height_m, 0.01, 1000.0)?;
+        check_colors("walls", w.color_min, w.color_max)?;
+        check_scale("walls.texture_scale_m", w.texture_scale_m)?;
         Ok(())
     }
 }

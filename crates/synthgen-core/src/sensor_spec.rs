@@ -5,7 +5,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::scene::Range;
+use crate::range::Range;
 use crate::Error;
 
 /// Depth-sensor model applied to the rendered depth.
@@ -549,7 +549,7 @@ impl SensorSpec {
             message: e.to_string(),
             path: std::path::PathBuf::from("<string>"),
         })?;
-        crate::scene::check_nothing_dropped(&given, &kept, "sensor")?;
+        crate::range::check_nothing_dropped(&given, &kept, "sensor")?;
         spec.validate()?;
         Ok(spec)
     }

@@ -3,7 +3,7 @@
 
 use glam::DVec3;
 
-use crate::sample::{FrameScene, SceneObject};
+use crate::frame_scene::{FrameScene, SceneObject};
 
 /// Pixel counts of one object in a frame, as BOP counts them (`synthgen_core::annotate`).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]

@@ -18,10 +18,9 @@ use synthgen_formats::layout::open_source;
 use synthgen_formats::source::{FrameSource, SourceFrame};
 
 use crate::error::{Error, Result};
-use crate::eval::pick_split;
 use crate::models::rgb::Pinhole;
 use crate::models::rgb_dense::dense_out;
-use crate::rgb_input::{BoxRegion, CoordRegion, CONTEXT, STORED_CONTEXT};
+use crate::region::{crop_resize, BoxRegion, CoordRegion, CONTEXT, STORED_CONTEXT};
 
 /// How instances are made.
 #[derive(Debug, Clone, PartialEq)]
@@ -150,36 +149,33 @@ fn sample_indices(rng: &mut ChaCha8Rng, len: usize, n: usize) -> Vec<usize> {
     }
 }
 
-/// Bilinear resize of the `bbox` region (x, y, w, h) of an RGB image to `size × size`.
-pub(crate) fn crop_resize(
-    rgb: &[u8],
-    width: u32,
-    height: u32,
-    bbox: [f64; 4],
-    size: u32,
-) -> Vec<u8> {
-    let [x0, y0, w, h] = bbox;
-    let mut out = Vec::with_capacity((size * size * 3) as usize);
-    let px = |x: i64, y: i64, c: usize| -> f32 {
-        let x = x.clamp(0, i64::from(width) - 1) as usize;
-        let y = y.clamp(0, i64::from(height) - 1) as usize;
-        f32::from(rgb[(y * width as usize + x) * 3 + c])
-    };
-    for j in 0..size {
-        for i in 0..size {
-            let sx = x0 + (f64::from(i) + 0.5) * w / f64::from(size) - 0.5;
-            let sy = y0 + (f64::from(j) + 0.5) * h / f64::from(size) - 0.5;
-            let (fx, fy) = (sx.floor(), sy.floor());
-            let (ax, ay) = ((sx - fx) as f32, (sy - fy) as f32);
-            let (xi, yi) = (fx as i64, fy as i64);
-            for c in 0..3 {
-                let top = px(xi, yi, c) * (1.0 - ax) + px(xi + 1, yi, c) * ax;
-                let bot = px(xi, yi + 1, c) * (1.0 - ax) + px(xi + 1, yi + 1, c) * ax;
-                out.push((top * (1.0 - ay) + bot * ay).round().clamp(0.0, 255.0) as u8);
-            }
+/// The split to evaluate: `wanted`, else `test` when present, else the only split.
+pub fn pick_split(ds: &dyn FrameSource, wanted: Option<&str>) -> Result<String> {
+    let splits = ds.splits();
+    if let Some(w) = wanted {
+        if splits.iter().any(|s| s == w) {
+            return Ok(w.to_string());
         }
+        return Err(Error::InvalidOption(format!(
+            "split {w:?} not found in {} (splits: {})",
+            ds.root().display(),
+            splits.join(", ")
+        )));
     }
-    out
+    if splits.iter().any(|s| s == "test") {
+        return Ok("test".into());
+    }
+    match splits.as_slice() {
+        [only] => Ok(only.clone()),
+        [] => Err(Error::NoInstances {
+            reason: "no split with frames".into(),
+            path: ds.root().to_path_buf(),
+        }),
+        many => Err(Error::InvalidOption(format!(
+            "dataset has several splits ({}); choose one with --split",
+            many.join(", ")
+        ))),
+    }
 }
 
 /// Cells across the stored region of the dense targets for an `rgb_box`-pixel crop: two

@@ -2,23 +2,19 @@
 //! accuracies and mean errors (conventions in docs/metrics.md).
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 use serde::Serialize;
-use synthgen_assets::Units;
-use synthgen_core::{Model, NoProgress, Pose};
-use synthgen_formats::bop::ModelInfo;
+use synthgen_core::Pose;
 use synthgen_formats::source::{FrameLocation, FrameSource};
 
+pub use crate::data::pick_split;
 use crate::data::Instance;
+pub use crate::dataset_objects::{load_eval_objects, EVAL_MODEL_POINTS};
 use crate::error::{Error, Result};
-use crate::metrics::{subsample_vertices, EvalObject, PoseErrors, Rotations};
+use crate::metrics::{EvalObject, PoseErrors, Rotations};
 use crate::pose_model::{Objects, Prediction};
 use crate::results::Estimate;
-
-/// Model points used for ADD / ADD-S (evenly strided vertices).
-pub const EVAL_MODEL_POINTS: usize = 1000;
 
 /// One annotated object instance.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -41,35 +37,6 @@ impl GtInstance {
             Rotations::AsStored => self.stored,
             Rotations::Nearest => self.pose,
         }
-    }
-}
-
-/// The split to evaluate: `wanted`, else `test` when present, else the only split.
-pub fn pick_split(ds: &dyn FrameSource, wanted: Option<&str>) -> Result<String> {
-    let splits = ds.splits();
-    if let Some(w) = wanted {
-        if splits.iter().any(|s| s == w) {
-            return Ok(w.to_string());
-        }
-        return Err(Error::InvalidOption(format!(
-            "split {w:?} not found in {} (splits: {})",
-            ds.root().display(),
-            splits.join(", ")
-        )));
-    }
-    if splits.iter().any(|s| s == "test") {
-        return Ok("test".into());
-    }
-    match splits.as_slice() {
-        [only] => Ok(only.clone()),
-        [] => Err(Error::NoInstances {
-            reason: "no split with frames".into(),
-            path: ds.root().to_path_buf(),
-        }),
-        many => Err(Error::InvalidOption(format!(
-            "dataset has several splits ({}); choose one with --split",
-            many.join(", ")
-        ))),
     }
 }
 
@@ -102,61 +69,6 @@ pub fn read_gt(ds: &dyn FrameSource, split: &str, min_visib_fract: f64) -> Resul
         }
     }
     Ok(out)
-}
-
-/// Loads the evaluation model (points, diameter, symmetric) of each object id.
-pub fn load_eval_objects(
-    ds: &dyn FrameSource,
-    obj_ids: impl IntoIterator<Item = u32>,
-) -> Result<BTreeMap<u32, EvalObject>> {
-    load_each_object(
-        ds.models_info(),
-        &ds.models_info_path(),
-        &|id| ds.model_file(id),
-        ds.model_units(),
-        obj_ids,
-        eval_object,
-    )
-}
-
-/// Loads each distinct object of `obj_ids` once (its models_info entry and its model file,
-/// whose numbers are in `units`: millimetres for BOP and Linemod, metres for YCB-Video; the
-/// model comes out in metres, or, with `Units::M` on a millimetre file, keeps its
-/// millimetres) and keeps what `f` makes of it.
-pub(crate) fn load_each_object<T>(
-    models_info: Option<&BTreeMap<u32, ModelInfo>>,
-    info_path: &Path,
-    model_path: &dyn Fn(u32) -> PathBuf,
-    units: Units,
-    obj_ids: impl IntoIterator<Item = u32>,
-    mut f: impl FnMut(&Model, &ModelInfo) -> T,
-) -> Result<BTreeMap<u32, T>> {
-    let infos = models_info.ok_or_else(|| Error::NoModelsInfo {
-        path: info_path.to_path_buf(),
-    })?;
-    let mut out = BTreeMap::new();
-    for obj_id in obj_ids {
-        if out.contains_key(&obj_id) {
-            continue;
-        }
-        let info = infos.get(&obj_id).ok_or_else(|| Error::UnknownObject {
-            obj_id,
-            path: info_path.to_path_buf(),
-        })?;
-        let loaded = synthgen_assets::load_model(&model_path(obj_id), units, &NoProgress)
-            .map_err(|source| Error::Model { obj_id, source })?;
-        out.insert(obj_id, f(&loaded.model, info));
-    }
-    Ok(out)
-}
-
-/// The evaluation model of an object: strided vertices, diameter, symmetric or not.
-pub(crate) fn eval_object(model: &Model, info: &ModelInfo) -> EvalObject {
-    EvalObject {
-        points_m: subsample_vertices(model, EVAL_MODEL_POINTS),
-        diameter_m: info.diameter / 1000.0,
-        symmetric: !info.symmetries.is_empty(),
-    }
 }
 
 /// Scores of one object (or of all objects pooled).

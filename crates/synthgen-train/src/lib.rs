@@ -15,6 +15,7 @@
 pub mod baseline;
 pub mod bop;
 pub mod data;
+pub mod dataset_objects;
 mod error;
 pub mod eval;
 pub mod init;
@@ -23,6 +24,8 @@ pub mod metrics;
 pub mod models;
 pub mod plot;
 pub mod pose_model;
+mod quat;
+pub mod region;
 pub mod results;
 pub mod rgb_input;
 pub mod stability;

@@ -84,7 +84,7 @@ pub fn smooth_l1_loss(pred: &Tensor, target: &Tensor, beta: f64) -> Result<Tenso
 /// symmetry, without translation (see [`symmetric_targets`] with a zero GT translation).
 pub fn rotation_points_loss(quats: &Tensor, points: &Tensor, targets: &Tensor) -> Result<Tensor> {
     let b = quats.dim(0)?;
-    let r = crate::models::rnet::quaternion_to_matrix(quats)?.unsqueeze(1)?;
+    let r = crate::quat::quaternion_to_matrix(quats)?.unsqueeze(1)?;
     let t = Tensor::zeros((b, 1, 3), quats.dtype(), quats.device())?;
     symmetric_add_per_pixel(&r, &t, points, targets)?.mean_all()
 }

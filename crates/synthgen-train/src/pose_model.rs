@@ -13,8 +13,8 @@ use synthgen_formats::bop::ModelInfo;
 use synthgen_formats::source::FrameSource;
 
 use crate::data::Instance;
+use crate::dataset_objects::{eval_object, load_each_object};
 use crate::error::{Error, Result};
-use crate::eval::{eval_object, load_each_object};
 use crate::init::seeded_var_builder;
 use crate::losses::{
     quaternion_confidence_loss, rotation_points_loss, smooth_l1_loss, symmetric_targets,

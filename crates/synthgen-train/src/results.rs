@@ -3,11 +3,43 @@
 
 use std::path::Path;
 
+use synthgen_core::glam::{DMat3, DVec3};
 use synthgen_core::Pose;
 
-use crate::bop::errors::RawPose;
 use crate::error::{Error, Result};
 use crate::metrics::Rotations;
+
+/// A pose as a BOP file stores it: rotation (used as given) and translation in millimetres.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RawPose {
+    pub r: DMat3,
+    pub t_mm: DVec3,
+}
+
+impl RawPose {
+    /// From BOP's row-major `cam_R_m2c` and `cam_t_m2c` (mm).
+    pub fn from_bop(r_row_major: &[f64; 9], t_mm: &[f64; 3]) -> RawPose {
+        let r = r_row_major;
+        RawPose {
+            r: DMat3::from_cols(
+                DVec3::new(r[0], r[3], r[6]),
+                DVec3::new(r[1], r[4], r[7]),
+                DVec3::new(r[2], r[5], r[8]),
+            ),
+            t_mm: DVec3::from_array(*t_mm),
+        }
+    }
+
+    /// From a pose in metres (what a model predicts).
+    pub fn from_pose(p: &synthgen_core::Pose) -> RawPose {
+        RawPose::from_bop(&p.rotation_row_major(), &p.translation_mm())
+    }
+
+    #[inline(always)]
+    pub(crate) fn apply(&self, p: DVec3) -> DVec3 {
+        self.r * p + self.t_mm
+    }
+}
 
 /// One pose estimate of a results file, converted to metres.
 #[derive(Debug, Clone, Copy, PartialEq)]

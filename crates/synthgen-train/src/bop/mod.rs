@@ -219,7 +219,7 @@ pub fn load_bop_objects(
     } else {
         1.0
     };
-    crate::eval::load_each_object(
+    crate::dataset_objects::load_each_object(
         infos,
         &info_path,
         &*model_path,
