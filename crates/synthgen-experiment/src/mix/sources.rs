@@ -1,6 +1,6 @@
 //! The two datasets of an experiment: given folders, or sets rendered into `OUT/sources/`
-//! through `synthgen_pipeline::RenderJob` (as `synthgen render` with the recorded arguments
-//! would render them), cached so that a resumed run does not render again.
+//! through `steps::render` (what `synthgen render` with the recorded arguments runs), cached
+//! so that a resumed run does not render again.
 
 use std::path::{Path, PathBuf};
 
@@ -10,13 +10,12 @@ use synthgen_assets::Units;
 use synthgen_core::SceneSpec;
 use synthgen_formats::io::atomic_write;
 use synthgen_formats::layout::Layout;
-use synthgen_formats::output::OutputLock;
-use synthgen_pipeline::{Backend, Format, ObjectSource, RenderJob, SinkOptions, WriteOptions};
 
 use super::real::RenderObjects;
 use crate::options::MixOptions;
 use crate::settings::absolute;
 use crate::steps::convert::{convert_dataset, ConvertRequest};
+use crate::steps::render::{render, RenderRequest};
 use crate::user_error;
 use crate::Log;
 
@@ -49,7 +48,7 @@ pub struct SourcePlan {
     pub name: &'static str,
     pub settings: SourceSettings,
     /// What to render (a rendered source): `settings.rendered`'s arguments as data.
-    pub call: Option<RenderCall>,
+    pub call: Option<RenderRequest>,
     /// The scene spec text to write beside a rendered source (the proxy's).
     pub scene_text: Option<&'static str>,
 }
@@ -180,21 +179,17 @@ fn render_settings(
     dir: &Path,
     frames: usize,
     seed: u64,
-) -> Result<(RenderSettings, RenderCall)> {
-    let mut call = RenderCall {
+) -> Result<(RenderSettings, RenderRequest)> {
+    let mut call = RenderRequest {
         scene: scene.map(Path::to_path_buf),
-        objects: Vec::new(),
         obj_ids: objects.ids.clone(),
         units: match objects.units {
             Some("mm") => Units::Mm,
             Some("m") => Units::M,
             _ => Units::Auto,
         },
-        frames: frames as u64,
-        seed,
-        out: dir.to_path_buf(),
-        quarter: None,
         jobs: args.jobs,
+        ..RenderRequest::new(Vec::new(), frames as u64, seed, dir)
     };
     let mut argv: Vec<String> = vec!["render".into()];
     if let Some(s) = scene {
@@ -226,10 +221,8 @@ fn render_settings(
     if args.quick {
         // A quarter of the resolution, with the intrinsics scaled to match.
         let k = spec.camera.intrinsics()?;
-        call.quarter = Some((
-            [(k.width / 4).max(8), (k.height / 4).max(8)],
-            [k.fx / 4.0, k.fy / 4.0, k.cx / 4.0, k.cy / 4.0],
-        ));
+        call.overrides.image_size = Some([(k.width / 4).max(8), (k.height / 4).max(8)]);
+        call.overrides.camera_k = Some([k.fx / 4.0, k.fy / 4.0, k.cx / 4.0, k.cy / 4.0]);
         argv.extend([
             "--image-size".into(),
             format!("{},{}", (k.width / 4).max(8), (k.height / 4).max(8)),
@@ -255,106 +248,6 @@ fn render_settings(
         call,
     ))
 }
-
-/// A rendered source's `synthgen render` call as data.
-pub struct RenderCall {
-    /// `--scene` (else the default scene).
-    scene: Option<PathBuf>,
-    objects: Vec<PathBuf>,
-    obj_ids: Vec<u32>,
-    units: Units,
-    frames: u64,
-    seed: u64,
-    out: PathBuf,
-    /// `--image-size` and `--camera-k` (the quick runs' quarter resolution).
-    quarter: Option<([u32; 2], [f64; 4])>,
-    jobs: Option<usize>,
-}
-
-impl RenderCall {
-    /// The scene spec the call renders: the scene file (or the default scene) with the image
-    /// size and intrinsics of `quarter`, as `synthgen render --image-size --camera-k` sets them.
-    fn spec(&self) -> Result<SceneSpec> {
-        let mut spec = match &self.scene {
-            Some(path) => SceneSpec::from_toml_file(path)
-                .with_context(|| format!("invalid scene spec {}", path.display()))?,
-            None => SceneSpec::default(),
-        };
-        if let Some((size, k)) = self.quarter {
-            spec.camera.width = Some(size[0]);
-            spec.camera.height = Some(size[1]);
-            spec.camera.fx = Some(k[0]);
-            spec.camera.fy = Some(k[1]);
-            spec.camera.cx = Some(k[2]);
-            spec.camera.cy = Some(k[3]);
-        }
-        spec.validate()?;
-        Ok(spec)
-    }
-
-    /// Renders the set (BOP, `train_pbr`) into `self.out`, which must not exist; a frame that
-    /// fails is an error past `synthgen render`'s default 1 % (`--max-failed-fraction`).
-    fn run(&self, command_line: &[String], printer: &Log) -> Result<()> {
-        let spec = self.spec()?;
-        let sources: Vec<ObjectSource> = self
-            .objects
-            .iter()
-            .enumerate()
-            .map(|(i, p)| ObjectSource {
-                obj_id: self.obj_ids.get(i).copied(),
-                ..ObjectSource::new(p.clone(), self.units)
-            })
-            .collect();
-        let _lock = OutputLock::acquire(&self.out)?;
-        let job = RenderJob::new(spec)
-            .objects(&sources)
-            .units(self.units)
-            .frames(0..self.frames)
-            .seed(self.seed)
-            .threads(self.jobs.unwrap_or(0))
-            .backend(Backend::Cpu)
-            .visib_delta_m(RENDER_VISIB_DELTA_M)
-            .build(printer)?;
-        let options = WriteOptions {
-            out: self.out.clone(),
-            sink: SinkOptions::new(Format::Bop),
-            resume: false,
-            fail_fast: false,
-            command_line: command_line.to_vec(),
-            first_frame: Some(0),
-            shard: None,
-        };
-        let t = std::time::Instant::now();
-        let report = job.write(&options, printer)?;
-        if let Some((i, e)) = report.failures.first() {
-            let what = format!(
-                "{} of {} frames of {} failed to render (first: frame {i}: {})",
-                report.failures.len(),
-                self.frames,
-                self.out.display(),
-                synthgen_pipeline::error_chain(e)
-            );
-            if report.failures.len() as f64 > RENDER_MAX_FAILED_FRACTION * self.frames as f64 {
-                return Err(user_error(what, "see the warnings above"));
-            }
-            printer.warning(format!("{what}; left out"));
-        }
-        printer.info(format!(
-            "rendered {} frames of {} into {} in {:.1} s",
-            report.written,
-            job.object_names().join(", "),
-            self.out.display(),
-            t.elapsed().as_secs_f64()
-        ));
-        Ok(())
-    }
-}
-
-/// `synthgen render`'s `--visib-delta-m` default (bop_toolkit's 15 mm), as the recorded
-/// command renders it.
-const RENDER_VISIB_DELTA_M: f64 = 0.015;
-/// `synthgen render`'s `--max-failed-fraction` default.
-const RENDER_MAX_FAILED_FRACTION: f64 = 0.01;
 
 /// The dataset folder of `plan`, rendering it first unless a finished render with the same
 /// arguments is there (its `OUT/sources/NAME.done` record).
@@ -404,11 +297,19 @@ pub fn ensure(
         },
         r.argv.join(" ")
     ));
-    let call = plan
-        .call
-        .as_ref()
-        .context("internal: a rendered source without its render call")?;
-    call.run(command_line, printer)?;
+    let call = RenderRequest {
+        command_line: command_line.to_vec(),
+        ..plan
+            .call
+            .clone()
+            .context("internal: a rendered source without its render call")?
+    };
+    if render(&call, printer)?.too_many_failed {
+        return Err(user_error(
+            format!("some frames of {} failed to render", dir.display()),
+            "see the warnings above",
+        ));
+    }
     atomic_write(&marker, record.as_bytes())?;
     Ok(dir)
 }

@@ -1,7 +1,10 @@
 //! The single steps the experiments chain, which the CLI's own commands run too: the object
 //! models of a dataset in a renderer (`models`), the scene and sensor fits written to files
-//! (`fit`), and conversion to BOP (`convert`).
+//! (`fit`), conversion (`convert`), a render as `synthgen render` runs it (`render`) and a replay of
+//! real frames at their GT poses (`replay`).
 
 pub mod convert;
 pub mod fit;
 pub mod models;
+pub mod render;
+pub mod replay;
