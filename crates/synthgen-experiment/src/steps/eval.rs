@@ -1,0 +1,524 @@
+//! An evaluation as `synthgen eval` runs it: a BOP results CSV, or a trained checkpoint, scored
+//! against a dataset (the per-object table, BOP's Average Recall, the centre table of a TNet,
+//! the stability report), the tables returned as the text the CLI prints on stdout, the JSON
+//! and results files written where asked.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use synthgen_formats::layout::open_source;
+use synthgen_formats::source::FrameSource;
+use synthgen_train::bop::{load_render_models, prepare_bop, BopOptions, BopReport, TargetsFrom};
+use synthgen_train::data::{load_source_instances, DataOptions, Instance};
+use synthgen_train::eval::{
+    eval_objects, evaluate, load_eval_objects, pick_split, prediction_estimates, read_gt,
+    score_predictions,
+};
+use synthgen_train::models::ModelKind;
+use synthgen_train::pose_model::{load_dataset_objects, Prediction};
+use synthgen_train::results::{read_results_csv, write_results_csv, Estimate};
+use synthgen_train::stability::{stability, to_markdown as stability_markdown, Sample};
+use synthgen_train::train::{self, centre_error_m, load_model, read_config, CONFIG_FILE};
+
+use synthgen_render::ObjectRenderer;
+
+use std::path::PathBuf;
+use std::sync::Mutex;
+
+use synthgen_core::Progress;
+use synthgen_train::metrics::Rotations;
+
+use crate::{user_error, Log};
+
+/// What to evaluate: `synthgen eval`'s arguments as data.
+#[derive(Debug, Clone)]
+pub struct EvalRequest {
+    /// The dataset with the GT (BOP, Linemod or YCB-Video).
+    pub data: PathBuf,
+    /// A BOP results CSV to score (or `checkpoint`).
+    pub results: Option<PathBuf>,
+    /// A trained model to run and score (or `results`).
+    pub checkpoint: Option<PathBuf>,
+    pub split: Option<String>,
+    pub min_visib_fract: f64,
+    /// Write the scores as JSON here.
+    pub json: Option<PathBuf>,
+    pub seed: u64,
+    /// Write the checkpoint's estimates as a BOP results CSV here.
+    pub save_results: Option<PathBuf>,
+    /// Also BOP's Average Recall (VSD, MSSD, MSPD).
+    pub bop: bool,
+    pub targets: Option<PathBuf>,
+    /// Write the per-estimate BOP errors here.
+    pub bop_errors: Option<PathBuf>,
+    pub visib_gt_min: f64,
+    /// The stability report instead of the scores.
+    pub stability: bool,
+    pub rotations: Rotations,
+    /// Run the checkpoint on the GPU.
+    pub cuda: bool,
+}
+
+/// What an evaluation printed and whether it counts as failed.
+#[derive(Debug, Clone, Default)]
+pub struct EvalOutcome {
+    /// The tables, in order: what the CLI prints on stdout.
+    pub stdout: String,
+    /// Why the evaluation counts as failed though it scored (results rows that could not be
+    /// read): the CLI prints it as an error and exits with 1.
+    pub failed: Option<String>,
+}
+
+/// The caller's progress for messages, the tables collected in order.
+struct Printer<'a> {
+    log: Log<'a>,
+    stdout: Mutex<String>,
+    failed: Mutex<Option<String>>,
+}
+
+impl Printer<'_> {
+    fn info(&self, msg: impl AsRef<str>) {
+        self.log.info(msg);
+    }
+
+    fn warning(&self, msg: impl AsRef<str>) {
+        self.log.warning(msg);
+    }
+
+    fn data(&self, text: impl AsRef<str>) -> Result<()> {
+        if let Ok(mut s) = self.stdout.lock() {
+            s.push_str(text.as_ref());
+        }
+        Ok(())
+    }
+
+    fn error(&self, msg: impl AsRef<str>) {
+        if let Ok(mut f) = self.failed.lock() {
+            *f = Some(msg.as_ref().to_string());
+        }
+    }
+}
+
+impl Progress for Printer<'_> {
+    fn start(&self, label: &str, total: u64) {
+        self.log.start(label, total);
+    }
+    fn advance(&self, n: u64) {
+        self.log.advance(n);
+    }
+    fn warn(&self, message: &str) {
+        self.log.warning(message);
+    }
+    fn info(&self, message: &str) {
+        self.log.info(message);
+    }
+    fn hint(&self, message: &str) {
+        self.log.hint(message);
+    }
+    fn finish(&self) {
+        self.log.finish();
+    }
+}
+
+/// The outcome of a step: `Success`, or `Failure` (scored, but with a problem to report).
+#[derive(PartialEq)]
+enum ExitStatus {
+    Success,
+    Failure,
+}
+
+/// Evaluates `req`; messages go to `progress`, the tables into the outcome.
+pub fn evaluate_request(req: &EvalRequest, progress: &dyn Progress) -> Result<EvalOutcome> {
+    let printer = &Printer {
+        log: Log::new(progress),
+        stdout: Mutex::new(String::new()),
+        failed: Mutex::new(None),
+    };
+    let args = req;
+    match (&args.results, &args.checkpoint) {
+        (Some(csv), None) => run_results(args, csv, printer)?,
+        (None, Some(ckpt)) => run_checkpoint(args, ckpt, printer)?,
+        _ => {
+            return Err(user_error(
+                "give one of --results and --checkpoint",
+                "synthgen eval --results results.csv --data DIR",
+            ))
+        }
+    };
+    fn take<T: Default>(m: &Mutex<T>) -> T {
+        m.lock()
+            .map(|mut v| std::mem::take(&mut *v))
+            .unwrap_or_default()
+    }
+    Ok(EvalOutcome {
+        stdout: take(&printer.stdout),
+        failed: take(&printer.failed),
+    })
+}
+
+/// The dataset in --data, BOP or Linemod (detected).
+fn open_dataset(dir: &Path) -> Result<Box<dyn FrameSource>> {
+    open_source(dir).with_context(|| format!("cannot open the dataset {}", dir.display()))
+}
+
+fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
+    let text = serde_json::to_string_pretty(value)?;
+    std::fs::write(path, text + "\n").with_context(|| format!("cannot write {}", path.display()))
+}
+
+fn run_results(args: &EvalRequest, csv: &Path, printer: &Printer<'_>) -> Result<ExitStatus> {
+    let ds = open_dataset(&args.data)?;
+    let split = pick_split(ds.as_ref(), args.split.as_deref())?;
+    let gts = read_gt(ds.as_ref(), &split, args.min_visib_fract)?;
+    let results = read_results_csv(csv)?;
+    let estimates = results.estimates;
+    let objects = load_eval_objects(ds.as_ref(), gts.iter().map(|g| g.obj_id))?;
+    let report = evaluate(&gts, &estimates, &objects, args.rotations)?;
+    printer.info(format!(
+        "{} estimates from {} against {} GT instances of {}/{}",
+        estimates.len(),
+        csv.display(),
+        gts.len(),
+        args.data.display(),
+        split
+    ));
+    if report.unmatched_estimates > 0 {
+        printer.warning(format!(
+            "{} estimates not scored (no GT of that object in that image, or more estimates than GT instances)",
+            report.unmatched_estimates
+        ));
+    }
+    printer.data(report.to_markdown(&objects))?;
+    let mut json = report.to_json();
+    if args.bop {
+        let bop = bop_scores(args, ds.as_ref(), &split, &estimates, printer)?;
+        json["bop"] = serde_json::to_value(&bop)?;
+    }
+    if let Some(path) = &args.json {
+        write_json(path, &json)?;
+        printer.info(format!("wrote {}", path.display()));
+    }
+    // Bad rows were skipped, not fatal (ripgrep-style): the scores are of the good rows, and
+    // the exit code says some were left out.
+    if results.skipped.is_empty() {
+        return Ok(ExitStatus::Success);
+    }
+    for p in results.skipped.iter().take(10) {
+        printer.warning(format!(
+            "{}:{}: {} (row skipped)",
+            csv.display(),
+            p.line,
+            p.message
+        ));
+    }
+    if results.skipped.len() > 10 {
+        printer.warning(format!(
+            "... and {} more bad rows",
+            results.skipped.len() - 10
+        ));
+    }
+    printer.error(format!(
+        "{} of {} rows of {} could not be read and were skipped; the scores above are of the others",
+        results.skipped.len(),
+        results.skipped.len() + estimates.len(),
+        csv.display()
+    ));
+    Ok(ExitStatus::Failure)
+}
+
+#[derive(Default)]
+struct CentreAcc {
+    errors_m: Vec<f64>,
+}
+
+impl CentreAcc {
+    fn json(&self) -> serde_json::Value {
+        let mut e = self.errors_m.clone();
+        e.sort_by(f64::total_cmp);
+        let n = e.len();
+        let mean = e.iter().sum::<f64>() / n.max(1) as f64;
+        let q = |p: f64| {
+            e.get(((n as f64 - 1.0) * p).round() as usize)
+                .copied()
+                .unwrap_or(f64::NAN)
+        };
+        let frac = |t: f64| e.iter().filter(|&&v| v < t).count() as f64 / n.max(1) as f64;
+        serde_json::json!({
+            "n": n,
+            "mean_centre_error_cm": mean * 100.0,
+            "median_centre_error_cm": q(0.5) * 100.0,
+            "p90_centre_error_cm": q(0.9) * 100.0,
+            "acc_1cm": frac(0.01),
+            "acc_2cm": frac(0.02),
+        })
+    }
+}
+
+fn run_checkpoint(args: &EvalRequest, ckpt: &Path, printer: &Printer<'_>) -> Result<ExitStatus> {
+    let config_path = ckpt.with_file_name(CONFIG_FILE);
+    if !config_path.exists() {
+        return Err(user_error(
+            format!("no {CONFIG_FILE} beside {}", ckpt.display()),
+            "pass the model.safetensors of a folder written by `synthgen train`",
+        ));
+    }
+    let cfg = read_config(&config_path)?;
+    if args.save_results.is_some()
+        && !matches!(
+            cfg.model,
+            ModelKind::Full | ModelKind::Rgb | ModelKind::RgbDense
+        )
+    {
+        return Err(user_error(
+            format!(
+                "--save-results needs whole poses, and a {} checkpoint predicts {} only",
+                cfg.model.name(),
+                if cfg.model == ModelKind::Tnet {
+                    "the object centre"
+                } else {
+                    "the rotation"
+                }
+            ),
+            "save the results of a full or rgb checkpoint",
+        ));
+    }
+    let device = train::device(args.cuda)?;
+    let model = load_model(ckpt, &cfg, &device)?;
+    let opts = DataOptions {
+        min_visib_fract: args.min_visib_fract,
+        seed: args.seed,
+        split: args.split.clone(),
+        ..cfg.data_options()
+    };
+    let ds = open_dataset(&args.data)?;
+    let mut set = load_source_instances(ds.as_ref(), &opts, printer)
+        .with_context(|| format!("cannot load {}", args.data.display()))?;
+    if cfg.model.is_rgb_only() {
+        // One head per trained object: others get no estimate (and so count as misses).
+        let before = set.instances.len();
+        set.instances.retain(|i| cfg.classes.contains(&i.obj_id));
+        if set.instances.len() < before {
+            printer.warning(format!(
+                "{} instances of objects the {} model was not trained on (its classes: {:?}) get no estimate",
+                before - set.instances.len(),
+                cfg.model.name(),
+                cfg.classes
+            ));
+        }
+    }
+    if set.instances.is_empty() {
+        return Err(user_error(
+            format!("no usable object instances in {}", args.data.display()),
+            if cfg.model.is_rgb_only() {
+                "check that the dataset has rgb/ and mask_visib/ images of the model's objects"
+            } else {
+                "check that the dataset has depth/ and mask_visib/ images"
+            },
+        ));
+    }
+    // The models of every object with GT in the split: those the model has no class for are
+    // scored as misses.
+    let (objects, gts) = if !cfg.model.predicts_rotation() {
+        (None, Vec::new())
+    } else {
+        let gts = read_gt(ds.as_ref(), &set.split, args.min_visib_fract)?;
+        let mut ids = set.obj_ids();
+        ids.extend(gts.iter().map(|g| g.obj_id));
+        let objects = load_dataset_objects(ds.as_ref(), ids, cfg.loss_points)
+            .with_context(|| format!("cannot load the object models of {}", args.data.display()))?;
+        (Some(objects), gts)
+    };
+    let refs: Vec<_> = set.instances.iter().collect();
+    let preds = model.predict(&refs, objects.as_ref(), 64)?;
+    if let Some(path) = &args.save_results {
+        write_results_csv(path, &prediction_estimates(&preds, &set.instances))?;
+        printer.info(format!(
+            "wrote {} estimates to {}",
+            preds.len(),
+            path.display()
+        ));
+    }
+    printer.info(format!(
+        "{} on {} instances of {}/{} ({} skipped: too few valid pixels)",
+        cfg.model.name(),
+        set.instances.len(),
+        args.data.display(),
+        set.split,
+        set.skipped_few_pixels
+    ));
+    if cfg.model.is_rgb_only() {
+        printer.info(format!(
+            "{}: each instance's crop is cut around its GT visible box (bbox_visib; no detector)",
+            cfg.model.name()
+        ));
+    }
+    if cfg.model == ModelKind::Rnet {
+        printer.warning(
+            "rnet predicts rotation only: its poses take the GT translation (E_te = 0, ADD(-S) measures rotation alone)",
+        );
+    }
+    if args.stability {
+        let samples: Vec<Sample> = preds
+            .iter()
+            .zip(&set.instances)
+            .map(|(p, i)| Sample {
+                obj_id: i.obj_id,
+                gt: i.pose,
+                est: p.pose(i.pose.translation_m),
+            })
+            .collect();
+        let groups = stability(&samples, 2);
+        if groups.is_empty() {
+            return Err(user_error(
+                format!(
+                    "no object has the same GT pose in two or more frames of {}",
+                    args.data.display()
+                ),
+                "--stability needs repeated frames of a static object (same GT pose)",
+            ));
+        }
+        printer.info(format!(
+            "{} groups of frames with the same GT pose",
+            groups.len()
+        ));
+        printer.data(stability_markdown(&groups))?;
+        if let Some(path) = &args.json {
+            write_json(path, &serde_json::json!({ "stability": groups }))?;
+            printer.info(format!("wrote {}", path.display()));
+        }
+        return Ok(ExitStatus::Success);
+    }
+    if cfg.model == ModelKind::Tnet {
+        if args.bop {
+            return Err(user_error(
+                "--bop needs whole poses, and a tnet checkpoint predicts the object centre only",
+                "evaluate a full (or rnet) checkpoint with --bop, or drop --bop for the centre error",
+            ));
+        }
+        return centre_table(args, &set.instances, &preds, printer);
+    }
+    // Rotation models: score the estimates like a results CSV against the split's GT.
+    let Some(objects) = objects else {
+        return Err(anyhow::anyhow!("internal: objects not loaded"));
+    };
+    let report = score_predictions(&preds, &set.instances, &gts, &objects, args.rotations)?;
+    printer.data(report.to_markdown(&eval_objects(&objects)))?;
+    let mut json = report.to_json();
+    if args.bop {
+        let estimates = prediction_estimates(&preds, &set.instances);
+        let bop = bop_scores(args, ds.as_ref(), &set.split, &estimates, printer)?;
+        json["bop"] = serde_json::to_value(&bop)?;
+    }
+    if let Some(path) = &args.json {
+        write_json(path, &json)?;
+        printer.info(format!("wrote {}", path.display()));
+    }
+    Ok(ExitStatus::Success)
+}
+
+fn centre_table(
+    args: &EvalRequest,
+    instances: &[Instance],
+    preds: &[Prediction],
+    printer: &Printer<'_>,
+) -> Result<ExitStatus> {
+    let mut per_obj: BTreeMap<u32, CentreAcc> = BTreeMap::new();
+    let mut all = CentreAcc::default();
+    for (p, inst) in preds.iter().zip(instances) {
+        let Some(c) = p.centre_m else { continue };
+        let e = centre_error_m(c, inst);
+        per_obj.entry(inst.obj_id).or_default().errors_m.push(e);
+        all.errors_m.push(e);
+    }
+    let mut json = serde_json::Map::new();
+    let mut md = String::from(
+        "| object | n | mean centre error cm | median cm | p90 cm | < 1 cm | < 2 cm |\n|---|---:|---:|---:|---:|---:|---:|\n",
+    );
+    let rows = per_obj
+        .iter()
+        .map(|(id, a)| (id.to_string(), a))
+        .chain(std::iter::once(("all".to_string(), &all)));
+    for (name, a) in rows {
+        let j = a.json();
+        md += &format!(
+            "| {name} | {} | {:.2} | {:.2} | {:.2} | {:.1}% | {:.1}% |\n",
+            j["n"],
+            j["mean_centre_error_cm"].as_f64().unwrap_or(f64::NAN),
+            j["median_centre_error_cm"].as_f64().unwrap_or(f64::NAN),
+            j["p90_centre_error_cm"].as_f64().unwrap_or(f64::NAN),
+            100.0 * j["acc_1cm"].as_f64().unwrap_or(0.0),
+            100.0 * j["acc_2cm"].as_f64().unwrap_or(0.0),
+        );
+        json.insert(name, j);
+    }
+    printer.data(&md)?;
+    if let Some(path) = &args.json {
+        write_json(path, &serde_json::Value::Object(json))?;
+        printer.info(format!("wrote {}", path.display()));
+    }
+    Ok(ExitStatus::Success)
+}
+
+/// BOP's Average Recall of `estimates` on `split` of `ds` (`--bop`), printed as a table.
+fn bop_scores(
+    args: &EvalRequest,
+    ds: &dyn FrameSource,
+    split: &str,
+    estimates: &[Estimate],
+    printer: &Printer<'_>,
+) -> Result<BopReport> {
+    let opts = BopOptions {
+        visib_gt_min: args.visib_gt_min,
+        ..BopOptions::default()
+    };
+    let setup = prepare_bop(ds, split, args.targets.as_deref(), &opts)
+        .with_context(|| format!("cannot prepare BOP scoring of {}", args.data.display()))?;
+    if let TargetsFrom::DatasetFile(p) = &setup.targets_from {
+        printer.info(format!("BOP targets from {}", p.display()));
+    }
+    let renderer = ObjectRenderer::new(load_render_models(ds, setup.obj_ids())?)?;
+    let report = setup.evaluate(estimates, Some(&renderer), &opts, printer)?;
+    let c = &report.counts;
+    printer.info(format!(
+        "BOP 2019: {} targets ({} instances), {} estimates scored",
+        c.targets, c.target_instances, c.estimates_scored
+    ));
+    for (n, what) in [
+        (
+            c.estimates_beyond_top_n,
+            "beyond the inst_count best of their target (dropped, as bop_toolkit does)",
+        ),
+        (
+            c.estimates_not_target,
+            "for an (image, object) that is not a target",
+        ),
+        (
+            c.estimates_unknown_image,
+            "for an image the dataset does not have",
+        ),
+        (
+            c.estimates_unknown_object,
+            "for an object the dataset has no model of",
+        ),
+    ] {
+        if n > 0 {
+            printer.warning(format!("{n} estimates not scored: {what}"));
+        }
+    }
+    if c.targets_repeated > 0 {
+        printer.warning(format!(
+            "{} entries of the targets file repeat an (image, object) listed before: the last one's inst_count counts, as bop_toolkit reads them",
+            c.targets_repeated
+        ));
+    }
+    if let Some(note) = &report.note {
+        printer.warning(note.clone());
+    }
+    if let Some(path) = &args.bop_errors {
+        write_json(path, &serde_json::to_value(&report.errors)?)?;
+        printer.info(format!("wrote {}", path.display()));
+    }
+    printer.data(format!("\n{}", report.to_markdown()))?;
+    Ok(report)
+}
