@@ -110,13 +110,13 @@ impl ToPyErr for synthgen_render::Error {
 /// decides its exit code and prints its hint.
 impl ToPyErr for anyhow::Error {
     fn to_py_err(&self) -> PyErr {
-        let kind = if synthgen_experiment::is_user_error(self) {
+        let kind = if synthgen_jobs::is_user_error(self) {
             Kind::Input
         } else {
             Kind::Internal
         };
         let e: &(dyn std::error::Error + 'static) = self.as_ref();
-        py_err(kind, e, synthgen_experiment::error_hint(self).as_deref())
+        py_err(kind, e, synthgen_jobs::error_hint(self).as_deref())
     }
 }
 

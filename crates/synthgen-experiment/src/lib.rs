@@ -16,8 +16,9 @@
 //!   `Sim2realModel::Rgb`/`RgbDense` the RGB models on RGB-only real photographs.
 //! - [`rgb::run`] — `experiment rgb`: seed 001's Table 1, the RGB model's two translation
 //!   parametrizations on the same crops.
-//! - [`steps`] — the single steps they chain, which the CLI's own commands (`convert`,
-//!   `scene fit`, `sensor fit`, `annotate`, `render --replay`) run too.
+//!
+//! The single steps they chain (a render, a conversion, the fits, a training run, an
+//! evaluation) are `synthgen_jobs`, which the CLI's own commands run too.
 //!
 //! Messages and progress go to the caller's `synthgen_core::Progress` (through [`Log`]);
 //! errors are `anyhow` errors, those about the request itself carrying a
@@ -25,63 +26,12 @@
 //! CLI prints). What an experiment records as its reproducing command is the options'
 //! `command_line`.
 
-mod log;
 pub mod mix;
 pub mod options;
 pub mod rgb;
 mod settings;
 pub mod sim2real;
-pub mod steps;
 
-pub use log::Log;
 pub use mix::run_mix;
 pub use options::{MixOptions, Model, RgbOptions, Sim2realModel, Sim2realOptions, TrainBudget};
-
-/// An error about the request (a flag, a file, a combination of options) with a hint on what
-/// to do instead: a `synthgen_core::UserError` (the CLI exits with 1 on it and prints the hint).
-pub fn user_error(message: impl Into<String>, hint: impl Into<String>) -> anyhow::Error {
-    anyhow::Error::new(synthgen_core::UserError::new(message, hint))
-}
-
-/// Whether an error is about the request or the input (a file, a flag, a dataset) rather
-/// than a bug: the CLI's exit code 1 (else 2), Python's `InputError` (else `InternalError`).
-pub fn is_user_error(err: &anyhow::Error) -> bool {
-    err.chain().any(|c| {
-        c.is::<synthgen_core::Error>()
-            || c.is::<synthgen_assets::Error>()
-            || c.is::<synthgen_formats::Error>()
-            || c.downcast_ref::<synthgen_train::Error>()
-                .is_some_and(|e| !matches!(e, synthgen_train::Error::Candle(_)))
-            || c.is::<std::io::Error>()
-            || c.is::<synthgen_core::UserError>()
-            || c.downcast_ref::<synthgen_pipeline::Error>()
-                .is_some_and(synthgen_pipeline::Error::is_user_error)
-    })
-}
-
-/// What the user can do about an error: the hint of a `UserError` or a pipeline error in its
-/// chain; for a rotation beyond the reading tolerance, how to accept it.
-pub fn error_hint(err: &anyhow::Error) -> Option<String> {
-    let given = err.chain().find_map(|c| {
-        if let Some(u) = c.downcast_ref::<synthgen_core::UserError>() {
-            return u.hint.clone();
-        }
-        c.downcast_ref::<synthgen_pipeline::Error>()
-            .and_then(|e| e.hint().map(str::to_string))
-    });
-    given.or_else(|| {
-        // A rotation beyond the reading tolerance: say how to accept it if it is real data.
-        err.chain()
-            .any(|c| {
-                let s = c.to_string();
-                s.contains("rotation") && s.contains("(tolerance ")
-            })
-            .then(|| {
-                format!(
-                    "real annotations store approximate rotations; if this one is acceptable, raise \
-                     --rotation-tolerance (now {})",
-                    synthgen_core::pose::rotation_tolerance()
-                )
-            })
-    })
-}
+pub use synthgen_jobs::{user_error, Log};

@@ -23,7 +23,7 @@ use synthgen_render::ObjectRenderer;
 use crate::cli::AnnotateArgs;
 use crate::commands::user_error;
 use crate::{ExitStatus, Printer};
-use synthgen_experiment::steps::models::{frame_obj_ids, object_renderer};
+use synthgen_jobs::models::{frame_obj_ids, object_renderer};
 
 /// One instance's computed visible mask against the dataset's own.
 #[derive(Debug, Clone, Serialize)]

@@ -1,9 +1,9 @@
 //! `synthgen convert`: BOP ⇄ Linemod, YCB-Video → BOP and Linemod, BOP and Linemod → YCB-Video.
-//! A skin over `synthgen_experiment::steps::convert`.
+//! A skin over `synthgen_jobs::convert`.
 
 use anyhow::Result;
-use synthgen_experiment::steps::convert::{convert_dataset, ConvertRequest};
 use synthgen_formats::layout::Layout;
+use synthgen_jobs::convert::{convert_dataset, ConvertRequest};
 
 use crate::cli::{ConvertArgs, FormatArg};
 use crate::{ExitStatus, Printer};

@@ -1,9 +1,9 @@
 //! `synthgen eval`: score a BOP results CSV, or a trained checkpoint, against a dataset. A skin
-//! over `synthgen_experiment::steps::eval`: flags → `EvalRequest`, the tables on stdout, exit
+//! over `synthgen_jobs::eval`: flags → `EvalRequest`, the tables on stdout, exit
 //! 1 when some results rows could not be read.
 
 use anyhow::Result;
-use synthgen_experiment::steps::eval::{evaluate_request, EvalRequest};
+use synthgen_jobs::eval::{evaluate_request, EvalRequest};
 
 use crate::cli::{DeviceArg, EvalArgs};
 use crate::{ExitStatus, Printer};

@@ -15,7 +15,7 @@ use crate::cli::{MixArgs, PathOrCount};
 use crate::commands::user_error;
 use crate::config::{self, Config, CONFIG_FILE};
 use crate::{ExitStatus, Printer};
-use synthgen_experiment::steps::models::{frame_obj_ids, object_renderer};
+use synthgen_jobs::models::{frame_obj_ids, object_renderer};
 
 pub const ENV_REAL: &str = "SYNTHGEN_REAL";
 pub const ENV_SYNTH: &str = "SYNTHGEN_SYNTH";

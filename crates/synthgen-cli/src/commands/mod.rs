@@ -24,8 +24,8 @@ use crate::ExitStatus;
 /// Bad input (a broken mesh, a malformed spec, an unwritable folder) exits with 1; anything
 /// else is an internal error (2).
 pub fn exit_status_for(err: &anyhow::Error) -> ExitStatus {
-    let user = synthgen_experiment::is_user_error(err)
-        || err.chain().any(|c| c.is::<synthgen_view::Error>());
+    let user =
+        synthgen_jobs::is_user_error(err) || err.chain().any(|c| c.is::<synthgen_view::Error>());
     if user {
         ExitStatus::Failure
     } else {
@@ -35,8 +35,8 @@ pub fn exit_status_for(err: &anyhow::Error) -> ExitStatus {
 
 pub use synthgen_core::UserError;
 
-pub use synthgen_experiment::user_error;
+pub use synthgen_jobs::user_error;
 
 pub fn hint_for(err: &anyhow::Error) -> Option<String> {
-    synthgen_experiment::error_hint(err)
+    synthgen_jobs::error_hint(err)
 }

@@ -9,7 +9,7 @@ use synthgen_assets::{load_model, Units};
 use synthgen_formats::layout::open_source;
 use synthgen_physics::align::{align, AlignOptions, Alignment};
 
-use synthgen_experiment::steps::models::{files_with_extensions, model_name};
+use synthgen_jobs::models::{files_with_extensions, model_name};
 
 use crate::cli::ModelAlignArgs;
 use crate::commands::user_error;

@@ -1,11 +1,11 @@
 //! `synthgen render`: sample scenes, render them, write a BOP, Linemod or YCB-Video dataset.
-//! A skin over `synthgen_experiment::steps::render`: flags → `RenderRequest` → the render (its
+//! A skin over `synthgen_jobs::render`: flags → `RenderRequest` → the render (its
 //! warnings, summary and hints on the printer) → the exit status.
 
 use anyhow::Result;
 use synthgen_assets::Units;
 use synthgen_core::scene::{BackgroundKind, Orientation};
-use synthgen_experiment::steps::render::{render, RenderRequest, SpecOverrides};
+use synthgen_jobs::render::{render, RenderRequest, SpecOverrides};
 
 use crate::cli::{BackgroundArg, OrientationArg, RenderArgs, UnitsArg};
 use crate::commands::render_flags::{check_backend, job_backend, sink_options};

@@ -1,8 +1,8 @@
-//! `synthgen render --replay REAL_DIR`: a skin over `synthgen_experiment::steps::replay` (the
+//! `synthgen render --replay REAL_DIR`: a skin over `synthgen_jobs::replay` (the
 //! synthetic twin of an annotated dataset).
 
 use anyhow::Result;
-use synthgen_experiment::steps::replay::{replay, ReplayRequest};
+use synthgen_jobs::replay::{replay, ReplayRequest};
 
 use crate::cli::RenderArgs;
 use crate::commands::render_flags::{check_backend, job_backend, sink_options};

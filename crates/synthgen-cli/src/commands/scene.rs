@@ -10,7 +10,7 @@ use synthgen_fit::scene_fit::{self, Observed, SceneFit};
 use crate::cli::SceneFitArgs;
 use crate::commands::user_error;
 use crate::{ExitStatus, Printer};
-use synthgen_experiment::steps::fit::fit_scene_to_file;
+use synthgen_jobs::fit::fit_scene_to_file;
 
 pub fn run_fit(args: SceneFitArgs, printer: &Printer) -> Result<ExitStatus> {
     if args.out.exists() && !args.force {

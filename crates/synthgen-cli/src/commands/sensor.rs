@@ -13,7 +13,7 @@ use synthgen_formats::layout::open_source;
 use crate::cli::{SensorCompareArgs, SensorCompareRgbArgs, SensorFitArgs};
 use crate::commands::user_error;
 use crate::{ExitStatus, Printer};
-use synthgen_experiment::steps::fit::{fit_sensor_to_file, measure};
+use synthgen_jobs::fit::{fit_sensor_to_file, measure};
 
 fn thread_pool(jobs: Option<usize>) -> Result<rayon::ThreadPool> {
     rayon::ThreadPoolBuilder::new()

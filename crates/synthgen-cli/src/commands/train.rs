@@ -1,8 +1,8 @@
-//! `synthgen train`: a skin over `synthgen_experiment::steps::train` (flags → the run's
+//! `synthgen train`: a skin over `synthgen_jobs::train` (flags → the run's
 //! configuration → the run, its epochs and summary on the printer).
 
 use anyhow::Result;
-use synthgen_experiment::steps::train::{train_run, TrainRequest};
+use synthgen_jobs::train::{train_run, TrainRequest};
 use synthgen_train::models::rgb::{Translation, DEFAULT_RGB_CROP};
 use synthgen_train::models::rnet::DEFAULT_CROP;
 use synthgen_train::models::tnet::DEFAULT_SCALE;

@@ -6,7 +6,7 @@ use synthgen_formats::validate::{validate, Checks};
 
 use crate::cli::ValidateArgs;
 use crate::{ExitStatus, Printer};
-use synthgen_experiment::steps::convert::layout_of;
+use synthgen_jobs::convert::layout_of;
 
 pub fn run(args: ValidateArgs, printer: &Printer) -> Result<ExitStatus> {
     let layout = layout_of(

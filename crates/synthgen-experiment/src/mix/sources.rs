@@ -14,10 +14,10 @@ use synthgen_formats::layout::Layout;
 use super::real::RenderObjects;
 use crate::options::MixOptions;
 use crate::settings::absolute;
-use crate::steps::convert::{convert_dataset, ConvertRequest};
-use crate::steps::render::{render, RenderRequest};
 use crate::user_error;
 use crate::Log;
+use synthgen_jobs::convert::{convert_dataset, ConvertRequest};
+use synthgen_jobs::render::{render, RenderRequest};
 
 /// The stand-in for real captures (`--real-proxy`).
 pub const REAL_PROXY_TOML: &str = include_str!("../../../../scenes/real_proxy.toml");
@@ -71,7 +71,7 @@ pub fn plan(
     let real = match &args.real {
         Some(dir) => {
             let dir = existing(dir, "real")?;
-            let layout = crate::steps::convert::layout_of(&dir, None, "--real")?;
+            let layout = synthgen_jobs::convert::layout_of(&dir, None, "--real")?;
             // Linemod and YCB-Video sets are converted to BOP once: the mixes need BOP's
             // mask/ and scene_gt_info, which the conversion computes.
             let settings = if matches!(layout, Layout::Linemod | Layout::Ycbv) {

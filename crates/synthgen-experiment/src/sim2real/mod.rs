@@ -772,7 +772,7 @@ fn ensure_fits(s: &Settings, dir: &Path, printer: &Log) -> Result<bool> {
     }
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     printer.info(format!("fitting the sensor to {}", s.fit.display()));
-    let sensor = crate::steps::fit::fit_sensor_to_file(
+    let sensor = synthgen_jobs::fit::fit_sensor_to_file(
         &s.fit,
         &s.fit_scenes,
         0.02,
@@ -785,7 +785,7 @@ fn ensure_fits(s: &Settings, dir: &Path, printer: &Log) -> Result<bool> {
         (serde_json::to_string_pretty(&sensor)? + "\n").as_bytes(),
     )?;
     printer.info(format!("fitting the scene to {}", s.fit.display()));
-    let scene = crate::steps::fit::fit_scene_to_file(
+    let scene = synthgen_jobs::fit::fit_scene_to_file(
         &s.fit,
         &s.fit_scenes,
         Some(&dir.join("sensor.toml")),

@@ -563,7 +563,7 @@ fn replace_models(
     notes: &mut Vec<String>,
 ) -> Result<()> {
     let ids: Vec<u32> = objects.iter().map(|o| o.obj_id).collect();
-    let (meshes, kept) = crate::steps::models::replacement_meshes(test, dir, ids, "--models")?;
+    let (meshes, kept) = synthgen_jobs::models::replacement_meshes(test, dir, ids, "--models")?;
     for (o, mesh) in objects.iter_mut().zip(meshes) {
         let Some(mesh) = mesh else { continue };
         o.model = mesh.canonicalize().unwrap_or(mesh);
@@ -606,7 +606,7 @@ fn ensure_scene_fit(fit: &Path, scenes: &[u32], dir: &Path, printer: &Log) -> Re
     }
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     printer.info(format!("fitting the scene to {}", fit.display()));
-    let scene = crate::steps::fit::fit_scene_to_file(
+    let scene = synthgen_jobs::fit::fit_scene_to_file(
         fit,
         scenes,
         None::<&Path>,

@@ -18,7 +18,7 @@ use synthgen_formats::source::FrameSource;
 use synthgen_formats::ycbv::{YcbvSource, YcbvWriterOptions};
 use synthgen_render::ObjectRenderer;
 
-use crate::steps::models::{frame_obj_ids, object_renderer};
+use crate::models::{frame_obj_ids, object_renderer};
 use crate::{user_error, Log};
 
 /// What to convert: `synthgen convert`'s arguments.

@@ -24,8 +24,8 @@ use synthgen_render::SensorModel;
 
 use synthgen_pipeline::{Backend, Format, SinkOptions};
 
-use crate::steps::models::{frame_obj_ids, load_models, replacement_meshes};
-use crate::steps::render::sensor_flag;
+use crate::models::{frame_obj_ids, load_models, replacement_meshes};
+use crate::render::sensor_flag;
 use crate::{user_error, Log};
 
 /// Images per scene folder in the output: frame index = scene_id × this + im_id, so the BOP

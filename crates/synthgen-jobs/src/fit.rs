@@ -15,7 +15,7 @@ use synthgen_formats::layout::open_source;
 use synthgen_formats::source::FrameSource;
 use synthgen_render::ObjectRenderer;
 
-use crate::steps::models::{frame_obj_ids, load_models, object_renderer};
+use crate::models::{frame_obj_ids, load_models, object_renderer};
 use crate::Log;
 
 /// Fits a scene to the frames of `data` (in `scenes`, all when empty) and writes it to `out`

@@ -1,0 +1,79 @@
+//! The jobs a user runs, as library calls: the single steps of synthgen's pipeline with their
+//! guards, messages and files, exactly as the CLI's commands run them (the CLI and the Python
+//! package only map their arguments onto the requests here), and which the experiments
+//! (`synthgen-experiment`) chain.
+//!
+//! - [`render`] — `synthgen render`: a [`render::RenderRequest`] (scene file and overrides,
+//!   objects, frames or a shard, output) → `synthgen_pipeline::RenderJob` → `write`.
+//! - [`replay`] — `synthgen render --replay`: real frames rendered again at their GT poses.
+//! - [`convert`] — `synthgen convert`: BOP, Linemod and YCB-Video into one another.
+//! - [`fit`] — `synthgen scene fit` and `sensor fit`: the fits written as TOML files.
+//! - [`train`] — `synthgen train`: a training run in a run folder.
+//! - [`eval`] — `synthgen eval`: a results CSV or a checkpoint scored against a dataset.
+//! - [`models`] — a dataset's object models in an `ObjectRenderer`, replacement meshes.
+//!
+//! Messages and progress go to the caller's `synthgen_core::Progress` (through [`Log`]);
+//! errors are `anyhow` errors, those about the request carrying a `synthgen_core::UserError`
+//! with a hint; [`is_user_error`] and [`error_hint`] tell the CLI's exit code and hint (and
+//! Python's exception) from any of them.
+
+mod log;
+
+pub mod convert;
+pub mod eval;
+pub mod fit;
+pub mod models;
+pub mod render;
+pub mod replay;
+pub mod train;
+
+pub use log::Log;
+
+/// An error about the request (a flag, a file, a combination of options) with a hint on what
+/// to do instead: a `synthgen_core::UserError` (the CLI exits with 1 on it and prints the hint).
+pub fn user_error(message: impl Into<String>, hint: impl Into<String>) -> anyhow::Error {
+    anyhow::Error::new(synthgen_core::UserError::new(message, hint))
+}
+
+/// Whether an error is about the request or the input (a file, a flag, a dataset) rather
+/// than a bug: the CLI's exit code 1 (else 2), Python's `InputError` (else `InternalError`).
+pub fn is_user_error(err: &anyhow::Error) -> bool {
+    err.chain().any(|c| {
+        c.is::<synthgen_core::Error>()
+            || c.is::<synthgen_assets::Error>()
+            || c.is::<synthgen_formats::Error>()
+            || c.downcast_ref::<synthgen_train::Error>()
+                .is_some_and(|e| !matches!(e, synthgen_train::Error::Candle(_)))
+            || c.is::<std::io::Error>()
+            || c.is::<synthgen_core::UserError>()
+            || c.downcast_ref::<synthgen_pipeline::Error>()
+                .is_some_and(synthgen_pipeline::Error::is_user_error)
+    })
+}
+
+/// What the user can do about an error: the hint of a `UserError` or a pipeline error in its
+/// chain; for a rotation beyond the reading tolerance, how to accept it.
+pub fn error_hint(err: &anyhow::Error) -> Option<String> {
+    let given = err.chain().find_map(|c| {
+        if let Some(u) = c.downcast_ref::<synthgen_core::UserError>() {
+            return u.hint.clone();
+        }
+        c.downcast_ref::<synthgen_pipeline::Error>()
+            .and_then(|e| e.hint().map(str::to_string))
+    });
+    given.or_else(|| {
+        // A rotation beyond the reading tolerance: say how to accept it if it is real data.
+        err.chain()
+            .any(|c| {
+                let s = c.to_string();
+                s.contains("rotation") && s.contains("(tolerance ")
+            })
+            .then(|| {
+                format!(
+                    "real annotations store approximate rotations; if this one is acceptable, raise \
+                     --rotation-tolerance (now {})",
+                    synthgen_core::pose::rotation_tolerance()
+                )
+            })
+    })
+}
