@@ -6,11 +6,10 @@ use std::path::{Path, PathBuf};
 
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use synthgen_core::{NoProgress, PoseRenderer, Progress};
-use synthgen_curate::mix::{write_mix, Completion, MixCounts, MixOptions, SceneRef};
+use synthgen_core::NoProgress;
+use synthgen_curate::mix::{MixCounts, MixOptions, SceneRef};
 use synthgen_formats::layout::open_source;
-use synthgen_formats::output::{check_apart, OutputLock};
-use synthgen_formats::source::FrameSource;
+use synthgen_formats::output::OutputLock;
 use synthgen_pipeline::{error_chain, Format, ImageFormat, SinkOptions, WriteOptions};
 use synthgen_render::ObjectRenderer;
 use synthgen_train::bop::{load_render_models, prepare_bop, BopOptions};
@@ -165,30 +164,6 @@ fn render<'py>(
     Ok(d)
 }
 
-/// A renderer of a dataset's objects when some of its frames lack `scene_gt_info`
-/// (YCB-Video, Linemod), as `synthgen mix` builds one; else `None`.
-fn completion_renderer(
-    source: &dyn FrameSource,
-    progress: &dyn Progress,
-) -> Result<Option<ObjectRenderer>, synthgen_pipeline::Error> {
-    let frames = source.frames(&[])?;
-    if frames.iter().all(|f| f.gt_info.is_some()) {
-        return Ok(None);
-    }
-    progress.info(&format!(
-        "{}: computing mask/ and scene_gt_info from the poses and models (as `synthgen annotate`)",
-        source.root().display()
-    ));
-    let mut ids: Vec<u32> = frames.iter().flat_map(|f| f.object_set()).collect();
-    ids.sort_unstable();
-    ids.dedup();
-    let mut models = Vec::with_capacity(ids.len());
-    for id in ids {
-        models.push((id, source.load_model(id, progress)?));
-    }
-    Ok(Some(ObjectRenderer::new(models)?))
-}
-
 fn canonical(what: &str, path: &Path) -> PyResult<PathBuf> {
     path.canonicalize().map_err(|_| {
         input_error(
@@ -240,32 +215,8 @@ fn mix<'py>(
     };
     let progress = PyProgress::new(progress);
     let report = detached(py, || {
-        check_apart(
-            &out,
-            &[("real dataset", &real), ("synthetic dataset", &synth)],
-        )?;
-        let _lock = OutputLock::acquire(&out)?;
-        let real_ds = open_source(&real)?;
-        let synth_ds = open_source(&synth)?;
-        let real_r = completion_renderer(real_ds.as_ref(), &progress)?;
-        let synth_r = completion_renderer(synth_ds.as_ref(), &progress)?;
-        let completion = Completion {
-            real: real_r.as_ref().map(|r| r as &dyn PoseRenderer),
-            synth: synth_r.as_ref().map(|r| r as &dyn PoseRenderer),
-        };
-        let report = write_mix(
-            real_ds.as_ref(),
-            synth_ds.as_ref(),
-            &out,
-            &opts,
-            completion,
-            &progress,
-        )?;
-        Ok::<_, synthgen_pipeline::Error>(report)
+        synthgen_jobs::mix::mix_datasets(&real, &synth, &out, &opts, &progress)
     })?;
-    for w in &report.warnings {
-        progress.warn(w);
-    }
     let d = PyDict::new(py);
     d.set_item("out", &out)?;
     d.set_item("train_real", report.train_real)?;

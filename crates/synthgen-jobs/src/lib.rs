@@ -8,6 +8,8 @@
 //! - [`replay`] — `synthgen render --replay`: real frames rendered again at their GT poses.
 //! - [`convert`] — `synthgen convert`: BOP, Linemod and YCB-Video into one another.
 //! - [`fit`] — `synthgen scene fit` and `sensor fit`: the fits written as TOML files.
+//! - [`mix`] — `synthgen mix`: real and synthetic frames drawn into one dataset, the frames
+//!   YCB-Video and Linemod sets lack completed from their poses.
 //! - [`train`] — `synthgen train`: a training run in a run folder.
 //! - [`eval`] — `synthgen eval`: a results CSV or a checkpoint scored against a dataset.
 //! - [`models`] — a dataset's object models in an `ObjectRenderer`, replacement meshes.
@@ -22,6 +24,7 @@ mod log;
 pub mod convert;
 pub mod eval;
 pub mod fit;
+pub mod mix;
 pub mod models;
 pub mod render;
 pub mod replay;
