@@ -27,6 +27,9 @@ run_set() { # BIN OUT
   run $B render --replay $R -q --out $O/rp_bop
   run $B render --replay $R --sensor d455 --format ycbv -q --out $O/rp_ycbv
   run $B render --replay $S/lmo --replay-lit --format linemod -q --out $O/rp_lm
+  run $B annotate --compare $R --report $O/annotate.json --overlay $O/overlays --overlay-count 3
+  cp -r $O/r_bop $O/ann_bop && rm -rf $O/ann_bop/train_pbr/*/mask* $O/ann_bop/train_pbr/*/scene_gt_info.json
+  run $B annotate $O/ann_bop
   run $B train --data $O/r_bop --model tnet --epochs 2 --batch 4 --points 64 --width 16 --seed 1 -q --out $O/t_tnet
   run $B train --data $O/r_bop --model tnet --epochs 3 --batch 4 --points 64 --width 16 --seed 1 -q --resume --out $O/t_tnet
   run $B train --data $O/r_bop --model rgb-dense --epochs 1 --batch 4 --width 16 --seed 2 -q --out $O/t_dense

@@ -6,6 +6,8 @@
 //! - [`render`] — `synthgen render`: a [`render::RenderRequest`] (scene file and overrides,
 //!   objects, frames or a shard, output) → `synthgen_pipeline::RenderJob` → `write`.
 //! - [`replay`] — `synthgen render --replay`: real frames rendered again at their GT poses.
+//! - [`annotate`] — `synthgen annotate`: masks and `scene_gt_info` from the GT poses, or
+//!   their comparison with a dataset's own masks.
 //! - [`convert`] — `synthgen convert`: BOP, Linemod and YCB-Video into one another.
 //! - [`fit`] — `synthgen scene fit` and `sensor fit`: the fits written as TOML files.
 //! - [`mix`] — `synthgen mix`: real and synthetic frames drawn into one dataset, the frames
@@ -21,6 +23,7 @@
 
 mod log;
 
+pub mod annotate;
 pub mod convert;
 pub mod eval;
 pub mod fit;
