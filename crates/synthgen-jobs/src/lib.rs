@@ -10,6 +10,8 @@
 //!   their comparison with a dataset's own masks.
 //! - [`convert`] — `synthgen convert`: BOP, Linemod and YCB-Video into one another.
 //! - [`fit`] — `synthgen scene fit` and `sensor fit`: the fits written as TOML files.
+//! - [`merge`] — `synthgen merge`: the shards of one `render --shard I/N` run into one
+//!   dataset.
 //! - [`mix`] — `synthgen mix`: real and synthetic frames drawn into one dataset, the frames
 //!   YCB-Video and Linemod sets lack completed from their poses.
 //! - [`train`] — `synthgen train`: a training run in a run folder.
@@ -27,6 +29,7 @@ pub mod annotate;
 pub mod convert;
 pub mod eval;
 pub mod fit;
+pub mod merge;
 pub mod mix;
 pub mod models;
 pub mod render;
