@@ -30,6 +30,9 @@ run_set() { # BIN OUT
   run $B annotate --compare $R --report $O/annotate.json --overlay $O/overlays --overlay-count 3
   cp -r $O/r_bop $O/ann_bop && rm -rf $O/ann_bop/train_pbr/*/mask* $O/ann_bop/train_pbr/*/scene_gt_info.json
   run $B annotate $O/ann_bop
+  run $B model align --scans $S/ycb_textured --to-dataset $R --json --out $O/aligned
+  run $B model align --scan $S/ycb_textured/011_banana/textured.obj --to $R/models/011_banana/textured_simple.obj --out $O/aligned_one
+  run $B model align --scan $S/ycb_textured/011_banana/textured.obj --to $R/models/006_mustard_bottle/textured_simple.obj --json --out $O/aligned_bad
   run $B train --data $O/r_bop --model tnet --epochs 2 --batch 4 --points 64 --width 16 --seed 1 -q --out $O/t_tnet
   run $B train --data $O/r_bop --model tnet --epochs 3 --batch 4 --points 64 --width 16 --seed 1 -q --resume --out $O/t_tnet
   run $B train --data $O/r_bop --model rgb-dense --epochs 1 --batch 4 --width 16 --seed 2 -q --out $O/t_dense

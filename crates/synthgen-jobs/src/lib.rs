@@ -6,6 +6,7 @@
 //! - [`render`] — `synthgen render`: a [`render::RenderRequest`] (scene file and overrides,
 //!   objects, frames or a shard, output) → `synthgen_pipeline::RenderJob` → `write`.
 //! - [`replay`] — `synthgen render --replay`: real frames rendered again at their GT poses.
+//! - [`align`] — `synthgen model align`: scans aligned onto their models and written.
 //! - [`annotate`] — `synthgen annotate`: masks and `scene_gt_info` from the GT poses, or
 //!   their comparison with a dataset's own masks.
 //! - [`convert`] — `synthgen convert`: BOP, Linemod and YCB-Video into one another.
@@ -25,6 +26,7 @@
 
 mod log;
 
+pub mod align;
 pub mod annotate;
 pub mod convert;
 pub mod eval;
