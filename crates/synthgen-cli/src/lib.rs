@@ -1,5 +1,6 @@
 //! The `synthgen` command-line tool. `main.rs` only calls [`main`]; argument structs live in
-//! `cli.rs`, each command's body in `commands/<verb>.rs`.
+//! `cli.rs`, each command's flags mapped onto its library call (`synthgen_jobs`,
+//! `synthgen_experiment`, ...) in `commands/<verb>.rs`.
 
 // Data goes through `Printer::data` (a closed stdout ends quietly), messages through the
 // printer or `printer::stderr_line`: `println!` and `eprintln!` panic on a closed pipe.
