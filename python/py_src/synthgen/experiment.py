@@ -7,7 +7,7 @@ same refusals. Every option is keyword-only and has the CLI flag's default.
 >>> r = synthgen.experiment.sim2real(
 ...     test="../shared/data/ycbv_real", fit="../shared/data/ycbv_real",
 ...     test_scenes=[2], quick=True, out="/tmp/s2r")
->>> r["report"]["all"]["mean_cm"]  # doctest: +SKIP
+>>> r["report"]["all"]["mean_centre_error_cm"]  # doctest: +SKIP
 """
 
 from __future__ import annotations
