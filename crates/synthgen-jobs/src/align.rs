@@ -13,11 +13,9 @@ use synthgen_physics::align::{align, AlignOptions, Alignment};
 
 use crate::models::{files_with_extensions, model_name};
 
-use std::sync::Mutex;
-
 use synthgen_core::Progress;
 
-use crate::{user_error, Log};
+use crate::{user_error, Printer, Stdout};
 
 /// What to align: `synthgen model align`'s arguments as data.
 #[derive(Debug, Clone)]
@@ -42,95 +40,16 @@ pub struct AlignRequest {
     pub json: bool,
 }
 
-/// What the alignment prints on stdout (the report, a line or a table), kept as it is made so
-/// that a caller has it even when the alignment is refused.
-#[derive(Debug, Default)]
-pub struct Stdout(Mutex<String>);
-
-impl Stdout {
-    fn push(&self, text: &str) -> Result<()> {
-        if let Ok(mut s) = self.0.lock() {
-            s.push_str(text);
-        }
-        Ok(())
-    }
-
-    /// What was printed so far.
-    pub fn take(&self) -> String {
-        self.0
-            .lock()
-            .map(|mut s| std::mem::take(&mut *s))
-            .unwrap_or_default()
-    }
-}
-
-/// The caller's progress for messages, `stdout` for the report.
-struct Printer<'a> {
-    log: Log<'a>,
-    stdout: &'a Stdout,
-}
-
-impl Printer<'_> {
-    fn info(&self, msg: impl AsRef<str>) {
-        self.log.info(msg);
-    }
-
-    fn warning(&self, msg: impl AsRef<str>) {
-        self.log.warning(msg);
-    }
-
-    fn hint(&self, msg: impl AsRef<str>) {
-        self.log.hint(msg);
-    }
-
-    fn data(&self, text: impl AsRef<str>) -> Result<()> {
-        self.stdout.push(text.as_ref())
-    }
-
-    fn data_line(&self, text: impl AsRef<str>) -> Result<()> {
-        self.stdout.push(&format!("{}\n", text.as_ref()))
-    }
-}
-
-impl Progress for Printer<'_> {
-    fn start(&self, label: &str, total: u64) {
-        self.log.start(label, total);
-    }
-    fn advance(&self, n: u64) {
-        self.log.advance(n);
-    }
-    fn warn(&self, message: &str) {
-        self.log.warning(message);
-    }
-    fn info(&self, message: &str) {
-        self.log.info(message);
-    }
-    fn finish(&self) {
-        self.log.finish();
-    }
-}
-
-/// Whether every alignment asked for was written.
-#[derive(PartialEq)]
-enum ExitStatus {
-    Success,
-    Failure,
-}
-
 /// The report written to `OUT/align.json`.
 pub const REPORT_FILE: &str = "align.json";
 
 /// Aligns `req`; messages go to `progress`, the report into `stdout`. Ok(false) when some of a
 /// dataset's scans could not be aligned (the others are written).
 pub fn align_models(req: &AlignRequest, progress: &dyn Progress, stdout: &Stdout) -> Result<bool> {
-    let printer = &Printer {
-        log: Log::new(progress),
-        stdout,
-    };
-    Ok(run_align(req, printer)? == ExitStatus::Success)
+    run_align(req, &Printer::new(progress, stdout))
 }
 
-fn run_align(args: &AlignRequest, printer: &Printer<'_>) -> Result<ExitStatus> {
+fn run_align(args: &AlignRequest, printer: &Printer<'_>) -> Result<bool> {
     if !(args.max_median_mm.is_finite() && args.max_median_mm > 0.0) {
         return Err(user_error(
             format!(
@@ -167,7 +86,7 @@ fn run_align(args: &AlignRequest, printer: &Printer<'_>) -> Result<ExitStatus> {
         args.out.display(),
         REPORT_FILE
     ));
-    Ok(ExitStatus::Success)
+    Ok(true)
 }
 
 /// One scan aligned and written.
@@ -315,7 +234,7 @@ fn align_dataset(
     data: &Path,
     opts: &AlignOptions,
     printer: &Printer<'_>,
-) -> Result<ExitStatus> {
+) -> Result<bool> {
     let source = open_source(data).with_context(|| format!("cannot open {}", data.display()))?;
     let ids: Vec<u32> = match source.models_info() {
         Some(info) if !info.is_empty() => info.keys().copied().collect(),
@@ -408,14 +327,14 @@ fn align_dataset(
             data.display(),
             args.out.display()
         ));
-        return Ok(ExitStatus::Failure);
+        return Ok(false);
     }
     printer.hint(format!(
         "a textured replay: synthgen render --replay {} --replay-models {} --out OUT",
         data.display(),
         args.out.display()
     ));
-    Ok(ExitStatus::Success)
+    Ok(true)
 }
 
 fn report_json(

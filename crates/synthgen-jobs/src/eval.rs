@@ -24,12 +24,11 @@ use synthgen_train::train::{self, centre_error_m, load_model, read_config, CONFI
 use synthgen_render::ObjectRenderer;
 
 use std::path::PathBuf;
-use std::sync::Mutex;
 
 use synthgen_core::Progress;
 use synthgen_train::metrics::Rotations;
 
-use crate::{user_error, Log};
+use crate::{user_error, Printer, Stdout};
 
 /// What to evaluate: `synthgen eval`'s arguments as data.
 #[derive(Debug, Clone)]
@@ -70,75 +69,17 @@ pub struct EvalOutcome {
     pub failed: Option<String>,
 }
 
-/// The caller's progress for messages, the tables collected in order.
-struct Printer<'a> {
-    log: Log<'a>,
-    stdout: Mutex<String>,
-    failed: Mutex<Option<String>>,
-}
-
-impl Printer<'_> {
-    fn info(&self, msg: impl AsRef<str>) {
-        self.log.info(msg);
-    }
-
-    fn warning(&self, msg: impl AsRef<str>) {
-        self.log.warning(msg);
-    }
-
-    fn data(&self, text: impl AsRef<str>) -> Result<()> {
-        if let Ok(mut s) = self.stdout.lock() {
-            s.push_str(text.as_ref());
-        }
-        Ok(())
-    }
-
-    fn error(&self, msg: impl AsRef<str>) {
-        if let Ok(mut f) = self.failed.lock() {
-            *f = Some(msg.as_ref().to_string());
-        }
-    }
-}
-
-impl Progress for Printer<'_> {
-    fn start(&self, label: &str, total: u64) {
-        self.log.start(label, total);
-    }
-    fn advance(&self, n: u64) {
-        self.log.advance(n);
-    }
-    fn warn(&self, message: &str) {
-        self.log.warning(message);
-    }
-    fn info(&self, message: &str) {
-        self.log.info(message);
-    }
-    fn hint(&self, message: &str) {
-        self.log.hint(message);
-    }
-    fn finish(&self) {
-        self.log.finish();
-    }
-}
-
-/// The outcome of a step: `Success`, or `Failure` (scored, but with a problem to report).
-#[derive(PartialEq)]
-enum ExitStatus {
-    Success,
-    Failure,
-}
-
 /// Evaluates `req`; messages go to `progress`, the tables into the outcome.
 pub fn evaluate_request(req: &EvalRequest, progress: &dyn Progress) -> Result<EvalOutcome> {
-    let printer = &Printer {
-        log: Log::new(progress),
-        stdout: Mutex::new(String::new()),
-        failed: Mutex::new(None),
-    };
+    let stdout = Stdout::default();
+    let printer = &Printer::new(progress, &stdout);
     let args = req;
-    match (&args.results, &args.checkpoint) {
+    let failed = match (&args.results, &args.checkpoint) {
         (Some(csv), None) => run_results(args, csv, printer)?,
-        (None, Some(ckpt)) => run_checkpoint(args, ckpt, printer)?,
+        (None, Some(ckpt)) => {
+            run_checkpoint(args, ckpt, printer)?;
+            None
+        }
         _ => {
             return Err(user_error(
                 "give one of --results and --checkpoint",
@@ -146,14 +87,9 @@ pub fn evaluate_request(req: &EvalRequest, progress: &dyn Progress) -> Result<Ev
             ))
         }
     };
-    fn take<T: Default>(m: &Mutex<T>) -> T {
-        m.lock()
-            .map(|mut v| std::mem::take(&mut *v))
-            .unwrap_or_default()
-    }
     Ok(EvalOutcome {
-        stdout: take(&printer.stdout),
-        failed: take(&printer.failed),
+        stdout: stdout.take(),
+        failed,
     })
 }
 
@@ -167,7 +103,8 @@ fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
     std::fs::write(path, text + "\n").with_context(|| format!("cannot write {}", path.display()))
 }
 
-fn run_results(args: &EvalRequest, csv: &Path, printer: &Printer<'_>) -> Result<ExitStatus> {
+/// Scores a results CSV; returns why the evaluation counts as failed (unreadable rows), if so.
+fn run_results(args: &EvalRequest, csv: &Path, printer: &Printer<'_>) -> Result<Option<String>> {
     let ds = open_dataset(&args.data)?;
     let split = pick_split(ds.as_ref(), args.split.as_deref())?;
     let gts = read_gt(ds.as_ref(), &split, args.min_visib_fract)?;
@@ -202,7 +139,7 @@ fn run_results(args: &EvalRequest, csv: &Path, printer: &Printer<'_>) -> Result<
     // Bad rows were skipped, not fatal (ripgrep-style): the scores are of the good rows, and
     // the exit code says some were left out.
     if results.skipped.is_empty() {
-        return Ok(ExitStatus::Success);
+        return Ok(None);
     }
     for p in results.skipped.iter().take(10) {
         printer.warning(format!(
@@ -218,13 +155,12 @@ fn run_results(args: &EvalRequest, csv: &Path, printer: &Printer<'_>) -> Result<
             results.skipped.len() - 10
         ));
     }
-    printer.error(format!(
+    Ok(Some(format!(
         "{} of {} rows of {} could not be read and were skipped; the scores above are of the others",
         results.skipped.len(),
         results.skipped.len() + estimates.len(),
         csv.display()
-    ));
-    Ok(ExitStatus::Failure)
+    )))
 }
 
 #[derive(Default)]
@@ -255,7 +191,7 @@ impl CentreAcc {
     }
 }
 
-fn run_checkpoint(args: &EvalRequest, ckpt: &Path, printer: &Printer<'_>) -> Result<ExitStatus> {
+fn run_checkpoint(args: &EvalRequest, ckpt: &Path, printer: &Printer<'_>) -> Result<()> {
     let config_path = ckpt.with_file_name(CONFIG_FILE);
     if !config_path.exists() {
         return Err(user_error(
@@ -387,7 +323,7 @@ fn run_checkpoint(args: &EvalRequest, ckpt: &Path, printer: &Printer<'_>) -> Res
             write_json(path, &serde_json::json!({ "stability": groups }))?;
             printer.info(format!("wrote {}", path.display()));
         }
-        return Ok(ExitStatus::Success);
+        return Ok(());
     }
     if cfg.model == ModelKind::Tnet {
         if args.bop {
@@ -414,7 +350,7 @@ fn run_checkpoint(args: &EvalRequest, ckpt: &Path, printer: &Printer<'_>) -> Res
         write_json(path, &json)?;
         printer.info(format!("wrote {}", path.display()));
     }
-    Ok(ExitStatus::Success)
+    Ok(())
 }
 
 fn centre_table(
@@ -422,7 +358,7 @@ fn centre_table(
     instances: &[Instance],
     preds: &[Prediction],
     printer: &Printer<'_>,
-) -> Result<ExitStatus> {
+) -> Result<()> {
     let mut per_obj: BTreeMap<u32, CentreAcc> = BTreeMap::new();
     let mut all = CentreAcc::default();
     for (p, inst) in preds.iter().zip(instances) {
@@ -457,7 +393,7 @@ fn centre_table(
         write_json(path, &serde_json::Value::Object(json))?;
         printer.info(format!("wrote {}", path.display()));
     }
-    Ok(ExitStatus::Success)
+    Ok(())
 }
 
 /// BOP's Average Recall of `estimates` on `split` of `ds` (`--bop`), printed as a table.

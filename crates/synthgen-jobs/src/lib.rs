@@ -38,7 +38,8 @@ pub mod render;
 pub mod replay;
 pub mod train;
 
-pub use log::Log;
+use log::Printer;
+pub use log::{Log, Stdout};
 
 /// An error about the request (a flag, a file, a combination of options) with a hint on what
 /// to do instead: a `synthgen_core::UserError` (the CLI exits with 1 on it and prints the hint).

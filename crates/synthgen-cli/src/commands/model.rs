@@ -2,7 +2,8 @@
 //! aligned onto its model and written with an `align.json` report).
 
 use anyhow::Result;
-use synthgen_jobs::align::{align_models, AlignRequest, Stdout};
+use synthgen_jobs::align::{align_models, AlignRequest};
+use synthgen_jobs::Stdout;
 
 use crate::cli::ModelAlignArgs;
 use crate::{ExitStatus, Printer};
