@@ -108,13 +108,7 @@ impl RenderRequest {
             ));
         }
         Ok(match self.shard {
-            Some([index, count]) => {
-                let at = |k: u64| {
-                    self.first_frame
-                        + (u128::from(self.frames) * u128::from(k) / u128::from(count)) as u64
-                };
-                at(index)..at(index + 1)
-            }
+            Some([index, count]) => shard_range(self.first_frame, self.frames, index, count),
             None => self.first_frame..self.first_frame + self.frames,
         })
     }
@@ -200,6 +194,14 @@ impl RenderRequest {
             })
             .collect())
     }
+}
+
+/// The frames of shard `index` of `count` out of `frames` frames starting at `first`: shard i
+/// gets `[first + i*frames/count, first + (i+1)*frames/count)`, so shards differ by at most one
+/// frame and together cover every frame exactly once.
+pub fn shard_range(first: u64, frames: u64, index: u64, count: u64) -> Range<u64> {
+    let at = |k: u64| first + (u128::from(frames) * u128::from(k) / u128::from(count)) as u64;
+    at(index)..at(index + 1)
 }
 
 /// `--visib-delta-m`'s default (bop_toolkit's 15 mm).

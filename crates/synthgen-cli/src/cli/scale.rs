@@ -27,13 +27,10 @@ pub struct Shard {
 }
 
 impl Shard {
-    /// The frames of this shard out of `frames` frames starting at `first`: shard i gets
-    /// `[first + i*frames/count, first + (i+1)*frames/count)`, so shards differ by at most
-    /// one frame and together cover every frame exactly once.
+    /// The frames of this shard out of `frames` frames starting at `first`
+    /// (`synthgen_jobs::render::shard_range`, what `render --shard` renders).
     pub fn range(&self, first: u64, frames: u64) -> Range<u64> {
-        let at =
-            |k: u64| first + (u128::from(frames) * u128::from(k) / u128::from(self.count)) as u64;
-        at(self.index)..at(self.index + 1)
+        synthgen_jobs::render::shard_range(first, frames, self.index, self.count)
     }
 }
 
