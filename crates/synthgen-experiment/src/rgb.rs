@@ -239,12 +239,7 @@ pub fn run(args: RgbOptions, printer: &Log) -> Result<String> {
             "e.g. --variants centre-tz,xyz",
         ));
     }
-    if let Some(j) = args.jobs {
-        // Ignored when a pool already exists (only in tests that call run twice).
-        let _ = rayon::ThreadPoolBuilder::new()
-            .num_threads(j)
-            .build_global();
-    }
+    synthgen_jobs::use_threads(args.jobs);
     let out = std::path::absolute(&args.out).unwrap_or_else(|_| args.out.clone());
     check_apart(
         &out,

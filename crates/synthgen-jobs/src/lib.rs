@@ -89,3 +89,14 @@ pub fn error_hint(err: &anyhow::Error) -> Option<String> {
             })
     })
 }
+
+/// `--jobs N`: the process's rayon pool gets N threads (None: all cores). The global pool can
+/// be set once per process; a second call (only tests run several jobs in one process) keeps
+/// the first pool.
+pub fn use_threads(jobs: Option<usize>) {
+    if let Some(j) = jobs {
+        let _ = rayon::ThreadPoolBuilder::new()
+            .num_threads(j)
+            .build_global();
+    }
+}

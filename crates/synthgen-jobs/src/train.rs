@@ -59,12 +59,7 @@ pub fn train_run(req: &TrainRequest, progress: &dyn Progress) -> Result<TrainOut
             "--resume continues from the run's own checkpoint",
         ));
     }
-    if let Some(j) = args.jobs {
-        // Ignored when a pool already exists (only in tests that call run twice).
-        let _ = rayon::ThreadPoolBuilder::new()
-            .num_threads(j)
-            .build_global();
-    }
+    crate::use_threads(args.jobs);
     check_apart(&args.out, &[("dataset", &args.config.data)])?;
     let _lock = OutputLock::acquire(&args.out)?;
     let checkpoint = args.out.join(MODEL_FILE);

@@ -205,12 +205,7 @@ pub fn run_mix(args: MixOptions, printer: &Log) -> Result<String> {
             "e.g. --test-count 300",
         ));
     }
-    if let Some(j) = args.jobs {
-        // Ignored when a pool already exists (only in tests that call run twice).
-        let _ = rayon::ThreadPoolBuilder::new()
-            .num_threads(j)
-            .build_global();
-    }
+    synthgen_jobs::use_threads(args.jobs);
     let inputs: Vec<(&str, &Path)> = [
         ("real dataset", &args.real),
         ("synthetic dataset", &args.synth),

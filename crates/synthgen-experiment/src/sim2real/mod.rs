@@ -262,11 +262,7 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
             "e.g. --frames 1500 --epochs 8",
         ));
     }
-    if let Some(j) = args.jobs {
-        let _ = rayon::ThreadPoolBuilder::new()
-            .num_threads(j)
-            .build_global();
-    }
+    synthgen_jobs::use_threads(args.jobs);
     let fit_dir = existing(&fit_arg, "fit")?;
     let test_dir = existing(&args.test, "test")?;
     check_apart(

@@ -237,11 +237,7 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
             "e.g. --frames 1500 --epochs 20",
         ));
     }
-    if let Some(j) = args.jobs {
-        let _ = rayon::ThreadPoolBuilder::new()
-            .num_threads(j)
-            .build_global();
-    }
+    synthgen_jobs::use_threads(args.jobs);
     let test_dir = super::existing(&args.test, "test")?;
     let fit_dir = args
         .fit
