@@ -21,7 +21,7 @@ pub use rgb::ExperimentRgbArgs;
 pub use scale::{MergeArgs, Shard, MERGE_EXAMPLES};
 pub use scene::{SceneCommand, SceneFitArgs};
 pub use sensor::{SensorCommand, SensorCompareArgs, SensorCompareRgbArgs, SensorFitArgs};
-pub use sim2real::{ExperimentSim2realArgs, Sim2realModelArg};
+pub use sim2real::{ExperimentSim2realArgs, RefineArg, Sim2realModelArg};
 pub use train::{
     DeviceArg, EvalArgs, ModelArg, ScheduleArg, TrainArgs, TrainModelArg, TranslationArg,
 };

@@ -33,5 +33,7 @@ mod settings;
 pub mod sim2real;
 
 pub use mix::run_mix;
-pub use options::{MixOptions, Model, RgbOptions, Sim2realModel, Sim2realOptions, TrainBudget};
+pub use options::{
+    MixOptions, Model, Refine, RgbOptions, Sim2realModel, Sim2realOptions, TrainBudget,
+};
 pub use synthgen_jobs::{user_error, Log};

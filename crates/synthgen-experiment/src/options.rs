@@ -5,7 +5,7 @@
 
 use std::path::PathBuf;
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use synthgen_core::scene::UpAxis;
 use synthgen_curate::mix::SceneRef;
@@ -59,6 +59,18 @@ impl Sim2realModel {
             Sim2realModel::Rgb | Sim2realModel::RgbDense => None,
         }
     }
+}
+
+/// How `experiment sim2real` finishes a depth model's centre on the real depth.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Refine {
+    /// The network's centre as it is.
+    #[default]
+    None,
+    /// The object's model fitted to the instance's depth points by ICP from the network's
+    /// centre (`synthgen_physics::refine`).
+    Icp,
 }
 
 /// The training budget of every trained row; None takes the default.
@@ -226,6 +238,8 @@ pub struct Sim2realOptions {
     pub per_object: bool,
     /// Models per row (centres averaged). [default: 3; 1 with quick]
     pub ensemble: Option<usize>,
+    /// The depth models' centres refined on the real depth.
+    pub refine: Refine,
     pub seed: u64,
     /// Only these rows.
     pub rows: Vec<String>,
@@ -259,6 +273,7 @@ impl Default for Sim2realOptions {
             point_dropout: 0.0,
             per_object: false,
             ensemble: None,
+            refine: Refine::Icp,
             seed: 0,
             rows: Vec::new(),
             max_failed_fraction: 0.01,

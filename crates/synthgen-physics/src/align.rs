@@ -147,7 +147,7 @@ pub fn align(scan: &Model, target: &Model, opts: &AlignOptions) -> Result<Alignm
     best.ok_or_else(|| AlignError::Empty(scan.name.clone()))
 }
 
-fn triangles(m: &Model) -> Vec<[DVec3; 3]> {
+pub(crate) fn triangles(m: &Model) -> Vec<[DVec3; 3]> {
     m.primitives
         .iter()
         .flat_map(|p| {
@@ -159,7 +159,7 @@ fn triangles(m: &Model) -> Vec<[DVec3; 3]> {
         .collect()
 }
 
-fn tri_mesh(tris: &[[DVec3; 3]]) -> Result<TriMesh, String> {
+pub(crate) fn tri_mesh(tris: &[[DVec3; 3]]) -> Result<TriMesh, String> {
     let mut vertices = Vec::with_capacity(tris.len() * 3);
     let mut indices = Vec::with_capacity(tris.len());
     for (i, t) in tris.iter().enumerate() {
@@ -175,7 +175,7 @@ fn tri_mesh(tris: &[[DVec3; 3]]) -> Result<TriMesh, String> {
 /// `n` points spread over the surface by area: a deterministic low-discrepancy walk over the
 /// triangles' cumulative area, each point at its triangle's barycentre offset by a fixed
 /// pattern (no RNG: the same meshes always give the same alignment).
-fn surface_samples(tris: &[[DVec3; 3]], n: usize) -> Vec<DVec3> {
+pub(crate) fn surface_samples(tris: &[[DVec3; 3]], n: usize) -> Vec<DVec3> {
     let areas: Vec<f64> = tris
         .iter()
         .map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length())

@@ -25,6 +25,7 @@
 use std::collections::BTreeMap;
 
 pub mod align;
+pub mod refine;
 mod rest;
 pub use rest::stable_rest_poses;
 

@@ -144,6 +144,7 @@ def sim2real(
     point_dropout: float = 0.0,
     per_object: bool = False,
     ensemble: Optional[int] = None,
+    refine: str = "icp",
     seed: int = 0,
     rows: Sequence[str] = (),
     max_failed_fraction: float = 0.01,
@@ -166,6 +167,8 @@ def sim2real(
         models, cycles_frames: the RGB models' replacement meshes and Cycles rows.
         ablation, unseen_up, mask_jitter_px, mask_shift_px, occlusion_prob, point_dropout,
             per_object, ensemble: the depth models' knobs (docs/experiments.md).
+        refine: ``"icp"`` (TNet's centres refined by ICP of the object's model on the real
+            depth) or ``"none"``.
         rows: only these rows.
         progress: as for :func:`synthgen.render`.
 
@@ -193,6 +196,7 @@ def sim2real(
             point_dropout=float(point_dropout),
             per_object=per_object,
             ensemble=ensemble,
+            refine=refine,
             seed=int(seed),
             rows=[str(r) for r in rows],
             max_failed_fraction=float(max_failed_fraction),

@@ -44,6 +44,17 @@ impl Sim2realModelArg {
     }
 }
 
+/// `experiment sim2real --refine`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum RefineArg {
+    /// The network's centre as it is.
+    None,
+    /// ICP of the object's model on the instance's real depth points, from the network's
+    /// centre (starts from a spread of rotations; a fit that moves the centre more than 3 cm
+    /// or explains under half of the points is refused).
+    Icp,
+}
+
 pub const SIM2REAL_EXAMPLES: &str = "Examples:
   # Fit the scene and the sensor to real frames, render, train on synthetic only, test on
   # other real frames (their real depth and visible masks):
@@ -182,6 +193,14 @@ pub struct ExperimentSim2realArgs {
     /// --quick]
     #[arg(long, value_name = "K", value_parser = parse_ensemble)]
     pub ensemble: Option<usize>,
+
+    /// How TNet's centres are finished on the real depth: `icp` fits each object's model to
+    /// the instance's depth points from the network's centre (as PoseCNN and DenseFusion
+    /// finish theirs), `none` keeps the network's centre. With `icp` each trained row also
+    /// reports its centres before the refinement, and the row naive_icp (the same ICP from
+    /// the naive centroid) shows what the network adds. Depth models only.
+    #[arg(long, value_enum, default_value_t = RefineArg::Icp)]
+    pub refine: RefineArg,
 
     /// Seeds the renders and the training.
     #[arg(long, default_value_t = 0)]

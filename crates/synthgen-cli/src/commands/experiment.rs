@@ -4,14 +4,14 @@
 
 use anyhow::Result;
 use synthgen_experiment::options::{
-    MixOptions, Model, RgbOptions, Sim2realModel, Sim2realOptions, TrainBudgetOptions,
+    MixOptions, Model, Refine, RgbOptions, Sim2realModel, Sim2realOptions, TrainBudgetOptions,
 };
 use synthgen_experiment::Log;
 use synthgen_train::models::rgb::Translation;
 
 use crate::cli::{
-    ExperimentMixArgs, ExperimentRgbArgs, ExperimentSim2realArgs, ModelArg, Sim2realModelArg,
-    TrainBudgetArgs, TranslationArg,
+    ExperimentMixArgs, ExperimentRgbArgs, ExperimentSim2realArgs, ModelArg, RefineArg,
+    Sim2realModelArg, TrainBudgetArgs, TranslationArg,
 };
 use crate::{ExitStatus, Printer};
 
@@ -101,6 +101,10 @@ pub fn sim2real_options(a: ExperimentSim2realArgs) -> Sim2realOptions {
         point_dropout: a.point_dropout,
         per_object: a.per_object,
         ensemble: a.ensemble,
+        refine: match a.refine {
+            RefineArg::None => Refine::None,
+            RefineArg::Icp => Refine::Icp,
+        },
         seed: a.seed,
         rows: a.rows,
         max_failed_fraction: a.max_failed_fraction,

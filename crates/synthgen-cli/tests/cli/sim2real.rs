@@ -107,6 +107,23 @@ fn quick_sim2real_on_real_frames_reports_every_row_and_resumes() {
         r["vs_naive"]
     );
     assert!(r["skipped_frames"]["synth_fitted"].is_array());
+    // --refine icp (the default): every trained row keeps its centres before the refinement
+    // and the share of refinements kept; naive_icp is the same ICP from the naive centroid.
+    assert_eq!(settings["refine"], "icp");
+    for row in r["rows"].as_array().unwrap() {
+        if row["trained_on"].is_null() {
+            continue;
+        }
+        check(&row["before_refine"]);
+        let kept = row["refine_accepted"].as_f64().unwrap();
+        assert!((0.0..=1.0).contains(&kept), "{}: {kept}", row["name"]);
+    }
+    check(&r["baselines"]["naive_icp"]["all"]);
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(
+        md.contains("refined by ICP") && md.contains("| naive_icp |"),
+        "{md}"
+    );
 
     assert_eq!(settings["unseen_up"], "any");
     // --quick trains one model per row; the default is an ensemble of 3.
@@ -301,6 +318,8 @@ fn quick_sim2real_on_objects_the_fit_never_saw() {
             "stable",
             "--rows",
             "synth_fitted",
+            "--refine",
+            "none",
         ],
     );
     let e = stderr(&o);
@@ -320,7 +339,9 @@ fn quick_sim2real_on_objects_the_fit_never_saw() {
         .iter()
         .map(|r| r["name"].as_str().unwrap())
         .collect();
+    // --refine none: the network's centres, no naive_icp row.
     assert_eq!(rows, ["synth_fitted", "naive_centroid"]);
+    assert!(r["rows"][0]["before_refine"].is_null());
     assert!(
         r["notes"].as_array().unwrap().iter().any(|n| n
             .as_str()

@@ -26,7 +26,7 @@ use synthgen_pipeline::{Backend, Format, RenderJob, SinkOptions, WriteOptions};
 use synthgen_train::data::Augment;
 
 use self::rows::{RowRecord, TrainSpec};
-use crate::options::{Sim2realOptions, TrainBudget};
+use crate::options::{Refine, Sim2realOptions, TrainBudget};
 use crate::user_error;
 use crate::Log;
 
@@ -82,6 +82,9 @@ pub struct Settings {
     /// TNets per trained row, their centres averaged (`--ensemble`).
     #[serde(default = "one")]
     pub ensemble: usize,
+    /// The depth models' centres refined by ICP on the real depth (`--refine`).
+    #[serde(default)]
+    pub refine: Refine,
     pub seed: u64,
     pub quick: bool,
 }
@@ -327,6 +330,11 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
         },
         per_object: args.per_object,
         ensemble: args.ensemble.unwrap_or(if args.quick { 1 } else { 3 }),
+        refine: if model.name() == "tnet" {
+            args.refine
+        } else {
+            Refine::None
+        },
         seed: args.seed,
         quick: args.quick,
     };
@@ -509,6 +517,15 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
     };
     records.extend(real_only);
     records.push(naive);
+    if settings.refine == Refine::Icp {
+        match rows::read_record(&out, rows::NAIVE_ICP) {
+            Some(r) => records.push(r),
+            None => {
+                computed += 1;
+                records.extend(rows::naive_icp_row(&out, &test)?);
+            }
+        }
+    }
 
     let elapsed = started.elapsed().as_secs_f64();
     timing

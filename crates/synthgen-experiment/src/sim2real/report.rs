@@ -205,6 +205,30 @@ impl Report {
         for r in &self.rows {
             let _ = writeln!(o, "- `{}`: {}", r.name, r.what);
         }
+        let refined: Vec<&RowRecord> = self
+            .rows
+            .iter()
+            .filter(|r| r.before_refine.is_some())
+            .collect();
+        if !refined.is_empty() {
+            let _ = writeln!(
+                o,
+                "\nThe trained rows' centres were refined by ICP on the real depth (`--refine icp`); before the refinement, mean centre error (cm), and the share of instances whose refined centre was kept:\n"
+            );
+            let _ = writeln!(o, "| row | before | after | kept % |\n|---|---:|---:|---:|");
+            for r in refined {
+                let _ = writeln!(
+                    o,
+                    "| {} | {:.2} | {:.2} | {:.0} |",
+                    r.name,
+                    r.before_refine
+                        .as_ref()
+                        .map_or(f64::NAN, |m| m.mean_centre_error_cm),
+                    r.all.mean_centre_error_cm,
+                    100.0 * r.refine_accepted.unwrap_or(0.0)
+                );
+            }
+        }
         // Per object: mean centre error of every row.
         let ids: Vec<String> = {
             let mut v: Vec<String> = self

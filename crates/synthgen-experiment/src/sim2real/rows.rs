@@ -6,11 +6,15 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use synthgen_core::glam::DVec3;
 use synthgen_core::NoProgress;
 use synthgen_formats::io::atomic_write;
 use synthgen_formats::source::FrameSource;
+use synthgen_physics::refine::{refine_centre, RefineOptions, Refined, Surface};
 use synthgen_train::data::{load_source_instances, DataOptions, Instance};
+use synthgen_train::dataset_objects::load_each_object;
 use synthgen_train::eval::{read_gt, score_predictions, GtInstance};
 use synthgen_train::metrics::Rotations;
 use synthgen_train::models::tnet::DEFAULT_SCALE;
@@ -22,6 +26,7 @@ use synthgen_train::train::{
 };
 
 use super::Settings;
+use crate::options::Refine;
 use crate::settings::{read_row_file, row_dir, ROW_FILE};
 use crate::Log;
 
@@ -65,6 +70,12 @@ pub struct RowRecord {
     pub last_epoch: Option<EpochMetrics>,
     pub seconds_train: f64,
     pub seconds_eval: f64,
+    /// With `--refine icp`: the centres as the model gave them, before the refinement.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub before_refine: Option<Metrics>,
+    /// With `--refine icp`: the share of the instances whose refined centre was kept.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refine_accepted: Option<f64>,
 }
 
 /// The finished row's record, if one reads.
@@ -85,6 +96,8 @@ pub struct TestSet {
     pub gts: Vec<GtInstance>,
     /// The objects' models for `full`'s metrics.
     pub objects: Option<Objects>,
+    /// The objects' surfaces for `--refine icp`.
+    pub surfaces: Option<BTreeMap<u32, Surface>>,
 }
 
 fn model_kind(s: &Settings) -> ModelKind {
@@ -133,11 +146,70 @@ pub fn load_test(s: &Settings, test: &dyn FrameSource, scenes: &[u32]) -> Result
             .collect();
         (gts, Some(load_dataset_objects(test, ids, LOSS_POINTS)?))
     };
+    let surfaces = match s.refine {
+        Refine::None => None,
+        Refine::Icp => {
+            let ids: BTreeSet<u32> = instances.iter().map(|i| i.obj_id).collect();
+            let loaded = load_each_object(
+                test.models_info(),
+                &test.models_info_path(),
+                &|id| test.model_file(id),
+                test.model_units(),
+                ids,
+                |model, _| (model.name.clone(), Surface::new(model)),
+            )
+            .with_context(|| format!("cannot load the models of {}", test.root().display()))?;
+            let mut surfaces = BTreeMap::new();
+            for (id, (name, surface)) in loaded {
+                let surface =
+                    surface.with_context(|| format!("cannot refine on object {id} ({name})"))?;
+                surfaces.insert(id, surface);
+            }
+            Some(surfaces)
+        }
+    };
     Ok(TestSet {
         instances,
         gts,
         objects,
+        surfaces,
     })
+}
+
+/// With `--refine icp`: each prediction's centre refined by ICP of its object's model on the
+/// instance's real depth points (in parallel over instances). Returns the centres before and
+/// the share of refinements kept; `None` (nothing changed) without surfaces.
+fn refine_centres(
+    tested: &[&Instance],
+    preds: &mut [Prediction],
+    test: &TestSet,
+) -> Option<(Vec<Option<[f32; 3]>>, f64)> {
+    let surfaces = test.surfaces.as_ref()?;
+    let before: Vec<Option<[f32; 3]>> = preds.iter().map(|p| p.centre_m).collect();
+    let opts = RefineOptions::default();
+    let refined: Vec<Option<Refined>> = tested
+        .par_iter()
+        .zip(&before)
+        .map(|(inst, c)| {
+            let c = (*c)?;
+            let surface = surfaces.get(&inst.obj_id)?;
+            let pts: Vec<DVec3> = inst
+                .points_m
+                .iter()
+                .map(|p| DVec3::new(p[0].into(), p[1].into(), p[2].into()))
+                .collect();
+            let init = DVec3::new(c[0].into(), c[1].into(), c[2].into());
+            refine_centre(surface, &pts, init, &opts)
+        })
+        .collect();
+    let mut kept = 0usize;
+    for (p, r) in preds.iter_mut().zip(&refined) {
+        if let Some(r) = r.filter(|r| r.accepted) {
+            kept += 1;
+            p.centre_m = Some(r.centre_m.to_array().map(|v| v as f32));
+        }
+    }
+    Some((before, kept as f64 / preds.len().max(1) as f64))
 }
 
 /// Advances the bar once per epoch; the message shows the row and its loss.
@@ -302,6 +374,17 @@ pub fn train_row(
     let outcome = outcome.context("no ensemble member trained")?;
     let seconds_train = t0.elapsed().as_secs_f64() - seconds_eval;
     let t1 = Instant::now();
+    let (before_refine, refine_accepted) = match refine_centres(&tested, &mut preds, test) {
+        Some((before, kept)) => {
+            let unrefined: Vec<Prediction> = preds
+                .iter()
+                .zip(before)
+                .map(|(p, c)| Prediction { centre_m: c, ..*p })
+                .collect();
+            (Some(score(&tested, &unrefined, test)?.0), Some(kept))
+        }
+        None => (None, None),
+    };
     let (all, objects_m, scenes) = score(&tested, &preds, test)?;
     let record = RowRecord {
         name: spec.name.to_string(),
@@ -315,10 +398,52 @@ pub fn train_row(
         last_epoch: outcome.history.last().cloned(),
         seconds_train,
         seconds_eval: seconds_eval + t1.elapsed().as_secs_f64(),
+        before_refine,
+        refine_accepted,
     };
     write_record(out, &record)?;
     Ok(record)
 }
+
+/// With `--refine icp`, the naive baseline refined the same way: the ICP started from the
+/// mean of the masked depth points instead of a model's centre (what the network adds to
+/// the refinement). `None` without `--refine icp`.
+pub fn naive_icp_row(out: &Path, test: &TestSet) -> Result<Option<RowRecord>> {
+    let t0 = Instant::now();
+    let tested: Vec<&Instance> = test.instances.iter().collect();
+    let mut preds: Vec<Prediction> = tested
+        .iter()
+        .map(|i| Prediction {
+            centre_m: Some(centroid(&i.points_m)),
+            rotation: None,
+        })
+        .collect();
+    let Some((_, kept)) = refine_centres(&tested, &mut preds, test) else {
+        return Ok(None);
+    };
+    std::fs::create_dir_all(row_dir(out, NAIVE_ICP))?;
+    let (all, objects, scenes) = score(&tested, &preds, test)?;
+    let record = RowRecord {
+        name: NAIVE_ICP.into(),
+        what: "ICP of the object's model on the real depth from the naive centroid (no training)"
+            .into(),
+        trained_on: None,
+        train_instances: 0,
+        epochs: 0,
+        all,
+        objects,
+        scenes,
+        last_epoch: None,
+        seconds_train: 0.0,
+        seconds_eval: t0.elapsed().as_secs_f64(),
+        before_refine: None,
+        refine_accepted: Some(kept),
+    };
+    write_record(out, &record)?;
+    Ok(Some(record))
+}
+
+pub const NAIVE_ICP: &str = "naive_icp";
 
 /// The training seed of ensemble member `k` (member 0: the experiment's seed).
 fn member_seed(seed: u64, k: usize) -> u64 {
@@ -358,6 +483,8 @@ pub fn naive_row(out: &Path, test: &TestSet) -> Result<RowRecord> {
         last_epoch: None,
         seconds_train: 0.0,
         seconds_eval: t0.elapsed().as_secs_f64(),
+        before_refine: None,
+        refine_accepted: None,
     };
     write_record(out, &record)?;
     Ok(record)
