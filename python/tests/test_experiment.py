@@ -52,6 +52,8 @@ def test_mix_quick_writes_the_table_and_resumes(tmp_path: Path, driller: Path) -
 def test_bad_options_are_input_errors(tmp_path: Path) -> None:
     with pytest.raises(synthgen.InputError, match="unknown variant `resnet`, expected"):
         synthgen.experiment.sim2real(test=tmp_path, model="resnet", out=tmp_path / "o")
+    with pytest.raises(synthgen.InputError, match="unknown variant `snap`, expected"):
+        synthgen.experiment.sim2real(test=tmp_path, refine="snap", out=tmp_path / "o")
     with pytest.raises(synthgen.InputError, match="not found"):
         synthgen.experiment.sim2real(
             test=tmp_path / "missing", fit=tmp_path / "missing", out=tmp_path / "o"

@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 use synthgen_formats::draw::Canvas;
 use synthgen_formats::io::atomic_write;
 
-use super::rows::{Metrics, RowRecord, NAIVE};
+use super::rows::{Metrics, RowRecord, NAIVE, NAIVE_ICP};
 use super::{Settings, REAL_ONLY};
 
 /// The row whose numbers are the result (`all`, `objects`); the others are baselines.
@@ -290,7 +290,8 @@ impl Report {
     }
 
     /// Horizontal bars of the mean centre error per row (the result in blue, synthetic
-    /// baselines orange, real-only green, naive grey), median as a dark tick.
+    /// baselines orange, real-only green, naive grey, naive with ICP light grey), median as
+    /// a dark tick.
     pub fn plot(&self) -> Canvas {
         let (w, row_h, top, left) = (760i64, 34i64, 40i64, 250i64);
         let h = top + row_h * self.rows.len() as i64 + 40;
@@ -316,6 +317,7 @@ impl Report {
                 MAIN_ROW => [31, 119, 180],
                 REAL_ONLY => [44, 160, 44],
                 NAIVE => [150, 150, 150],
+                NAIVE_ICP => [190, 190, 190],
                 _ => [255, 127, 14],
             };
             c.label(10, y + 10, &r.name.to_uppercase(), 2, [20, 20, 20]);
