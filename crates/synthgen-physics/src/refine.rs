@@ -2,14 +2,15 @@
 //! by ICP, the way PoseCNN and DenseFusion finish a network's estimate.
 //!
 //! The network gives a centre; the rotation is unknown. From that centre, trimmed
-//! point-to-surface ICP runs from a spread of starting rotations (directions of a Fibonacci
-//! sphere for the model's z-axis, times turns about it): the instance's points are projected
-//! onto the model's surface (parry's BVH), pairs whose surface faces away from the camera or
-//! lie far off are left out, and Horn's method moves the model. The start whose converged pose
-//! explains the points best wins (truncated squared distance; a point that lands on a
-//! back-facing surface counts as an outlier, so the model is never put in front of the points
-//! it should lie under). Among near-ties the pose closest to the given centre wins: where the
-//! points cannot tell (a face seen through a small hole), the network's centre decides.
+//! point-to-plane ICP runs from a spread of starting rotations (directions of a Fibonacci
+//! sphere for the model's z-axis, times turns about it): the instance's points are paired with
+//! their closest points on the model's surface (parry's BVH), pairs whose surface faces away
+//! from the camera or lie far off are left out, and each step solves the linearized
+//! point-to-plane problem. The start whose converged pose explains the points best wins
+//! (truncated squared distance; a point that lands on a back-facing surface counts as an
+//! outlier, so the model is never put in front of the points it should lie under). Among
+//! near-ties the pose closest to the given centre wins: where the points cannot tell (a face
+//! seen through a small hole), the network's centre decides.
 //!
 //! A refined centre farther than [`RefineOptions::max_shift_m`] from the given one, or one
 //! that explains too few points, is refused and the given centre kept: ICP into a wrong

@@ -198,7 +198,8 @@ pub struct ExperimentSim2realArgs {
     /// the instance's depth points from the network's centre (as PoseCNN and DenseFusion
     /// finish theirs), `none` keeps the network's centre. With `icp` each trained row also
     /// reports its centres before the refinement, and the row naive_icp (the same ICP from
-    /// the naive centroid) shows what the network adds. Depth models only.
+    /// the naive centroid) shows what the network adds. TNet only: --model rnet|full keep
+    /// their poses as predicted.
     #[arg(long, value_enum, default_value_t = RefineArg::Icp)]
     pub refine: RefineArg,
 

@@ -26,7 +26,7 @@ use synthgen_pipeline::{Backend, Format, RenderJob, SinkOptions, WriteOptions};
 use synthgen_train::data::Augment;
 
 use self::rows::{RowRecord, TrainSpec};
-use crate::options::{Refine, Sim2realOptions, TrainBudget};
+use crate::options::{Model, Refine, Sim2realOptions, TrainBudget};
 use crate::user_error;
 use crate::Log;
 
@@ -330,7 +330,7 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
         },
         per_object: args.per_object,
         ensemble: args.ensemble.unwrap_or(if args.quick { 1 } else { 3 }),
-        refine: if model.name() == "tnet" {
+        refine: if model == Model::Tnet {
             args.refine
         } else {
             Refine::None
