@@ -23,7 +23,8 @@ pub use scene::{SceneCommand, SceneFitArgs};
 pub use sensor::{SensorCommand, SensorCompareArgs, SensorCompareRgbArgs, SensorFitArgs};
 pub use sim2real::{ExperimentSim2realArgs, RefineArg, Sim2realModelArg};
 pub use train::{
-    DeviceArg, EvalArgs, ModelArg, ScheduleArg, TrainArgs, TrainModelArg, TranslationArg,
+    DeviceArg, EvalArgs, ModelArg, RgbRefineArg, ScheduleArg, TrainArgs, TrainModelArg,
+    TranslationArg,
 };
 
 #[derive(Debug, Parser)]

@@ -92,6 +92,20 @@ impl Model {
         self.primitives.iter().map(|p| p.triangles.len()).sum()
     }
 
+    /// Every triangle's corners (metres, object frame); triangles with an index past their
+    /// primitive's vertices are left out.
+    pub fn triangles_m(&self) -> Vec<[DVec3; 3]> {
+        self.primitives
+            .iter()
+            .flat_map(|p| {
+                p.triangles.iter().filter_map(|t| {
+                    let v = |i: u32| p.positions_m.get(i as usize).map(|v| v.as_dvec3());
+                    Some([v(t[0])?, v(t[1])?, v(t[2])?])
+                })
+            })
+            .collect()
+    }
+
     pub fn positions(&self) -> impl Iterator<Item = Vec3> + '_ {
         self.primitives
             .iter()

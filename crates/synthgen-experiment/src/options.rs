@@ -71,6 +71,9 @@ pub enum Refine {
     /// The object's model fitted to the instance's depth points by ICP from the network's
     /// centre (`synthgen_physics::refine`).
     Icp,
+    /// The RGB models' poses: the object's contour moved onto the edges of the RGB image
+    /// (`synthgen_fit::edge_refine`).
+    Edges,
 }
 
 /// The training budget of every trained row; None takes the default.

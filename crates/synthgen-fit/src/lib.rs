@@ -12,6 +12,7 @@
 //! Every fit reads its frames through `synthgen_formats::source::FrameSource`, so it works on
 //! BOP, Linemod and YCB-Video folders alike.
 
+pub mod edge_refine;
 pub mod rgb_compare;
 pub mod scene_fit;
 pub mod sensor;

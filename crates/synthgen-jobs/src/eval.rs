@@ -26,7 +26,10 @@ use synthgen_render::ObjectRenderer;
 use std::path::PathBuf;
 
 use synthgen_core::Progress;
+use synthgen_fit::edge_refine::EdgeRefineOptions;
 use synthgen_train::metrics::Rotations;
+
+use crate::rgb_refine::refine_estimates;
 
 use crate::{user_error, Printer, Stdout};
 
@@ -57,6 +60,9 @@ pub struct EvalRequest {
     pub rotations: Rotations,
     /// Run the checkpoint on the GPU.
     pub cuda: bool,
+    /// Refine the estimates on the RGB images before scoring ([`crate::rgb_refine`]): the
+    /// results CSV's, or the checkpoint's (RGB models).
+    pub refine: Option<EdgeRefineOptions>,
 }
 
 /// What an evaluation printed and whether it counts as failed.
@@ -109,7 +115,18 @@ fn run_results(args: &EvalRequest, csv: &Path, printer: &Printer<'_>) -> Result<
     let split = pick_split(ds.as_ref(), args.split.as_deref())?;
     let gts = read_gt(ds.as_ref(), &split, args.min_visib_fract)?;
     let results = read_results_csv(csv)?;
-    let estimates = results.estimates;
+    let mut estimates = results.estimates;
+    if let Some(opts) = &args.refine {
+        estimates = refined(args, ds.as_ref(), &split, &estimates, opts, printer)?;
+    }
+    if let Some(path) = &args.save_results {
+        write_results_csv(path, &estimates)?;
+        printer.info(format!(
+            "wrote {} refined estimates to {}",
+            estimates.len(),
+            path.display()
+        ));
+    }
     let objects = load_eval_objects(ds.as_ref(), gts.iter().map(|g| g.obj_id))?;
     let report = evaluate(&gts, &estimates, &objects, args.rotations)?;
     printer.info(format!(
@@ -161,6 +178,30 @@ fn run_results(args: &EvalRequest, csv: &Path, printer: &Printer<'_>) -> Result<
         results.skipped.len() + estimates.len(),
         csv.display()
     )))
+}
+
+/// `estimates` refined on the RGB images of `split` (`--refine edges`), with a line on what
+/// it did.
+fn refined(
+    args: &EvalRequest,
+    ds: &dyn FrameSource,
+    split: &str,
+    estimates: &[Estimate],
+    opts: &EdgeRefineOptions,
+    printer: &Printer<'_>,
+) -> Result<Vec<Estimate>> {
+    let (out, summary) = refine_estimates(ds, split, estimates, opts, printer.progress())
+        .with_context(|| format!("cannot refine the estimates on {}", args.data.display()))?;
+    printer.info(format!(
+        "refined {} of {} estimates on the RGB images, {} of them refused (too little of the contour on the image's edges; kept as estimated); edge contour cost {:.2} -> {:.2} px, {:.1} s",
+        summary.refined,
+        summary.estimates,
+        summary.refused,
+        summary.mean_cost_before_px,
+        summary.mean_cost_after_px,
+        summary.seconds
+    ));
+    Ok(out)
 }
 
 #[derive(Default)]
@@ -266,7 +307,24 @@ fn run_checkpoint(args: &EvalRequest, ckpt: &Path, printer: &Printer<'_>) -> Res
         (Some(objects), gts)
     };
     let refs: Vec<_> = set.instances.iter().collect();
-    let preds = model.predict(&refs, objects.as_ref(), 64)?;
+    let mut preds = model.predict(&refs, objects.as_ref(), 64)?;
+    if let Some(opts) = &args.refine {
+        if !cfg.model.is_rgb_only() {
+            return Err(user_error(
+                format!(
+                    "--refine edges refines the RGB models' estimates, and this is a {} checkpoint",
+                    cfg.model.name()
+                ),
+                "drop --refine, or evaluate an rgb or rgb-dense checkpoint",
+            ));
+        }
+        let estimates = prediction_estimates(&preds, &set.instances);
+        let estimates = refined(args, ds.as_ref(), &set.split, &estimates, opts, printer)?;
+        for (p, e) in preds.iter_mut().zip(&estimates) {
+            p.centre_m = Some(e.pose.translation_m.as_vec3().to_array());
+            p.rotation = Some((e.pose.rotation, p.rotation.map_or(1.0, |r| r.1)));
+        }
+    }
     if let Some(path) = &args.save_results {
         write_results_csv(path, &prediction_estimates(&preds, &set.instances))?;
         printer.info(format!(

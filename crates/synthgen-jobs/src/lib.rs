@@ -36,6 +36,7 @@ pub mod mix;
 pub mod models;
 pub mod render;
 pub mod replay;
+pub mod rgb_refine;
 pub mod train;
 
 use log::Printer;

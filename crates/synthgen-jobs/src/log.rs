@@ -122,6 +122,11 @@ impl<'a> Printer<'a> {
         self.log.hint(msg);
     }
 
+    /// The caller's progress, for a phase with a bar.
+    pub(crate) fn progress(&self) -> &'a dyn Progress {
+        self.log.progress()
+    }
+
     /// Text for stdout, as it is.
     pub(crate) fn data(&self, text: impl AsRef<str>) -> anyhow::Result<()> {
         self.stdout.push(text.as_ref());

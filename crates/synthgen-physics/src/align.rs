@@ -95,8 +95,8 @@ pub enum AlignError {
 
 /// Aligns `scan` onto `target` (both in metres).
 pub fn align(scan: &Model, target: &Model, opts: &AlignOptions) -> Result<Alignment, AlignError> {
-    let scan_tris = triangles(scan);
-    let target_tris = triangles(target);
+    let scan_tris = scan.triangles_m();
+    let target_tris = target.triangles_m();
     if scan_tris.is_empty() {
         return Err(AlignError::Empty(scan.name.clone()));
     }
@@ -145,18 +145,6 @@ pub fn align(scan: &Model, target: &Model, opts: &AlignOptions) -> Result<Alignm
     }
     // At least one start was tried.
     best.ok_or_else(|| AlignError::Empty(scan.name.clone()))
-}
-
-pub(crate) fn triangles(m: &Model) -> Vec<[DVec3; 3]> {
-    m.primitives
-        .iter()
-        .flat_map(|p| {
-            p.triangles.iter().filter_map(|t| {
-                let v = |i: u32| p.positions_m.get(i as usize).map(|v| v.as_dvec3());
-                Some([v(t[0])?, v(t[1])?, v(t[2])?])
-            })
-        })
-        .collect()
 }
 
 pub(crate) fn tri_mesh(tris: &[[DVec3; 3]]) -> Result<TriMesh, String> {

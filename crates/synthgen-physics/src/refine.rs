@@ -22,7 +22,7 @@ use rapier3d::parry::shape::TriMesh;
 use synthgen_core::glam::{DMat3, DQuat, DVec3};
 use synthgen_core::{Model, Pose};
 
-use crate::align::{surface_samples, tri_mesh, triangles, AlignError};
+use crate::align::{surface_samples, tri_mesh, AlignError};
 
 /// How [`refine_centre`] searches and when it refuses.
 #[derive(Debug, Clone, PartialEq)]
@@ -74,7 +74,7 @@ impl Surface {
     /// The surface of `model` (metres). Triangle windings are taken as they are, unless most
     /// face inwards (normals towards the area-weighted centroid), when all are turned.
     pub fn new(model: &Model) -> Result<Surface, AlignError> {
-        let tris = triangles(model);
+        let tris = model.triangles_m();
         if tris.is_empty() {
             return Err(AlignError::Empty(model.name.clone()));
         }
@@ -328,7 +328,7 @@ mod tests {
     /// The camera-facing, unoccluded surface points of `model` posed by `pose` (camera at the
     /// origin), as a depth camera would see them: a ray cast per sample (parry).
     fn visible_points(model: &Model, pose: &Pose, noise_m: f64, seed: u64) -> Vec<DVec3> {
-        let tris = triangles(model);
+        let tris = model.triangles_m();
         let s = Surface::new(model).unwrap();
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
         surface_samples(&tris, 4000)

@@ -53,6 +53,10 @@ pub enum RefineArg {
     /// centre (starts from a spread of rotations; a fit that moves the centre more than 3 cm
     /// or explains under half of the points is refused).
     Icp,
+    /// The RGB models (--model rgb, rgb-dense): each estimate's model contour moved onto the
+    /// edges of its real RGB image (a refinement that matches too little of the contour is
+    /// refused).
+    Edges,
 }
 
 pub const SIM2REAL_EXAMPLES: &str = "Examples:
@@ -198,8 +202,11 @@ pub struct ExperimentSim2realArgs {
     /// the instance's depth points from the network's centre (as PoseCNN and DenseFusion
     /// finish theirs), `none` keeps the network's centre. With `icp` each trained row also
     /// reports its centres before the refinement, and the row naive_icp (the same ICP from
-    /// the naive centroid) shows what the network adds. TNet only: --model rnet|full keep
-    /// their poses as predicted.
+    /// the naive centroid) shows what the network adds. --model rnet|full keep their poses as
+    /// predicted. The RGB models (--model rgb|rgb-dense) take `edges`: each trained row's
+    /// estimates refined on the real RGB images (the contour onto the image's edges), with
+    /// its scores before the refinement beside them; with `icp` (the default) they keep
+    /// theirs.
     #[arg(long, value_enum, default_value_t = RefineArg::Icp)]
     pub refine: RefineArg,
 

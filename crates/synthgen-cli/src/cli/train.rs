@@ -230,6 +230,15 @@ The RGB model's Table 1 (seed 001: centre + Tz against direct XYZ, 5cm5°):
 A Linemod --data is read with the scene and image ids that `synthgen convert --to bop`
 gives its frames (docs/training.md); a results CSV for it uses those ids.";
 
+/// `eval --refine`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum RgbRefineArg {
+    /// The estimates as they are.
+    None,
+    /// Contours onto the RGB image's edges.
+    Edges,
+}
+
 #[derive(Debug, Args)]
 pub struct EvalArgs {
     /// The dataset with the ground truth (and models/ for ADD): BOP, or Linemod (detected).
@@ -266,9 +275,17 @@ pub struct EvalArgs {
     pub seed: u64,
 
     /// With --checkpoint of a full or rgb model, also write its estimates as a BOP results CSV
-    /// (for bop_toolkit, `synthgen view --results`, or a later `eval --results`).
-    #[arg(long, value_name = "CSV", requires = "checkpoint")]
+    /// (for bop_toolkit, `synthgen view --results`, or a later `eval --results`); with
+    /// --results and --refine, the refined estimates.
+    #[arg(long, value_name = "CSV")]
     pub save_results: Option<PathBuf>,
+
+    /// Refine the estimates before scoring: `edges` moves each estimate's model contour onto
+    /// the edges of its RGB image (directional chamfer matching; no depth, nothing learned).
+    /// For the results CSV's estimates, or an rgb / rgb-dense checkpoint's. See
+    /// docs/metrics.md.
+    #[arg(long, value_enum, default_value_t = RgbRefineArg::None)]
+    pub refine: RgbRefineArg,
 
     /// Also score with BOP's Average Recall (AR = mean of AR_VSD, AR_MSSD, AR_MSPD), computed
     /// as bop_toolkit's eval_bop19_pose.py does; VSD renders each estimate and needs the test

@@ -5,8 +5,9 @@
 use anyhow::Result;
 use synthgen_jobs::eval::{evaluate_request, EvalRequest};
 
-use crate::cli::{DeviceArg, EvalArgs};
+use crate::cli::{DeviceArg, EvalArgs, RgbRefineArg};
 use crate::{ExitStatus, Printer};
+use synthgen_fit::edge_refine::EdgeRefineOptions;
 
 pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
     let request = EvalRequest {
@@ -25,7 +26,14 @@ pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
         stability: args.stability,
         rotations: args.rotations.into(),
         cuda: args.device == DeviceArg::Cuda,
+        refine: (args.refine == RgbRefineArg::Edges).then(EdgeRefineOptions::default),
     };
+    if request.save_results.is_some() && request.checkpoint.is_none() && request.refine.is_none() {
+        return Err(synthgen_jobs::user_error(
+            "--save-results writes a checkpoint's estimates, or the refined ones of --results",
+            "add --checkpoint FILE, or --refine edges to write the refined estimates",
+        ));
+    }
     let outcome = evaluate_request(&request, printer)?;
     printer.data(&outcome.stdout)?;
     Ok(match outcome.failed {

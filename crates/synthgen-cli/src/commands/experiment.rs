@@ -104,6 +104,7 @@ pub fn sim2real_options(a: ExperimentSim2realArgs) -> Sim2realOptions {
         refine: match a.refine {
             RefineArg::None => Refine::None,
             RefineArg::Icp => Refine::Icp,
+            RefineArg::Edges => Refine::Edges,
         },
         seed: a.seed,
         rows: a.rows,

@@ -24,6 +24,7 @@ mod real_rotations;
 mod render;
 mod replay;
 mod rgb;
+mod rgb_refine;
 mod scale;
 mod scene_extras;
 mod scene_fit;

@@ -354,7 +354,8 @@ fn quick_sim2real_on_objects_the_fit_never_saw() {
 
 /// Issue 29: `--model rgb-dense` on the RGB-only Linemod-Occluded photographs (no depth, no
 /// masks), the scene from a scene file: the rows, the naive box baseline, report.json in the
-/// issue's shape, per object and per scene; a re-run computes nothing.
+/// issue's shape, per object and per scene, the trained rows refined on the photographs
+/// (`--refine edges`) with their scores before; a re-run computes nothing.
 #[test]
 #[cfg_attr(
     not(has_shared_data),
@@ -372,13 +373,22 @@ fn quick_rgb_dense_sim2real_on_real_lmo_photographs() {
             .arg(&scene)
             .arg("--test")
             .arg(&lmo)
-            .args(["--cycles-frames", "0", "--frames", "24", "--out"])
+            .args([
+                "--cycles-frames",
+                "0",
+                "--frames",
+                "24",
+                "--refine",
+                "edges",
+            ])
+            .arg("--out")
             .arg(&out))
     };
     let o = go();
     assert!(o.status.success(), "{}", stderr(&o));
     let md = String::from_utf8_lossy(&o.stdout).into_owned();
     assert!(md.contains("GT visible boxes"), "{md}");
+    assert!(md.contains("`--refine edges`"), "{md}");
     let r: Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     assert_eq!(r["model"], "rgb-dense");
@@ -402,6 +412,14 @@ fn quick_rgb_dense_sim2real_on_real_lmo_photographs() {
     for name in ["synth_realistic", "synth_plain", "naive_box"] {
         assert!(rows.contains_key(name), "{name} missing: {:?}", rows.keys());
     }
+    // The trained rows were refined, their scores before it kept; the naive box was not.
+    for name in ["synth_realistic", "synth_plain"] {
+        let before = &rows[name]["before_refine"];
+        assert!(before["ar_mspd"].as_f64().is_some(), "{name}: {before}");
+        let kept = rows[name]["refine_accepted"].as_f64().unwrap();
+        assert!((0.0..=1.0).contains(&kept), "{name}: {kept}");
+    }
+    assert!(rows["naive_box"].get("before_refine").is_none());
     // No --fit: no real-only row, and the report says so.
     assert!(!rows.contains_key("real_only"));
     let notes = r["notes"].to_string();
@@ -502,6 +520,10 @@ fn rgb_sim2real_fits_the_scene_and_takes_replacement_models() {
         (
             vec!["--model", "tnet", "--cycles-frames", "2"],
             vec!["--cycles-frames applies to the RGB models"],
+        ),
+        (
+            vec!["--model", "tnet", "--refine", "edges"],
+            vec!["--refine edges refines the RGB models"],
         ),
     ] {
         let mut args = vec!["--test-scenes", "0"];

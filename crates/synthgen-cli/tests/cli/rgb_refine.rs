@@ -1,0 +1,160 @@
+//! `synthgen eval --refine edges`: estimates refined on their RGB images (a results CSV's,
+//! here the GT of rendered frames turned and shifted by known amounts), the refined CSV
+//! written, and the flags it needs.
+
+use std::fmt::Write as _;
+use std::fs;
+use std::path::Path;
+
+use serde_json::Value;
+
+use crate::common::{refused, run, shared_data, stderr, synthgen};
+
+/// Rotation (degrees) and shift (mm) every estimate starts off by.
+const TURN_DEG: f64 = 6.0;
+const SHIFT_MM: f64 = 10.0;
+
+/// A results CSV of every GT instance of `scene_gt.json`, each turned by [`TURN_DEG`] about
+/// a fixed axis (camera frame) and shifted by [`SHIFT_MM`] along a fixed direction.
+fn perturbed_gt(scene_gt: &Path, out: &Path) -> usize {
+    let gt: Value = serde_json::from_str(&fs::read_to_string(scene_gt).unwrap()).unwrap();
+    let a = TURN_DEG.to_radians();
+    let axis = [0.6f64, -0.48, 0.64];
+    let n = axis.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let [x, y, z] = axis.map(|v| v / n);
+    let (s, c) = a.sin_cos();
+    let turn = [
+        [
+            c + x * x * (1.0 - c),
+            x * y * (1.0 - c) - z * s,
+            x * z * (1.0 - c) + y * s,
+        ],
+        [
+            y * x * (1.0 - c) + z * s,
+            c + y * y * (1.0 - c),
+            y * z * (1.0 - c) - x * s,
+        ],
+        [
+            z * x * (1.0 - c) - y * s,
+            z * y * (1.0 - c) + x * s,
+            c + z * z * (1.0 - c),
+        ],
+    ];
+    let mut csv = String::from("scene_id,im_id,obj_id,score,R,t,time\n");
+    let mut rows = 0;
+    for (im, list) in gt.as_object().unwrap() {
+        for g in list.as_array().unwrap() {
+            let r: Vec<f64> = g["cam_R_m2c"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_f64().unwrap())
+                .collect();
+            let t: Vec<f64> = g["cam_t_m2c"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_f64().unwrap())
+                .collect();
+            let mut out = [0.0; 9];
+            for i in 0..3 {
+                for j in 0..3 {
+                    out[i * 3 + j] = (0..3).map(|k| turn[i][k] * r[k * 3 + j]).sum();
+                }
+            }
+            let shift = [SHIFT_MM * 0.6, SHIFT_MM * 0.0, SHIFT_MM * 0.8];
+            let r_text: Vec<String> = out.iter().map(|v| format!("{v:.9}")).collect();
+            let t_text: Vec<String> = (0..3).map(|i| format!("{:.4}", t[i] + shift[i])).collect();
+            writeln!(
+                csv,
+                "0,{im},{},1,{},{},-1",
+                g["obj_id"],
+                r_text.join(" "),
+                t_text.join(" ")
+            )
+            .unwrap();
+            rows += 1;
+        }
+    }
+    fs::write(out, csv).unwrap();
+    rows
+}
+
+#[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
+fn estimates_off_by_a_few_degrees_are_brought_back_onto_the_image() {
+    let shared = shared_data();
+    let tmp = tempfile::tempdir().unwrap();
+    let data = tmp.path().join("data");
+    let mut cmd = synthgen();
+    cmd.arg("render").arg("--objects");
+    for id in [1, 6, 8] {
+        cmd.arg(shared.join(format!("lmo/models/obj_{id:06}.ply")));
+    }
+    let o = run(cmd
+        .args([
+            "--camera", "linemod", "--frames", "4", "--seed", "3", "--split", "test",
+        ])
+        .arg("--out")
+        .arg(&data));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let csv = tmp.path().join("est.csv");
+    let rows = perturbed_gt(&data.join("test/000000/scene_gt.json"), &csv);
+    assert!(rows >= 8, "{rows} instances");
+    let eval = |refine: bool, json: &Path| {
+        let mut cmd = synthgen();
+        cmd.args(["eval", "--results"])
+            .arg(&csv)
+            .arg("--data")
+            .arg(&data)
+            .arg("--json")
+            .arg(json);
+        if refine {
+            cmd.args(["--refine", "edges", "--save-results"])
+                .arg(tmp.path().join("refined.csv"));
+        }
+        let o = run(&mut cmd);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let v: Value = serde_json::from_str(&fs::read_to_string(json).unwrap()).unwrap();
+        (v["all"].clone(), stderr(&o))
+    };
+    let (before, _) = eval(false, &tmp.path().join("before.json"));
+    let (after, log) = eval(true, &tmp.path().join("after.json"));
+    assert!(
+        log.contains(&format!("refined {rows} of {rows} estimates")),
+        "{log}"
+    );
+    let f = |v: &Value, k: &str| v[k].as_f64().unwrap();
+    assert!((f(&before, "mean_re_deg") - TURN_DEG).abs() < 0.01);
+    assert!((f(&before, "mean_te_cm") - SHIFT_MM / 10.0).abs() < 0.01);
+    eprintln!("before {before}\nafter {after}");
+    // Half of the estimates come back within 5° (none was, at 6°), the median rotation error
+    // falls by a third, and the translation gets no worse. (The shift is mostly along the
+    // viewing ray: a 1 % change of scale, a pixel on these objects' outlines, which the edges
+    // barely tell.)
+    assert!(f(&after, "acc_5cm5deg") >= 0.5, "{after}");
+    assert!(f(&after, "median_re_deg") < TURN_DEG * 0.7, "{after}");
+    assert!(
+        f(&after, "mean_te_cm") < f(&before, "mean_te_cm"),
+        "{after}"
+    );
+    let refined = fs::read_to_string(tmp.path().join("refined.csv")).unwrap();
+    assert_eq!(refined.lines().count(), rows + 1);
+}
+
+#[test]
+fn save_results_without_a_checkpoint_needs_refine() {
+    let tmp = tempfile::tempdir().unwrap();
+    let o = run(synthgen()
+        .args(["eval", "--results"])
+        .arg(tmp.path().join("est.csv"))
+        .arg("--data")
+        .arg(tmp.path())
+        .arg("--save-results")
+        .arg(tmp.path().join("out.csv")));
+    refused(&o, &["--save-results", "--refine edges"]);
+    assert!(!tmp.path().join("out.csv").exists());
+}

@@ -1,0 +1,875 @@
+//! Pose refinement on a colour image: an object's model moved until its occluding contour lies
+//! on the image's edges (directional chamfer matching, as in D2CO, Imperoli & Pretto 2015, and
+//! the edge-based trackers before it). No depth and nothing learned: it finishes an RGB
+//! model's estimate the way ICP finishes a depth model's ([`synthgen_physics::refine`]'s role
+//! on depth frames).
+//!
+//! - [`EdgeField`]: the image's edges around the instance (grey levels, Sobel, non-maximum
+//!   suppression, a gradient threshold) split into orientation bins, and for each bin the
+//!   distance to the nearest edge of a similar orientation (an exact Euclidean distance
+//!   transform per bin, a penalty per bin of orientation difference, truncated).
+//! - [`Contour`]: the model's occluding contour at a pose: the model rasterized (a small
+//!   z-buffer over the region), the boundary pixels of its mask lifted back onto the surface
+//!   with their tangent, so that the same surface points can be reprojected as the pose moves.
+//! - [`refine`]: a pattern search over six parameters (rotation about the camera's axes
+//!   through the object's origin, image-plane shift, scale along the viewing ray) from each
+//!   start pose, the contour re-extracted at each step size; the start whose final contour
+//!   costs least wins.
+//!
+//! [`synthgen_physics::refine`]: ../../synthgen_physics/refine/index.html
+
+use synthgen_core::glam::{DMat3, DQuat, DVec2, DVec3};
+use synthgen_core::{Intrinsics, Pose};
+
+/// How [`refine`] reads the image and searches.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct EdgeRefineOptions {
+    /// Orientation bins over 180°.
+    pub bins: usize,
+    /// Smallest gradient (grey levels per pixel, Sobel / 8) that is an edge.
+    pub min_gradient: f32,
+    /// Cost of one bin of orientation difference, pixels.
+    pub orientation_penalty_px: f32,
+    /// A contour point farther than this from a matching edge costs this, pixels: at the
+    /// last step size; the first uses `coarse_truncate_px`, the ones between shrink
+    /// geometrically, so that a far start still feels the edges and a near one is not pulled
+    /// by clutter.
+    pub truncate_px: f32,
+    pub coarse_truncate_px: f32,
+    /// Contour points per extraction.
+    pub contour_points: usize,
+    /// The rasterized region's longest side, pixels (larger regions are rasterized scaled
+    /// down).
+    pub raster_px: u32,
+    /// Initial steps of the search: rotation (degrees), image-plane shift (pixels), scale
+    /// along the viewing ray (relative).
+    pub rotation_step_deg: f64,
+    pub shift_step_px: f64,
+    pub scale_step: f64,
+    /// Step halvings after the first step size.
+    pub halvings: usize,
+    /// Moves per step size before it is halved regardless.
+    pub max_moves: usize,
+    /// Also start from each start turned by 180° about each of the object's axes (an
+    /// estimate that has the object the wrong way round).
+    pub flip_starts: bool,
+    /// A contour point within this of a matching edge (cost) is an inlier, pixels.
+    pub inlier_px: f32,
+    /// A refined pose with fewer inliers than this among its contour points is refused (the
+    /// start kept): the contour then matches too little of the image to say where it is.
+    pub min_inlier_fraction: f64,
+}
+
+impl Default for EdgeRefineOptions {
+    fn default() -> Self {
+        Self {
+            bins: 8,
+            min_gradient: 8.0,
+            orientation_penalty_px: 4.0,
+            truncate_px: 6.0,
+            coarse_truncate_px: 18.0,
+            contour_points: 200,
+            raster_px: 200,
+            rotation_step_deg: 8.0,
+            shift_step_px: 4.0,
+            scale_step: 0.04,
+            halvings: 4,
+            max_moves: 12,
+            flip_starts: true,
+            inlier_px: 2.0,
+            min_inlier_fraction: 0.4,
+        }
+    }
+}
+
+/// A pixel rectangle of the image: `x0..x0 + w`, `y0..y0 + h`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Rect {
+    pub x0: i32,
+    pub y0: i32,
+    pub w: i32,
+    pub h: i32,
+}
+
+impl Rect {
+    /// The square of side `side` centred on (cx, cy), clipped to a `width × height` image;
+    /// None when nothing of it is inside.
+    pub fn square_in(cx: f64, cy: f64, side: f64, width: u32, height: u32) -> Option<Rect> {
+        let x0 = (cx - 0.5 * side).floor().max(0.0) as i32;
+        let y0 = (cy - 0.5 * side).floor().max(0.0) as i32;
+        let x1 = ((cx + 0.5 * side).ceil() as i32).min(width as i32);
+        let y1 = ((cy + 0.5 * side).ceil() as i32).min(height as i32);
+        (x1 - x0 >= 8 && y1 - y0 >= 8).then_some(Rect {
+            x0,
+            y0,
+            w: x1 - x0,
+            h: y1 - y0,
+        })
+    }
+
+    fn contains(&self, x: f64, y: f64) -> bool {
+        x >= f64::from(self.x0)
+            && y >= f64::from(self.y0)
+            && x < f64::from(self.x0 + self.w)
+            && y < f64::from(self.y0 + self.h)
+    }
+}
+
+/// The edges of an image region and, per orientation bin, the cost of a contour point of that
+/// orientation at each pixel.
+#[derive(Debug, Clone)]
+pub struct EdgeField {
+    pub rect: Rect,
+    bins: usize,
+    /// The default truncation of [`EdgeField::cost`].
+    truncate: f32,
+    /// Per bin, `w × h` costs (pixels), not truncated below the larger of the truncations.
+    cost: Vec<Vec<f32>>,
+    /// Edge pixels found.
+    pub edges: usize,
+}
+
+/// Orientation of a direction modulo 180°, in [0, π).
+fn orientation(dx: f64, dy: f64) -> f64 {
+    let a = dy.atan2(dx);
+    let a = if a < 0.0 { a + std::f64::consts::PI } else { a };
+    if a >= std::f64::consts::PI {
+        0.0
+    } else {
+        a
+    }
+}
+
+fn bin_of(angle: f64, bins: usize) -> usize {
+    ((angle / std::f64::consts::PI * bins as f64) as usize).min(bins - 1)
+}
+
+/// 1-D squared Euclidean distance transform (Felzenszwalb & Huttenlocher) of `f` in place.
+fn edt_1d(f: &mut [f32], v: &mut [usize], z: &mut [f32], out: &mut [f32]) {
+    let n = f.len();
+    if n == 0 {
+        return;
+    }
+    let mut k = 0usize;
+    v[0] = 0;
+    z[0] = f32::NEG_INFINITY;
+    z[1] = f32::INFINITY;
+    for q in 1..n {
+        if !f[q].is_finite() {
+            continue;
+        }
+        loop {
+            let p = v[k];
+            if !f[p].is_finite() {
+                // The first parabola was an infinite one: replace it.
+                v[k] = q;
+                z[k] = f32::NEG_INFINITY;
+                z[k + 1] = f32::INFINITY;
+                break;
+            }
+            let s = ((f[q] + (q * q) as f32) - (f[p] + (p * p) as f32)) / (2.0 * (q - p) as f32);
+            if s <= z[k] && k > 0 {
+                k -= 1;
+                continue;
+            }
+            if s <= z[k] {
+                v[k] = q;
+                z[k] = f32::NEG_INFINITY;
+                z[k + 1] = f32::INFINITY;
+                break;
+            }
+            k += 1;
+            v[k] = q;
+            z[k] = s;
+            z[k + 1] = f32::INFINITY;
+            break;
+        }
+    }
+    if !f[v[0]].is_finite() {
+        out.fill(f32::INFINITY);
+    } else {
+        k = 0;
+        for (q, o) in out.iter_mut().enumerate() {
+            while z[k + 1] < q as f32 {
+                k += 1;
+            }
+            let d = q as f32 - v[k] as f32;
+            *o = d * d + f[v[k]];
+        }
+    }
+    f.copy_from_slice(out);
+}
+
+/// Euclidean distance (pixels) to the nearest `true` of a `w × h` map; infinite without any.
+fn distance_transform(on: &[bool], w: usize, h: usize) -> Vec<f32> {
+    let mut d: Vec<f32> = on
+        .iter()
+        .map(|&b| if b { 0.0 } else { f32::INFINITY })
+        .collect();
+    let n = w.max(h);
+    let (mut v, mut z, mut out, mut line) =
+        (vec![0; n], vec![0.0; n + 1], vec![0.0; n], vec![0.0; n]);
+    for x in 0..w {
+        for y in 0..h {
+            line[y] = d[y * w + x];
+        }
+        edt_1d(&mut line[..h], &mut v, &mut z, &mut out[..h]);
+        for y in 0..h {
+            d[y * w + x] = line[y];
+        }
+    }
+    for y in 0..h {
+        edt_1d(&mut d[y * w..(y + 1) * w], &mut v, &mut z, &mut out[..w]);
+    }
+    d.iter_mut().for_each(|x| *x = x.sqrt());
+    d
+}
+
+impl EdgeField {
+    /// The edges of `rect` in an RGB8 image (`width × height × 3` bytes, row-major).
+    pub fn new(
+        rgb: &[u8],
+        width: u32,
+        height: u32,
+        rect: Rect,
+        opts: &EdgeRefineOptions,
+    ) -> EdgeField {
+        let (w, h) = (rect.w as usize, rect.h as usize);
+        let grey = |x: i32, y: i32| -> f32 {
+            let x = x.clamp(0, width as i32 - 1) as usize;
+            let y = y.clamp(0, height as i32 - 1) as usize;
+            let p = &rgb[(y * width as usize + x) * 3..][..3];
+            0.299 * f32::from(p[0]) + 0.587 * f32::from(p[1]) + 0.114 * f32::from(p[2])
+        };
+        // Grey over the region and a 2-pixel border, smoothed by a [1 2 1]/4 kernel each way.
+        let (bw, bh) = (w + 4, h + 4);
+        let mut g = vec![0.0f32; bw * bh];
+        for y in 0..bh {
+            for x in 0..bw {
+                g[y * bw + x] = grey(rect.x0 + x as i32 - 2, rect.y0 + y as i32 - 2);
+            }
+        }
+        let mut s = g.clone();
+        for y in 0..bh {
+            for x in 1..bw - 1 {
+                s[y * bw + x] =
+                    0.25 * (g[y * bw + x - 1] + 2.0 * g[y * bw + x] + g[y * bw + x + 1]);
+            }
+        }
+        for y in 1..bh - 1 {
+            for x in 0..bw {
+                g[y * bw + x] =
+                    0.25 * (s[(y - 1) * bw + x] + 2.0 * s[y * bw + x] + s[(y + 1) * bw + x]);
+            }
+        }
+        // Sobel / 8 (grey levels per pixel) over the region.
+        let mut gx = vec![0.0f32; w * h];
+        let mut gy = vec![0.0f32; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let p = |dx: i32, dy: i32| {
+                    g[((y as i32 + 2 + dy) as usize) * bw + (x as i32 + 2 + dx) as usize]
+                };
+                gx[y * w + x] =
+                    (p(1, -1) + 2.0 * p(1, 0) + p(1, 1) - p(-1, -1) - 2.0 * p(-1, 0) - p(-1, 1))
+                        / 8.0;
+                gy[y * w + x] =
+                    (p(-1, 1) + 2.0 * p(0, 1) + p(1, 1) - p(-1, -1) - 2.0 * p(0, -1) - p(1, -1))
+                        / 8.0;
+            }
+        }
+        let mag: Vec<f32> = gx.iter().zip(&gy).map(|(a, b)| a.hypot(*b)).collect();
+        let bins = opts.bins.max(1);
+        let mut on = vec![vec![false; w * h]; bins];
+        let mut edges = 0;
+        for y in 1..h.saturating_sub(1) {
+            for x in 1..w.saturating_sub(1) {
+                let i = y * w + x;
+                let m = mag[i];
+                if m < opts.min_gradient {
+                    continue;
+                }
+                // Non-maximum suppression along the gradient, quantized to 4 directions.
+                let a = orientation(f64::from(gx[i]), f64::from(gy[i]));
+                let q = ((a / std::f64::consts::FRAC_PI_4).round() as usize) % 4;
+                let (dx, dy): (isize, isize) = [(1, 0), (1, 1), (0, 1), (-1, 1)][q];
+                let j1 = (i as isize + dy * w as isize + dx) as usize;
+                let j2 = (i as isize - dy * w as isize - dx) as usize;
+                if m < mag[j1] || m < mag[j2] {
+                    continue;
+                }
+                on[bin_of(a, bins)][i] = true;
+                edges += 1;
+            }
+        }
+        let dist: Vec<Vec<f32>> = on.iter().map(|m| distance_transform(m, w, h)).collect();
+        let truncate = opts.truncate_px;
+        let ceiling = opts.truncate_px.max(opts.coarse_truncate_px);
+        let cost = (0..bins)
+            .map(|b| {
+                let mut c = vec![ceiling; w * h];
+                for (b2, d) in dist.iter().enumerate() {
+                    let diff = b.abs_diff(b2);
+                    let steps = diff.min(bins - diff) as f32;
+                    let pen = steps * opts.orientation_penalty_px;
+                    if pen >= ceiling {
+                        continue;
+                    }
+                    for (ci, di) in c.iter_mut().zip(d) {
+                        *ci = ci.min(di + pen);
+                    }
+                }
+                c
+            })
+            .collect();
+        EdgeField {
+            rect,
+            bins,
+            truncate,
+            cost,
+            edges,
+        }
+    }
+
+    /// The cost of a contour point at image pixel (x, y) whose normal has orientation `angle`
+    /// (radians mod π): the truncation outside the region.
+    pub fn cost(&self, x: f64, y: f64, angle: f64) -> f32 {
+        self.cost_within(x, y, angle, self.truncate)
+    }
+
+    /// [`EdgeField::cost`] truncated at `truncate` (at most the field's larger truncation).
+    pub fn cost_within(&self, x: f64, y: f64, angle: f64, truncate: f32) -> f32 {
+        // Pixel centres at whole coordinates: pixel i spans [i - 0.5, i + 0.5).
+        let (x, y) = ((x + 0.5).floor(), (y + 0.5).floor());
+        if !self.rect.contains(x, y) {
+            return truncate;
+        }
+        let (i, j) = (
+            (x as i32 - self.rect.x0) as usize,
+            (y as i32 - self.rect.y0) as usize,
+        );
+        self.cost[bin_of(angle, self.bins)][j * self.rect.w as usize + i].min(truncate)
+    }
+}
+
+/// Points of the model's occluding contour, in the object frame: each with a second point one
+/// pixel along the contour's tangent (at extraction), so that the tangent reprojects with them.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Contour {
+    pub points: Vec<[DVec3; 2]>,
+}
+
+fn project(k: &Intrinsics, p: DVec3) -> Option<DVec2> {
+    (p.z > 1e-6).then(|| DVec2::new(k.fx * p.x / p.z + k.cx, k.fy * p.y / p.z + k.cy))
+}
+
+/// The occluding contour of `triangles` (object frame, metres) at `pose` over `rect`:
+/// rasterized at most `opts.raster_px` across, up to `opts.contour_points` boundary pixels of
+/// the mask (those on the region's border left out: the object goes on beyond it).
+pub fn contour(
+    triangles: &[[DVec3; 3]],
+    pose: &Pose,
+    k: &Intrinsics,
+    rect: Rect,
+    opts: &EdgeRefineOptions,
+) -> Contour {
+    let scale = (f64::from(opts.raster_px) / f64::from(rect.w.max(rect.h))).min(1.0);
+    let w = ((f64::from(rect.w) * scale).round() as usize).max(2);
+    let h = ((f64::from(rect.h) * scale).round() as usize).max(2);
+    // Image pixel centres are at whole coordinates (OpenCV's convention, BOP's); raster
+    // pixel (i, j) spans [i, i + 1) in raster coordinates, its centre at i + 0.5.
+    let to_raster = |p: DVec2| {
+        DVec2::new(
+            (p.x + 0.5 - f64::from(rect.x0)) * scale,
+            (p.y + 0.5 - f64::from(rect.y0)) * scale,
+        )
+    };
+    let to_image = |r: DVec2| {
+        DVec2::new(
+            f64::from(rect.x0) + r.x / scale - 0.5,
+            f64::from(rect.y0) + r.y / scale - 0.5,
+        )
+    };
+    let mut depth = vec![f32::INFINITY; w * h];
+    for t in triangles {
+        let c = t.map(|v| pose.rotation * v + pose.translation_m);
+        if c.iter().any(|p| p.z < 1e-3) {
+            continue;
+        }
+        let Some(p) = c
+            .iter()
+            .map(|&p| project(k, p).map(to_raster))
+            .collect::<Option<Vec<_>>>()
+        else {
+            continue;
+        };
+        let area = (p[1] - p[0]).perp_dot(p[2] - p[0]);
+        if area.abs() < 1e-12 {
+            continue;
+        }
+        let min = p[0].min(p[1]).min(p[2]);
+        let max = p[0].max(p[1]).max(p[2]);
+        let i0 = (min.x - 0.5).ceil().max(0.0) as usize;
+        let j0 = (min.y - 0.5).ceil().max(0.0) as usize;
+        let i1 = ((max.x - 0.5).floor() as i64).min(w as i64 - 1);
+        let j1 = ((max.y - 0.5).floor() as i64).min(h as i64 - 1);
+        if i1 < i0 as i64 || j1 < j0 as i64 {
+            continue;
+        }
+        let inv_z = [1.0 / c[0].z, 1.0 / c[1].z, 1.0 / c[2].z];
+        for j in j0..=j1 as usize {
+            for i in i0..=i1 as usize {
+                let q = DVec2::new(i as f64 + 0.5, j as f64 + 0.5);
+                let b0 = (p[2] - p[1]).perp_dot(q - p[1]) / area;
+                let b1 = (p[0] - p[2]).perp_dot(q - p[2]) / area;
+                let b2 = 1.0 - b0 - b1;
+                if b0 < 0.0 || b1 < 0.0 || b2 < 0.0 {
+                    continue;
+                }
+                let z = (1.0 / (b0 * inv_z[0] + b1 * inv_z[1] + b2 * inv_z[2])) as f32;
+                let d = &mut depth[j * w + i];
+                if z < *d {
+                    *d = z;
+                }
+            }
+        }
+    }
+    let inside = |i: i64, j: i64| {
+        i >= 0
+            && j >= 0
+            && (i as usize) < w
+            && (j as usize) < h
+            && depth[j as usize * w + i as usize].is_finite()
+    };
+    let r_inv = pose.rotation.transpose();
+    let to_object = |x: f64, y: f64, z: f64| {
+        let cam = DVec3::new((x - k.cx) * z / k.fx, (y - k.cy) * z / k.fy, z);
+        r_inv * (cam - pose.translation_m)
+    };
+    let mut found = Vec::new();
+    for j in 1..h as i64 - 1 {
+        for i in 1..w as i64 - 1 {
+            if !inside(i, j) {
+                continue;
+            }
+            let border =
+                !inside(i - 1, j) || !inside(i + 1, j) || !inside(i, j - 1) || !inside(i, j + 1);
+            if !border {
+                continue;
+            }
+            // The mask's gradient (Sobel on 0/1) is the contour's normal.
+            let m = |di: i64, dj: i64| f64::from(u8::from(inside(i + di, j + dj)));
+            let gx = m(1, -1) + 2.0 * m(1, 0) + m(1, 1) - m(-1, -1) - 2.0 * m(-1, 0) - m(-1, 1);
+            let gy = m(-1, 1) + 2.0 * m(0, 1) + m(1, 1) - m(-1, -1) - 2.0 * m(0, -1) - m(1, -1);
+            let n = DVec2::new(gx, gy);
+            if n.length_squared() < 1e-9 {
+                continue;
+            }
+            let n = n.normalize();
+            let tangent = DVec2::new(-n.y, n.x);
+            let z = f64::from(depth[j as usize * w + i as usize]);
+            // The silhouette lies half a raster pixel out from the border pixel's centre (the
+            // mask's gradient points inwards).
+            let at = to_image(DVec2::new(i as f64 + 0.5, j as f64 + 0.5) - 0.5 * n);
+            found.push([
+                to_object(at.x, at.y, z),
+                to_object(at.x + tangent.x, at.y + tangent.y, z),
+            ]);
+        }
+    }
+    let n = opts.contour_points.max(1);
+    let points = if found.len() <= n {
+        found
+    } else {
+        (0..n).map(|i| found[i * found.len() / n]).collect()
+    };
+    Contour { points }
+}
+
+/// The mean cost of `contour` at `pose`: each point's [`EdgeField::cost`] at its projection
+/// with the orientation of its reprojected tangent's normal. Points outside the image do not
+/// count; with fewer than a third of them inside, the truncation.
+pub fn contour_cost(field: &EdgeField, contour: &Contour, pose: &Pose, k: &Intrinsics) -> f64 {
+    contour_match(field, contour, pose, k, 0.0, field.truncate).0
+}
+
+/// [`contour_cost`] and the fraction of the contour's points (in the image) whose cost is
+/// within `inlier_px`.
+pub fn contour_match(
+    field: &EdgeField,
+    contour: &Contour,
+    pose: &Pose,
+    k: &Intrinsics,
+    inlier_px: f32,
+    truncate: f32,
+) -> (f64, f64) {
+    let (mut sum, mut n, mut inliers) = (0.0f64, 0usize, 0usize);
+    for [p, q] in &contour.points {
+        let (Some(a), Some(b)) = (
+            project(k, pose.rotation * *p + pose.translation_m),
+            project(k, pose.rotation * *q + pose.translation_m),
+        ) else {
+            continue;
+        };
+        if a.x < 0.0
+            || a.y < 0.0
+            || (k.width > 0 && a.x >= f64::from(k.width))
+            || (k.height > 0 && a.y >= f64::from(k.height))
+        {
+            continue;
+        }
+        let t = b - a;
+        let angle = orientation(-t.y, t.x);
+        let c = field.cost_within(a.x, a.y, angle, truncate);
+        sum += f64::from(c);
+        n += 1;
+        inliers += usize::from(c <= inlier_px);
+    }
+    if n * 3 < contour.points.len() || n == 0 {
+        (f64::from(truncate), 0.0)
+    } else {
+        (sum / n as f64, inliers as f64 / n as f64)
+    }
+}
+
+/// The pose moved by `d` = (rotation vector about the camera's axes through the object's
+/// origin, radians; image-plane shift of the origin, pixels; log scale along its ray).
+fn moved(pose: &Pose, k: &Intrinsics, d: &[f64; 6]) -> Pose {
+    let w = DVec3::new(d[0], d[1], d[2]);
+    let r = if w.length_squared() > 0.0 {
+        DMat3::from_quat(DQuat::from_scaled_axis(w)) * pose.rotation
+    } else {
+        pose.rotation
+    };
+    let t = pose.translation_m;
+    let shifted = DVec3::new(t.x + d[3] * t.z / k.fx, t.y + d[4] * t.z / k.fy, t.z);
+    Pose::new(r, shifted * d[5].exp())
+}
+
+/// The outcome of [`refine`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Refined {
+    pub pose: Pose,
+    /// The winning contour's mean cost (pixels) at the refined pose.
+    pub cost: f64,
+    /// Index of the start it came from.
+    pub start: usize,
+    /// The first start's cost before refinement.
+    pub initial_cost: f64,
+    /// The share of the refined contour's points within `inlier_px` of a matching edge.
+    pub inliers: f64,
+    /// Whether the refined pose passed `min_inlier_fraction`; when not, `pose` is the first
+    /// start, unrefined.
+    pub accepted: bool,
+}
+
+/// One start's pattern search (see the module doc).
+fn search(
+    field: &EdgeField,
+    triangles: &[[DVec3; 3]],
+    start: Pose,
+    k: &Intrinsics,
+    opts: &EdgeRefineOptions,
+) -> (Pose, f64, f64, f64) {
+    let mut pose = start;
+    let levels = opts.halvings + 1;
+    let truncation = |level: usize| {
+        let f = if levels > 1 {
+            level as f32 / (levels - 1) as f32
+        } else {
+            1.0
+        };
+        opts.coarse_truncate_px * (opts.truncate_px / opts.coarse_truncate_px).powf(f)
+    };
+    let at = |c: &Contour, p: &Pose, level: usize| {
+        contour_match(field, c, p, k, 0.0, truncation(level)).0
+    };
+    let mut c = contour(triangles, &pose, k, field.rect, opts);
+    let initial = contour_cost(field, &c, &pose, k);
+    let mut cost;
+    let mut steps = [
+        opts.rotation_step_deg.to_radians(),
+        opts.shift_step_px,
+        opts.scale_step,
+    ];
+    for level in 0..levels {
+        cost = at(&c, &pose, level);
+        for _ in 0..opts.max_moves {
+            let mut best: Option<(Pose, f64)> = None;
+            for axis in 0..6 {
+                for sign in [-1.0, 1.0] {
+                    let mut d = [0.0; 6];
+                    // Rotations, shifts, then the scale.
+                    d[axis] = sign * steps[[0, 0, 0, 1, 1, 2][axis]];
+                    let p = moved(&pose, k, &d);
+                    let v = at(&c, &p, level);
+                    if v < best.map_or(cost, |b| b.1) {
+                        best = Some((p, v));
+                    }
+                }
+            }
+            match best {
+                Some((p, v)) => {
+                    pose = p;
+                    cost = v;
+                }
+                None => break,
+            }
+        }
+        // The contour of the new pose: other surface points may now be the rim.
+        c = contour(triangles, &pose, k, field.rect, opts);
+        for s in &mut steps {
+            *s *= 0.5;
+        }
+    }
+    let (cost, inliers) = contour_match(field, &c, &pose, k, opts.inlier_px, field.truncate);
+    (pose, cost, initial, inliers)
+}
+
+/// Refines each of `starts` (and their flips with `opts.flip_starts`) against `field` and
+/// keeps the one whose contour ends cheapest;
+/// refused (the first start returned, `accepted` false) when fewer than
+/// `opts.min_inlier_fraction` of its contour points are inliers. None without starts.
+pub fn refine(
+    field: &EdgeField,
+    triangles: &[[DVec3; 3]],
+    starts: &[Pose],
+    k: &Intrinsics,
+    opts: &EdgeRefineOptions,
+) -> Option<Refined> {
+    let mut all = starts.to_vec();
+    if opts.flip_starts {
+        for s in starts {
+            for axis in [DVec3::X, DVec3::Y, DVec3::Z] {
+                let flip = DMat3::from_axis_angle(axis, std::f64::consts::PI);
+                all.push(Pose::new(s.rotation * flip, s.translation_m));
+            }
+        }
+    }
+    let mut out: Option<Refined> = None;
+    let mut initial_cost = f64::NAN;
+    for (i, s) in all.iter().enumerate() {
+        let (pose, cost, initial, inliers) = search(field, triangles, *s, k, opts);
+        if i == 0 {
+            initial_cost = initial;
+        }
+        if out.is_none_or(|o| cost < o.cost) {
+            out = Some(Refined {
+                pose,
+                cost,
+                start: i,
+                initial_cost,
+                inliers,
+                accepted: true,
+            });
+        }
+    }
+    out.map(|o| {
+        let accepted = o.inliers >= opts.min_inlier_fraction;
+        Refined {
+            initial_cost,
+            accepted,
+            pose: if accepted { o.pose } else { starts[0] },
+            ..o
+        }
+    })
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+
+    /// A box of half-sizes `h` as 12 triangles.
+    fn cuboid(h: DVec3) -> Vec<[DVec3; 3]> {
+        let v = |x: f64, y: f64, z: f64| DVec3::new(x * h.x, y * h.y, z * h.z);
+        let c = [
+            v(-1., -1., -1.),
+            v(1., -1., -1.),
+            v(1., 1., -1.),
+            v(-1., 1., -1.),
+            v(-1., -1., 1.),
+            v(1., -1., 1.),
+            v(1., 1., 1.),
+            v(-1., 1., 1.),
+        ];
+        let f = [
+            [0, 1, 2, 3],
+            [4, 5, 6, 7],
+            [0, 1, 5, 4],
+            [2, 3, 7, 6],
+            [1, 2, 6, 5],
+            [0, 3, 7, 4],
+        ];
+        f.iter()
+            .flat_map(|q| [[c[q[0]], c[q[1]], c[q[2]]], [c[q[0]], c[q[2]], c[q[3]]]])
+            .collect()
+    }
+
+    fn camera() -> Intrinsics {
+        Intrinsics {
+            width: 320,
+            height: 240,
+            fx: 400.0,
+            fy: 400.0,
+            cx: 160.0,
+            cy: 120.0,
+        }
+    }
+
+    /// The cuboid's mask at `pose`, white on a noisy grey background with a distractor bar.
+    fn image(tris: &[[DVec3; 3]], pose: &Pose, k: &Intrinsics) -> Vec<u8> {
+        let mut img = vec![0u8; (k.width * k.height * 3) as usize];
+        for y in 0..k.height {
+            for x in 0..k.width {
+                // Inside one of the projected faces: the box covers the pixel.
+                let i = ((y * k.width + x) * 3) as usize;
+                let noise = ((x * 7 + y * 13) % 11) as u8;
+                let v = if in_hull(tris, pose, k, f64::from(x), f64::from(y)) {
+                    200
+                } else if (100..110).contains(&x) && y < 60 {
+                    150
+                } else {
+                    60 + noise
+                };
+                img[i..i + 3].fill(v);
+            }
+        }
+        img
+    }
+
+    fn in_hull(tris: &[[DVec3; 3]], pose: &Pose, k: &Intrinsics, x: f64, y: f64) -> bool {
+        tris.iter().any(|t| {
+            let p: Vec<DVec2> = t
+                .iter()
+                .map(|&v| project(k, pose.rotation * v + pose.translation_m).unwrap())
+                .collect();
+            let q = DVec2::new(x, y);
+            let s = |a: DVec2, b: DVec2| (b - a).perp_dot(q - a);
+            let (a, b, c) = (s(p[0], p[1]), s(p[1], p[2]), s(p[2], p[0]));
+            (a >= 0.0 && b >= 0.0 && c >= 0.0) || (a <= 0.0 && b <= 0.0 && c <= 0.0)
+        })
+    }
+
+    fn gt_pose() -> Pose {
+        let r = DMat3::from_quat(DQuat::from_euler(
+            synthgen_core::glam::EulerRot::XYZ,
+            0.5,
+            -0.4,
+            0.3,
+        ));
+        Pose::new(r, DVec3::new(0.01, -0.02, 0.6))
+    }
+
+    fn rotation_error_deg(a: &DMat3, b: &DMat3) -> f64 {
+        let m = a.transpose() * *b;
+        (((m.x_axis.x + m.y_axis.y + m.z_axis.z) - 1.0) / 2.0)
+            .clamp(-1.0, 1.0)
+            .acos()
+            .to_degrees()
+    }
+
+    #[test]
+    fn the_distance_transform_is_euclidean() {
+        let (w, h) = (9, 7);
+        let mut on = vec![false; w * h];
+        on[3 * w + 4] = true;
+        on[0] = true;
+        let d = distance_transform(&on, w, h);
+        for y in 0..h {
+            for x in 0..w {
+                let e = ((x as f32 - 4.0).hypot(y as f32 - 3.0)).min((x as f32).hypot(y as f32));
+                assert!(
+                    (d[y * w + x] - e).abs() < 1e-4,
+                    "({x}, {y}): {} vs {e}",
+                    d[y * w + x]
+                );
+            }
+        }
+        assert!(distance_transform(&[false; 6], 3, 2)
+            .iter()
+            .all(|v| v.is_infinite()));
+    }
+
+    #[test]
+    fn the_contour_lies_on_the_image_edges_at_the_true_pose() {
+        let k = camera();
+        let tris = cuboid(DVec3::new(0.05, 0.03, 0.04));
+        let gt = gt_pose();
+        let img = image(&tris, &gt, &k);
+        let opts = EdgeRefineOptions::default();
+        let rect = Rect::square_in(160.0, 120.0, 200.0, k.width, k.height).unwrap();
+        let field = EdgeField::new(&img, k.width, k.height, rect, &opts);
+        assert!(field.edges > 100, "{} edges", field.edges);
+        let c = contour(&tris, &gt, &k, rect, &opts);
+        assert!(c.points.len() > 50, "{} contour points", c.points.len());
+        let at_gt = contour_cost(&field, &c, &gt, &k);
+        assert!(at_gt < 1.5, "cost at the true pose {at_gt}");
+        // Shifted 6 px each way: every contour point is 6 px off its edge along the normal
+        // (cos 45° of 8.5 px at worst).
+        let off = moved(&gt, &k, &[0.0, 0.0, 0.0, 6.0, 6.0, 0.0]);
+        let shifted = contour_cost(&field, &c, &off, &k);
+        assert!(shifted > at_gt + 3.0, "{shifted} vs {at_gt}");
+    }
+
+    #[test]
+    fn a_perturbed_pose_is_brought_back() {
+        let k = camera();
+        let tris = cuboid(DVec3::new(0.05, 0.03, 0.04));
+        let gt = gt_pose();
+        let img = image(&tris, &gt, &k);
+        let opts = EdgeRefineOptions::default();
+        let rect = Rect::square_in(160.0, 120.0, 220.0, k.width, k.height).unwrap();
+        let field = EdgeField::new(&img, k.width, k.height, rect, &opts);
+        let start = moved(&gt, &k, &[0.12, -0.1, 0.15, 5.0, -4.0, 0.06]);
+        assert!(rotation_error_deg(&start.rotation, &gt.rotation) > 10.0);
+        let r = refine(&field, &tris, &[start], &k, &opts).unwrap();
+        let re = rotation_error_deg(&r.pose.rotation, &gt.rotation);
+        let te = (r.pose.translation_m - gt.translation_m).length();
+        assert!(re < 3.0, "rotation error {re}°");
+        assert!(te < 0.01, "translation error {te} m");
+        assert!(r.cost < r.initial_cost);
+    }
+
+    #[test]
+    fn the_cheapest_start_wins() {
+        let k = camera();
+        let tris = cuboid(DVec3::new(0.05, 0.03, 0.04));
+        let gt = gt_pose();
+        let img = image(&tris, &gt, &k);
+        let opts = EdgeRefineOptions::default();
+        let rect = Rect::square_in(160.0, 120.0, 220.0, k.width, k.height).unwrap();
+        let field = EdgeField::new(&img, k.width, k.height, rect, &opts);
+        let far = moved(&gt, &k, &[1.6, 0.9, 0.0, 0.0, 0.0, 0.0]);
+        let near = moved(&gt, &k, &[0.05, 0.0, -0.05, 2.0, 0.0, 0.0]);
+        let r = refine(&field, &tris, &[far, near], &k, &opts).unwrap();
+        assert_eq!(r.start, 1);
+        assert!(rotation_error_deg(&r.pose.rotation, &gt.rotation) < 3.0);
+    }
+
+    #[test]
+    fn a_contour_with_nothing_to_match_is_refused() {
+        let k = camera();
+        let tris = cuboid(DVec3::new(0.05, 0.03, 0.04));
+        // Another object's image: a bar, nowhere near the cuboid's outline.
+        let img: Vec<u8> = (0..k.width * k.height)
+            .flat_map(|i| {
+                let (x, y) = (i % k.width, i / k.width);
+                let v = if (40..60).contains(&x) && y > 100 {
+                    180
+                } else {
+                    60
+                };
+                [v, v, v]
+            })
+            .collect();
+        let opts = EdgeRefineOptions::default();
+        let rect = Rect::square_in(160.0, 120.0, 220.0, k.width, k.height).unwrap();
+        let field = EdgeField::new(&img, k.width, k.height, rect, &opts);
+        let start = gt_pose();
+        let r = refine(&field, &tris, &[start], &k, &opts).unwrap();
+        assert!(!r.accepted, "inliers {}", r.inliers);
+        assert_eq!(r.pose, start);
+    }
+}

@@ -1,0 +1,164 @@
+//! Pose estimates refined on the colour images they came from (`synthgen eval --refine
+//! edges`): each estimate's model contour moved onto the image's edges
+//! (`synthgen_fit::edge_refine`). It reads only the estimate, the RGB image, the camera and
+//! the object's model, so it refines any BOP results file, not only synthgen's.
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use rayon::prelude::*;
+use serde::Serialize;
+use synthgen_core::glam::DVec3;
+use synthgen_core::{Pose, Progress};
+use synthgen_fit::edge_refine::{refine, EdgeField, EdgeRefineOptions, Rect};
+use synthgen_formats::bop::image::read_rgb;
+use synthgen_formats::source::FrameSource;
+use synthgen_train::bop::load_render_models;
+use synthgen_train::results::{Estimate, RawPose};
+
+/// The refined region's side over the side of the estimate's projected model box.
+pub const REGION_CONTEXT: f64 = 2.0;
+
+/// What a refinement pass did.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct RefineSummary {
+    pub estimates: usize,
+    /// Estimates refined (the others: no RGB image, a model behind the camera or off the
+    /// image): kept as they were.
+    pub refined: usize,
+    /// Of those, refinements refused (too few contour points on matching edges): the
+    /// estimate kept.
+    pub refused: usize,
+    /// Mean contour cost (pixels) of the refined estimates before and after.
+    pub mean_cost_before_px: f64,
+    pub mean_cost_after_px: f64,
+    pub seconds: f64,
+}
+
+/// `n` vertices of the model, strided: where its projected box is read from.
+fn box_points(tris: &[[DVec3; 3]], n: usize) -> Vec<DVec3> {
+    let step = (tris.len() / n.max(1)).max(1);
+    tris.iter().step_by(step).map(|t| t[0]).collect()
+}
+
+/// The square around the model's projection at `pose`, [`REGION_CONTEXT`] times its box's
+/// longer side; None when a point is behind the camera or nothing of it is in the image.
+fn region(points: &[DVec3], pose: &Pose, k: &synthgen_core::Intrinsics) -> Option<Rect> {
+    let (mut lo, mut hi) = (
+        [f64::INFINITY, f64::INFINITY],
+        [f64::NEG_INFINITY, f64::NEG_INFINITY],
+    );
+    for p in points {
+        let c = pose.rotation * *p + pose.translation_m;
+        if c.z <= 1e-3 {
+            return None;
+        }
+        let (x, y) = (k.fx * c.x / c.z + k.cx, k.fy * c.y / c.z + k.cy);
+        lo = [lo[0].min(x), lo[1].min(y)];
+        hi = [hi[0].max(x), hi[1].max(y)];
+    }
+    let side = REGION_CONTEXT * (hi[0] - lo[0]).max(hi[1] - lo[1]);
+    if !side.is_finite() {
+        return None;
+    }
+    Rect::square_in(
+        0.5 * (lo[0] + hi[0]),
+        0.5 * (lo[1] + hi[1]),
+        side,
+        k.width,
+        k.height,
+    )
+}
+
+/// `estimates` refined on the RGB images of `split` (each estimate's own image; the others
+/// kept), in the same order; the time each took is added to its `time_s` when known.
+pub fn refine_estimates(
+    ds: &dyn FrameSource,
+    split: &str,
+    estimates: &[Estimate],
+    opts: &EdgeRefineOptions,
+    progress: &dyn Progress,
+) -> Result<(Vec<Estimate>, RefineSummary)> {
+    let started = Instant::now();
+    let frames = ds.frames(&[split.to_string()])?;
+    let by_frame: BTreeMap<(u32, u32), _> = frames
+        .iter()
+        .map(|f| ((f.location.scene_id, f.location.im_id), f))
+        .collect();
+    let ids: std::collections::BTreeSet<u32> = estimates.iter().map(|e| e.obj_id).collect();
+    let models = load_render_models(ds, ids)
+        .with_context(|| format!("cannot load the object models of {}", ds.root().display()))?;
+    let tris: BTreeMap<u32, Vec<[DVec3; 3]>> = models
+        .iter()
+        .map(|(id, m)| (*id, m.triangles_m()))
+        .collect();
+    let points: BTreeMap<u32, Vec<DVec3>> = tris
+        .iter()
+        .map(|(id, t)| (*id, box_points(t, 500)))
+        .collect();
+    let mut groups: BTreeMap<(u32, u32), Vec<usize>> = BTreeMap::new();
+    for (i, e) in estimates.iter().enumerate() {
+        groups.entry((e.scene_id, e.im_id)).or_default().push(i);
+    }
+    progress.start("refining on the RGB images", estimates.len() as u64);
+    let groups: Vec<_> = groups.into_iter().collect();
+    type Done = (usize, Option<(Estimate, f64, f64, bool)>);
+    let done: Vec<Vec<Done>> = groups
+        .par_iter()
+        .map(|(frame, idx)| -> Result<_> {
+            let Some(f) = by_frame.get(frame) else {
+                progress.advance(idx.len() as u64);
+                return Ok(idx.iter().map(|&i| (i, None)).collect());
+            };
+            let img = read_rgb(&f.rgb)?;
+            let k = f.camera.intrinsics(img.width, img.height);
+            let mut out = Vec::with_capacity(idx.len());
+            for &i in idx {
+                let e = &estimates[i];
+                let t0 = Instant::now();
+                let refined = match (tris.get(&e.obj_id), points.get(&e.obj_id)) {
+                    (Some(t), Some(p)) => region(p, &e.pose, &k).and_then(|rect| {
+                        let field = EdgeField::new(&img.rgb, img.width, img.height, rect, opts);
+                        refine(&field, t, &[e.pose], &k, opts)
+                    }),
+                    _ => None,
+                };
+                out.push((
+                    i,
+                    refined.map(|r| {
+                        let mut new = *e;
+                        new.pose = r.pose;
+                        new.stored = RawPose::from_pose(&r.pose);
+                        if new.time_s >= 0.0 {
+                            new.time_s += t0.elapsed().as_secs_f64();
+                        }
+                        (new, r.initial_cost, r.cost, r.accepted)
+                    }),
+                ));
+                progress.advance(1);
+            }
+            Ok(out)
+        })
+        .collect::<Result<_>>()?;
+    let mut out = estimates.to_vec();
+    let mut summary = RefineSummary {
+        estimates: estimates.len(),
+        ..Default::default()
+    };
+    for (i, r) in done.into_iter().flatten() {
+        if let Some((e, before, after, accepted)) = r {
+            out[i] = e;
+            summary.refined += 1;
+            summary.refused += usize::from(!accepted);
+            summary.mean_cost_before_px += before;
+            summary.mean_cost_after_px += after;
+        }
+    }
+    if summary.refined > 0 {
+        summary.mean_cost_before_px /= summary.refined as f64;
+        summary.mean_cost_after_px /= summary.refined as f64;
+    }
+    summary.seconds = started.elapsed().as_secs_f64();
+    Ok((out, summary))
+}
