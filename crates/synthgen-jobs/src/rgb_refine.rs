@@ -141,6 +141,7 @@ pub fn refine_estimates(
             Ok(out)
         })
         .collect::<Result<_>>()?;
+    progress.finish();
     let mut out = estimates.to_vec();
     let mut summary = RefineSummary {
         estimates: estimates.len(),

@@ -168,7 +168,8 @@ def sim2real(
         ablation, unseen_up, mask_jitter_px, mask_shift_px, occlusion_prob, point_dropout,
             per_object, ensemble: the depth models' knobs (docs/experiments.md).
         refine: ``"icp"`` (TNet's centres refined by ICP of the object's model on the real
-            depth) or ``"none"``.
+            depth), ``"edges"`` (the RGB models' estimates refined on the real RGB images:
+            each object's outline moved onto the image's edges) or ``"none"``.
         rows: only these rows.
         progress: as for :func:`synthgen.render`.
 
