@@ -752,6 +752,31 @@ mod tests {
         })
     }
 
+    /// The cuboid rendered at [`gt_pose`] and the edges of the square of side `side` around
+    /// the image centre; the cuboid looks the same turned by 180° about its axes, so no
+    /// flipped starts.
+    fn cuboid_scene(
+        side: f64,
+    ) -> (
+        Intrinsics,
+        Vec<[DVec3; 3]>,
+        Pose,
+        EdgeField,
+        EdgeRefineOptions,
+    ) {
+        let k = camera();
+        let tris = cuboid(DVec3::new(0.05, 0.03, 0.04));
+        let gt = gt_pose();
+        let img = image(&tris, &gt, &k);
+        let opts = EdgeRefineOptions {
+            flip_starts: false,
+            ..Default::default()
+        };
+        let rect = Rect::square_in(160.0, 120.0, side, k.width, k.height).unwrap();
+        let field = EdgeField::new(&img, k.width, k.height, rect, &opts);
+        (k, tris, gt, field, opts)
+    }
+
     fn gt_pose() -> Pose {
         let r = DMat3::from_quat(DQuat::from_euler(
             synthgen_core::glam::EulerRot::XYZ,
@@ -815,17 +840,7 @@ mod tests {
 
     #[test]
     fn a_perturbed_pose_is_brought_back() {
-        let k = camera();
-        let tris = cuboid(DVec3::new(0.05, 0.03, 0.04));
-        let gt = gt_pose();
-        let img = image(&tris, &gt, &k);
-        // A cuboid looks the same turned by 180° about its axes: no flipped starts here.
-        let opts = EdgeRefineOptions {
-            flip_starts: false,
-            ..Default::default()
-        };
-        let rect = Rect::square_in(160.0, 120.0, 220.0, k.width, k.height).unwrap();
-        let field = EdgeField::new(&img, k.width, k.height, rect, &opts);
+        let (k, tris, gt, field, opts) = cuboid_scene(220.0);
         let start = moved(&gt, &k, &[0.12, -0.1, 0.15, 5.0, -4.0, 0.06]);
         assert!(rotation_error_deg(&start.rotation, &gt.rotation) > 10.0);
         let r = refine(&field, &tris, &[start], &k, &opts).unwrap();
@@ -838,17 +853,7 @@ mod tests {
 
     #[test]
     fn the_cheapest_start_wins() {
-        let k = camera();
-        let tris = cuboid(DVec3::new(0.05, 0.03, 0.04));
-        let gt = gt_pose();
-        let img = image(&tris, &gt, &k);
-        // A cuboid looks the same turned by 180° about its axes: no flipped starts here.
-        let opts = EdgeRefineOptions {
-            flip_starts: false,
-            ..Default::default()
-        };
-        let rect = Rect::square_in(160.0, 120.0, 220.0, k.width, k.height).unwrap();
-        let field = EdgeField::new(&img, k.width, k.height, rect, &opts);
+        let (k, tris, gt, field, opts) = cuboid_scene(220.0);
         let far = moved(&gt, &k, &[1.6, 0.9, 0.0, 0.0, 0.0, 0.0]);
         let near = moved(&gt, &k, &[0.05, 0.0, -0.05, 2.0, 0.0, 0.0]);
         let r = refine(&field, &tris, &[far, near], &k, &opts).unwrap();

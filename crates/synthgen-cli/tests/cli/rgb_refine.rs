@@ -44,18 +44,7 @@ fn perturbed_gt(scene_gt: &Path, out: &Path) -> usize {
     let mut rows = 0;
     for (im, list) in gt.as_object().unwrap() {
         for g in list.as_array().unwrap() {
-            let r: Vec<f64> = g["cam_R_m2c"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .map(|v| v.as_f64().unwrap())
-                .collect();
-            let t: Vec<f64> = g["cam_t_m2c"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .map(|v| v.as_f64().unwrap())
-                .collect();
+            let (r, t) = (numbers(&g["cam_R_m2c"]), numbers(&g["cam_t_m2c"]));
             let mut out = [0.0; 9];
             for i in 0..3 {
                 for j in 0..3 {
@@ -78,6 +67,15 @@ fn perturbed_gt(scene_gt: &Path, out: &Path) -> usize {
     }
     fs::write(out, csv).unwrap();
     rows
+}
+
+/// A JSON array of numbers.
+fn numbers(v: &Value) -> Vec<f64> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect()
 }
 
 #[test]
