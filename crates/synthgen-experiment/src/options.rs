@@ -74,6 +74,9 @@ pub enum Refine {
     /// The RGB models' poses: the object's contour moved onto the edges of the RGB image
     /// (`synthgen_fit::edge_refine`).
     Edges,
+    /// The RGB models' poses: a search over each object's rotations about the estimate's
+    /// position first, its best candidates and the estimate then refined as with `Edges`.
+    Views,
 }
 
 /// The training budget of every trained row; None takes the default.

@@ -180,7 +180,7 @@ fn run_results(args: &EvalRequest, csv: &Path, printer: &Printer<'_>) -> Result<
     )))
 }
 
-/// `estimates` refined on the RGB images of `split` (`--refine edges`), with a line on what
+/// `estimates` refined on the RGB images of `split` (`--refine edges|views`), with a line on what
 /// it did.
 fn refined(
     args: &EvalRequest,
@@ -312,7 +312,7 @@ fn run_checkpoint(args: &EvalRequest, ckpt: &Path, printer: &Printer<'_>) -> Res
         if !cfg.model.is_rgb_only() {
             return Err(user_error(
                 format!(
-                    "--refine edges refines the RGB models' estimates, and this is a {} checkpoint",
+                    "--refine edges and views refine the RGB models' estimates, and this is a {} checkpoint",
                     cfg.model.name()
                 ),
                 "drop --refine, or evaluate an rgb or rgb-dense checkpoint",

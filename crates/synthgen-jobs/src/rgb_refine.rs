@@ -11,7 +11,9 @@ use rayon::prelude::*;
 use serde::Serialize;
 use synthgen_core::glam::DVec3;
 use synthgen_core::{Pose, Progress};
-use synthgen_fit::edge_refine::{refine, EdgeField, EdgeRefineOptions, Rect};
+use synthgen_fit::edge_refine::{
+    refine, refine_with_views, EdgeField, EdgeRefineOptions, Rect, ViewTemplates,
+};
 use synthgen_formats::bop::image::read_rgb;
 use synthgen_formats::source::FrameSource;
 use synthgen_train::bop::load_render_models;
@@ -97,6 +99,14 @@ pub fn refine_estimates(
         .iter()
         .map(|(id, t)| (*id, box_points(t, 500)))
         .collect();
+    // With a view search: each object's contours from every viewpoint, once.
+    let templates: BTreeMap<u32, ViewTemplates> = if opts.view_search.is_some() {
+        tris.par_iter()
+            .map(|(id, t)| (*id, ViewTemplates::new(t, opts)))
+            .collect()
+    } else {
+        BTreeMap::new()
+    };
     let mut groups: BTreeMap<(u32, u32), Vec<usize>> = BTreeMap::new();
     for (i, e) in estimates.iter().enumerate() {
         groups.entry((e.scene_id, e.im_id)).or_default().push(i);
@@ -120,7 +130,10 @@ pub fn refine_estimates(
                 let refined = match (tris.get(&e.obj_id), points.get(&e.obj_id)) {
                     (Some(t), Some(p)) => region(p, &e.pose, &k).and_then(|rect| {
                         let field = EdgeField::new(&img.rgb, img.width, img.height, rect, opts);
-                        refine(&field, t, &[e.pose], &k, opts)
+                        match templates.get(&e.obj_id) {
+                            Some(views) => refine_with_views(&field, t, views, &e.pose, &k, opts),
+                            None => refine(&field, t, &[e.pose], &k, opts),
+                        }
                     }),
                     _ => None,
                 };

@@ -169,7 +169,8 @@ def sim2real(
             per_object, ensemble: the depth models' knobs (docs/experiments.md).
         refine: ``"icp"`` (TNet's centres refined by ICP of the object's model on the real
             depth), ``"edges"`` (the RGB models' estimates refined on the real RGB images:
-            each object's outline moved onto the image's edges) or ``"none"``.
+            each object's outline moved onto the image's edges), ``"views"`` (as edges, after a
+            search over each object's rotations about the estimate) or ``"none"``.
         rows: only these rows.
         progress: as for :func:`synthgen.render`.
 

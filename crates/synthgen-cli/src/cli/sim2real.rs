@@ -57,6 +57,10 @@ pub enum RefineArg {
     /// edges of its real RGB image (a refinement that matches too little of the contour is
     /// refused).
     Edges,
+    /// The RGB models: a search over each object's rotations about the estimate's position
+    /// first (its contour from 300 directions, 24 turns each, scored on the image's edges),
+    /// the best eight and the estimate then refined as with edges.
+    Views,
 }
 
 pub const SIM2REAL_EXAMPLES: &str = "Examples:

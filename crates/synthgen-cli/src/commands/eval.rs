@@ -7,7 +7,7 @@ use synthgen_jobs::eval::{evaluate_request, EvalRequest};
 
 use crate::cli::{DeviceArg, EvalArgs, RgbRefineArg};
 use crate::{ExitStatus, Printer};
-use synthgen_fit::edge_refine::EdgeRefineOptions;
+use synthgen_fit::edge_refine::{EdgeRefineOptions, ViewSearchOptions};
 
 pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
     let request = EvalRequest {
@@ -26,7 +26,14 @@ pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
         stability: args.stability,
         rotations: args.rotations.into(),
         cuda: args.device == DeviceArg::Cuda,
-        refine: (args.refine == RgbRefineArg::Edges).then(EdgeRefineOptions::default),
+        refine: match args.refine {
+            RgbRefineArg::None => None,
+            RgbRefineArg::Edges => Some(EdgeRefineOptions::default()),
+            RgbRefineArg::Views => Some(EdgeRefineOptions {
+                view_search: Some(ViewSearchOptions::default()),
+                ..Default::default()
+            }),
+        },
     };
     if request.save_results.is_some() && request.checkpoint.is_none() && request.refine.is_none() {
         return Err(synthgen_jobs::user_error(

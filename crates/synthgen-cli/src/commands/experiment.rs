@@ -105,6 +105,7 @@ pub fn sim2real_options(a: ExperimentSim2realArgs) -> Sim2realOptions {
             RefineArg::None => Refine::None,
             RefineArg::Icp => Refine::Icp,
             RefineArg::Edges => Refine::Edges,
+            RefineArg::Views => Refine::Views,
         },
         seed: a.seed,
         rows: a.rows,

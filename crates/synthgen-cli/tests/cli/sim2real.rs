@@ -523,7 +523,11 @@ fn rgb_sim2real_fits_the_scene_and_takes_replacement_models() {
         ),
         (
             vec!["--model", "tnet", "--refine", "edges"],
-            vec!["--refine edges refines the RGB models"],
+            vec!["--refine edges and views refine the RGB models"],
+        ),
+        (
+            vec!["--model", "tnet", "--refine", "views"],
+            vec!["--refine edges and views refine the RGB models"],
         ),
     ] {
         let mut args = vec!["--test-scenes", "0"];

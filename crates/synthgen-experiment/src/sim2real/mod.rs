@@ -331,10 +331,10 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
         per_object: args.per_object,
         ensemble: args.ensemble.unwrap_or(if args.quick { 1 } else { 3 }),
         refine: if model == Model::Tnet {
-            if args.refine == Refine::Edges {
+            if matches!(args.refine, Refine::Edges | Refine::Views) {
                 return Err(user_error(
-                    "--refine edges refines the RGB models' poses on the RGB images; a depth model's centre is refined with icp",
-                    "--refine icp (the default) or --refine none; --refine edges with --model rgb or rgb-dense",
+                    "--refine edges and views refine the RGB models' poses on the RGB images; a depth model's centre is refined with icp",
+                    "--refine icp (the default) or --refine none; --refine edges or views with --model rgb or rgb-dense",
                 ));
             }
             args.refine

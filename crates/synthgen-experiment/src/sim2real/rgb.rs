@@ -41,7 +41,7 @@ use crate::options::{Refine, Sim2realModel, Sim2realOptions};
 use crate::settings::{read_row_file, row_dir, ROW_FILE};
 use crate::user_error;
 use crate::Log;
-use synthgen_fit::edge_refine::EdgeRefineOptions;
+use synthgen_fit::edge_refine::{EdgeRefineOptions, ViewSearchOptions};
 use synthgen_jobs::rgb_refine::refine_estimates;
 
 /// Instances below this visible fraction are neither trained on nor scored (BOP's rule).
@@ -83,6 +83,9 @@ pub struct RgbSettings {
     /// Each trained row's estimates refined on the real RGB images (`--refine edges`).
     #[serde(default)]
     pub refine_edges: bool,
+    /// ... after a search over each object's rotations (`--refine views`).
+    #[serde(default)]
+    pub refine_views: bool,
 }
 
 impl RgbSettings {
@@ -315,7 +318,8 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
         seed: args.seed,
         quick: args.quick,
         // `icp` (the depth models' default) does not apply to the RGB models.
-        refine_edges: args.refine == Refine::Edges,
+        refine_edges: matches!(args.refine, Refine::Edges | Refine::Views),
+        refine_views: args.refine == Refine::Views,
     };
     let _lock = OutputLock::acquire(&out)?;
     let mut inputs: Vec<(&str, &Path)> = vec![("--test", &settings.test)];
@@ -784,7 +788,10 @@ fn train_row(
             src.as_ref(),
             &test.split,
             &estimates,
-            &EdgeRefineOptions::default(),
+            &EdgeRefineOptions {
+                view_search: s.refine_views.then(ViewSearchOptions::default),
+                ..Default::default()
+            },
             &NoProgress,
         )?;
         estimates = refined;
@@ -988,7 +995,9 @@ fn markdown(s: &RgbSettings, rows: &[RgbRow], notes: &[String]) -> String {
     }
     let refined: Vec<&RgbRow> = rows.iter().filter(|r| r.before_refine.is_some()).collect();
     if !refined.is_empty() {
-        md += "\nThe trained rows' estimates were refined on the real RGB images (`--refine edges`); before the refinement, and the share of estimates whose refined pose was kept:\n\n| row | AR_MSPD before | 5cm5° before | median E_re before | kept |\n|---|---:|---:|---:|---:|\n";
+        md += &format!("\nThe trained rows' estimates were refined on the real RGB images (`--refine {}`); before the refinement, and the share of estimates whose refined pose was kept:\n\n| row | AR_MSPD before | 5cm5° before | median E_re before | kept |\n|---|---:|---:|---:|---:|\n",
+            if s.refine_views { "views" } else { "edges" }
+        );
         for r in refined {
             if let Some(b) = &r.before_refine {
                 let _ = writeln!(

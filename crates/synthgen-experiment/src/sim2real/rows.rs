@@ -147,7 +147,7 @@ pub fn load_test(s: &Settings, test: &dyn FrameSource, scenes: &[u32]) -> Result
         (gts, Some(load_dataset_objects(test, ids, LOSS_POINTS)?))
     };
     let surfaces = match s.refine {
-        Refine::None | Refine::Edges => None,
+        Refine::None | Refine::Edges | Refine::Views => None,
         Refine::Icp => {
             let ids: BTreeSet<u32> = instances.iter().map(|i| i.obj_id).collect();
             let loaded = load_each_object(
