@@ -19,6 +19,7 @@
 //! [`synthgen_physics::refine`]: ../../synthgen_physics/refine/index.html
 
 use synthgen_core::glam::{DMat3, DQuat, DVec2, DVec3};
+use synthgen_core::pose::rotation_angle_rad;
 use synthgen_core::{Intrinsics, Pose};
 
 /// How [`refine`] reads the image and searches.
@@ -89,6 +90,16 @@ impl Default for ViewSearchOptions {
             points: 60,
             candidates: 8,
             min_separation_deg: 20.0,
+        }
+    }
+}
+
+impl EdgeRefineOptions {
+    /// The defaults with the default view search first (`--refine views`).
+    pub fn with_view_search() -> Self {
+        Self {
+            view_search: Some(ViewSearchOptions::default()),
+            ..Self::default()
         }
     }
 }
@@ -671,19 +682,22 @@ pub fn refine(
     k: &Intrinsics,
     opts: &EdgeRefineOptions,
 ) -> Option<Refined> {
-    let mut all = starts.to_vec();
-    if opts.flip_starts {
-        all.extend(starts.iter().flat_map(flips));
-    }
-    best_of(field, triangles, &all, k, opts)
+    best_of(field, triangles, &with_flips(starts, opts), k, opts)
 }
 
-/// `pose` turned by 180° about each of the object's axes.
-fn flips(pose: &Pose) -> [Pose; 3] {
-    [DVec3::X, DVec3::Y, DVec3::Z].map(|axis| {
-        let flip = DMat3::from_axis_angle(axis, std::f64::consts::PI);
-        Pose::new(pose.rotation * flip, pose.translation_m)
-    })
+/// `starts`, then with `opts.flip_starts` each of them turned by 180° about each of the
+/// object's axes.
+fn with_flips(starts: &[Pose], opts: &EdgeRefineOptions) -> Vec<Pose> {
+    let mut all = starts.to_vec();
+    if opts.flip_starts {
+        for s in starts {
+            all.extend([DVec3::X, DVec3::Y, DVec3::Z].map(|axis| {
+                let flip = DMat3::from_axis_angle(axis, std::f64::consts::PI);
+                Pose::new(s.rotation * flip, s.translation_m)
+            }));
+        }
+    }
+    all
 }
 
 /// [`refine`] from `start` (and its flips with `opts.flip_starts`) and from the best
@@ -696,10 +710,7 @@ pub fn refine_with_views(
     k: &Intrinsics,
     opts: &EdgeRefineOptions,
 ) -> Option<Refined> {
-    let mut all = vec![*start];
-    if opts.flip_starts {
-        all.extend(flips(start));
-    }
+    let mut all = with_flips(&[*start], opts);
     let search = opts.view_search.clone().unwrap_or_default();
     all.extend(
         view_search(field, templates, start, k, &search, opts.coarse_truncate_px)
@@ -824,15 +835,6 @@ impl ViewTemplates {
     }
 }
 
-/// The angle between two rotations, degrees.
-pub fn rotation_angle_deg(a: &DMat3, b: &DMat3) -> f64 {
-    let m = a.transpose() * *b;
-    (((m.x_axis.x + m.y_axis.y + m.z_axis.z) - 1.0) / 2.0)
-        .clamp(-1.0, 1.0)
-        .acos()
-        .to_degrees()
-}
-
 /// The coarse search: every view of `templates` turned in the image plane and placed at
 /// `start`'s position (the view turned onto the ray through it, so the object shows the
 /// camera the same side anywhere in the image) at each of the depth factors, scored by
@@ -870,10 +872,9 @@ pub fn view_search(
         if out.len() >= opts.candidates {
             break;
         }
-        if out
-            .iter()
-            .all(|(p, _)| rotation_angle_deg(&p.rotation, &r) >= opts.min_separation_deg)
-        {
+        if out.iter().all(|(p, _)| {
+            rotation_angle_rad(&p.rotation, &r).to_degrees() >= opts.min_separation_deg
+        }) {
             out.push((Pose::new(r, t), cost));
         }
     }
@@ -992,7 +993,7 @@ mod tests {
     }
 
     fn rotation_error_deg(a: &DMat3, b: &DMat3) -> f64 {
-        rotation_angle_deg(a, b)
+        rotation_angle_rad(a, b).to_degrees()
     }
 
     /// An L of two boxes: no rotation but the identity maps it onto itself.
@@ -1120,10 +1121,7 @@ mod tests {
         let tris = l_shape();
         let gt = gt_pose();
         let img = image(&tris, &gt, &k);
-        let opts = EdgeRefineOptions {
-            view_search: Some(ViewSearchOptions::default()),
-            ..Default::default()
-        };
+        let opts = EdgeRefineOptions::with_view_search();
         let rect = Rect::square_in(160.0, 120.0, 230.0, k.width, k.height).unwrap();
         let field = EdgeField::new(&img, k.width, k.height, rect, &opts);
         // 70° off, about an axis none of the flips undo, and 3 cm too far.

@@ -7,7 +7,7 @@ use synthgen_jobs::eval::{evaluate_request, EvalRequest};
 
 use crate::cli::{DeviceArg, EvalArgs, RgbRefineArg};
 use crate::{ExitStatus, Printer};
-use synthgen_fit::edge_refine::{EdgeRefineOptions, ViewSearchOptions};
+use synthgen_fit::edge_refine::EdgeRefineOptions;
 
 pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
     let request = EvalRequest {
@@ -29,10 +29,7 @@ pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
         refine: match args.refine {
             RgbRefineArg::None => None,
             RgbRefineArg::Edges => Some(EdgeRefineOptions::default()),
-            RgbRefineArg::Views => Some(EdgeRefineOptions {
-                view_search: Some(ViewSearchOptions::default()),
-                ..Default::default()
-            }),
+            RgbRefineArg::Views => Some(EdgeRefineOptions::with_view_search()),
         },
     };
     if request.save_results.is_some() && request.checkpoint.is_none() && request.refine.is_none() {

@@ -41,7 +41,7 @@ use crate::options::{Refine, Sim2realModel, Sim2realOptions};
 use crate::settings::{read_row_file, row_dir, ROW_FILE};
 use crate::user_error;
 use crate::Log;
-use synthgen_fit::edge_refine::{EdgeRefineOptions, ViewSearchOptions};
+use synthgen_fit::edge_refine::EdgeRefineOptions;
 use synthgen_jobs::rgb_refine::refine_estimates;
 
 /// Instances below this visible fraction are neither trained on nor scored (BOP's rule).
@@ -788,9 +788,10 @@ fn train_row(
             src.as_ref(),
             &test.split,
             &estimates,
-            &EdgeRefineOptions {
-                view_search: s.refine_views.then(ViewSearchOptions::default),
-                ..Default::default()
+            &if s.refine_views {
+                EdgeRefineOptions::with_view_search()
+            } else {
+                EdgeRefineOptions::default()
             },
             &NoProgress,
         )?;
