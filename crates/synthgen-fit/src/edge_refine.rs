@@ -22,6 +22,10 @@ use synthgen_core::glam::{DMat3, DQuat, DVec2, DVec3};
 use synthgen_core::pose::rotation_angle_rad;
 use synthgen_core::{Intrinsics, Pose};
 
+use crate::appearance::{Appearance, ColouredSurface};
+pub use crate::raster::Rect;
+use crate::raster::{project, sobel, ZBuffer};
+
 /// How [`refine`] reads the image and searches.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -60,6 +64,15 @@ pub struct EdgeRefineOptions {
     /// A refined pose with fewer inliers than this among its contour points is refused (the
     /// start kept): the contour then matches too little of the image to say where it is.
     pub min_inlier_fraction: f64,
+    /// With an [`Appearance`] to compare with: the refined pose that wins is the one whose
+    /// contour cost (pixels) minus this times its colours' agreement with the image
+    /// ([`Appearance::agreement`], -1..1; 0 when it says nothing) is least; 0: the cheapest
+    /// contour wins.
+    pub colour_weight_px: f64,
+    /// With a coloured model (an [`Appearance`]): up to this many points of its edges inside
+    /// the outline (colour changes, one part hiding another) matched along with the
+    /// contour; 0: the occluding contour alone.
+    pub interior_points: usize,
     /// First search the object's rotations exhaustively about the start's position (see
     /// [`ViewSearchOptions`]) and refine the best of them too; None: the starts alone.
     pub view_search: Option<ViewSearchOptions>,
@@ -95,10 +108,16 @@ impl Default for ViewSearchOptions {
 }
 
 impl EdgeRefineOptions {
-    /// The defaults with the default view search first (`--refine views`).
+    /// The defaults with the default view search first, and with the model's colours where
+    /// it has them: 100 interior edge points, the colours' agreement weighing 1 px, refusal
+    /// below 20 % inliers (`--refine views`; chosen on synthetic validation frames, see
+    /// docs/experiments.md).
     pub fn with_view_search() -> Self {
         Self {
             view_search: Some(ViewSearchOptions::default()),
+            interior_points: 100,
+            colour_weight_px: 1.0,
+            min_inlier_fraction: 0.2,
             ..Self::default()
         }
     }
@@ -122,41 +141,10 @@ impl Default for EdgeRefineOptions {
             flip_starts: true,
             inlier_px: 2.0,
             min_inlier_fraction: 0.4,
+            colour_weight_px: 0.0,
+            interior_points: 0,
             view_search: None,
         }
-    }
-}
-
-/// A pixel rectangle of the image: `x0..x0 + w`, `y0..y0 + h`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Rect {
-    pub x0: i32,
-    pub y0: i32,
-    pub w: i32,
-    pub h: i32,
-}
-
-impl Rect {
-    /// The square of side `side` centred on (cx, cy), clipped to a `width × height` image;
-    /// None when nothing of it is inside.
-    pub fn square_in(cx: f64, cy: f64, side: f64, width: u32, height: u32) -> Option<Rect> {
-        let x0 = (cx - 0.5 * side).floor().max(0.0) as i32;
-        let y0 = (cy - 0.5 * side).floor().max(0.0) as i32;
-        let x1 = ((cx + 0.5 * side).ceil() as i32).min(width as i32);
-        let y1 = ((cy + 0.5 * side).ceil() as i32).min(height as i32);
-        (x1 - x0 >= 8 && y1 - y0 >= 8).then_some(Rect {
-            x0,
-            y0,
-            w: x1 - x0,
-            h: y1 - y0,
-        })
-    }
-
-    fn contains(&self, x: f64, y: f64) -> bool {
-        x >= f64::from(self.x0)
-            && y >= f64::from(self.y0)
-            && x < f64::from(self.x0 + self.w)
-            && y < f64::from(self.y0 + self.h)
     }
 }
 
@@ -312,15 +300,10 @@ impl EdgeField {
         let mut gy = vec![0.0f32; w * h];
         for y in 0..h {
             for x in 0..w {
-                let p = |dx: i32, dy: i32| {
-                    g[((y as i32 + 2 + dy) as usize) * bw + (x as i32 + 2 + dx) as usize]
+                let p = |dx: isize, dy: isize| {
+                    g[((y as isize + 2 + dy) as usize) * bw + (x as isize + 2 + dx) as usize]
                 };
-                gx[y * w + x] =
-                    (p(1, -1) + 2.0 * p(1, 0) + p(1, 1) - p(-1, -1) - 2.0 * p(-1, 0) - p(-1, 1))
-                        / 8.0;
-                gy[y * w + x] =
-                    (p(-1, 1) + 2.0 * p(0, 1) + p(1, 1) - p(-1, -1) - 2.0 * p(0, -1) - p(1, -1))
-                        / 8.0;
+                (gx[y * w + x], gy[y * w + x]) = sobel(p);
             }
         }
         let mag: Vec<f32> = gx.iter().zip(&gy).map(|(a, b)| a.hypot(*b)).collect();
@@ -404,10 +387,6 @@ pub struct Contour {
     pub points: Vec<[DVec3; 2]>,
 }
 
-fn project(k: &Intrinsics, p: DVec3) -> Option<DVec2> {
-    (p.z > 1e-6).then(|| DVec2::new(k.fx * p.x / p.z + k.cx, k.fy * p.y / p.z + k.cy))
-}
-
 /// The occluding contour of `triangles` (object frame, metres) at `pose` over `rect`:
 /// rasterized at most `opts.raster_px` across, up to `opts.contour_points` boundary pixels of
 /// the mask (those on the region's border left out: the object goes on beyond it).
@@ -418,67 +397,9 @@ pub fn contour(
     rect: Rect,
     opts: &EdgeRefineOptions,
 ) -> Contour {
-    let scale = (f64::from(opts.raster_px) / f64::from(rect.w.max(rect.h))).min(1.0);
-    let w = ((f64::from(rect.w) * scale).round() as usize).max(2);
-    let h = ((f64::from(rect.h) * scale).round() as usize).max(2);
-    // Image pixel centres are at whole coordinates (OpenCV's convention, BOP's); raster
-    // pixel (i, j) spans [i, i + 1) in raster coordinates, its centre at i + 0.5.
-    let to_raster = |p: DVec2| {
-        DVec2::new(
-            (p.x + 0.5 - f64::from(rect.x0)) * scale,
-            (p.y + 0.5 - f64::from(rect.y0)) * scale,
-        )
-    };
-    let to_image = |r: DVec2| {
-        DVec2::new(
-            f64::from(rect.x0) + r.x / scale - 0.5,
-            f64::from(rect.y0) + r.y / scale - 0.5,
-        )
-    };
-    let mut depth = vec![f32::INFINITY; w * h];
-    for t in triangles {
-        let c = t.map(|v| pose.rotation * v + pose.translation_m);
-        if c.iter().any(|p| p.z < 1e-3) {
-            continue;
-        }
-        let Some(p) = c
-            .iter()
-            .map(|&p| project(k, p).map(to_raster))
-            .collect::<Option<Vec<_>>>()
-        else {
-            continue;
-        };
-        let area = (p[1] - p[0]).perp_dot(p[2] - p[0]);
-        if area.abs() < 1e-12 {
-            continue;
-        }
-        let min = p[0].min(p[1]).min(p[2]);
-        let max = p[0].max(p[1]).max(p[2]);
-        let i0 = (min.x - 0.5).ceil().max(0.0) as usize;
-        let j0 = (min.y - 0.5).ceil().max(0.0) as usize;
-        let i1 = ((max.x - 0.5).floor() as i64).min(w as i64 - 1);
-        let j1 = ((max.y - 0.5).floor() as i64).min(h as i64 - 1);
-        if i1 < i0 as i64 || j1 < j0 as i64 {
-            continue;
-        }
-        let inv_z = [1.0 / c[0].z, 1.0 / c[1].z, 1.0 / c[2].z];
-        for j in j0..=j1 as usize {
-            for i in i0..=i1 as usize {
-                let q = DVec2::new(i as f64 + 0.5, j as f64 + 0.5);
-                let b0 = (p[2] - p[1]).perp_dot(q - p[1]) / area;
-                let b1 = (p[0] - p[2]).perp_dot(q - p[2]) / area;
-                let b2 = 1.0 - b0 - b1;
-                if b0 < 0.0 || b1 < 0.0 || b2 < 0.0 {
-                    continue;
-                }
-                let z = (1.0 / (b0 * inv_z[0] + b1 * inv_z[1] + b2 * inv_z[2])) as f32;
-                let d = &mut depth[j * w + i];
-                if z < *d {
-                    *d = z;
-                }
-            }
-        }
-    }
+    let z = ZBuffer::new(triangles, pose, k, rect, opts.raster_px);
+    let (w, h, depth) = (z.w, z.h, &z.depth);
+    let to_image = |r: DVec2| z.to_image(r);
     let inside = |i: i64, j: i64| {
         i >= 0
             && j >= 0
@@ -612,10 +533,25 @@ pub struct Refined {
 fn search(
     field: &EdgeField,
     triangles: &[[DVec3; 3]],
+    surface: Option<&ColouredSurface>,
     start: Pose,
     k: &Intrinsics,
     opts: &EdgeRefineOptions,
 ) -> (Pose, f64, f64, f64) {
+    let extract = |pose: &Pose| {
+        let mut c = contour(triangles, pose, k, field.rect, opts);
+        if let Some(s) = surface {
+            c.points.extend(s.interior_edges(
+                pose,
+                k,
+                field.rect,
+                opts.raster_px,
+                opts.min_gradient,
+                opts.interior_points,
+            ));
+        }
+        c
+    };
     let mut pose = start;
     let levels = opts.halvings + 1;
     let truncation = |level: usize| {
@@ -629,7 +565,7 @@ fn search(
     let at = |c: &Contour, p: &Pose, level: usize| {
         contour_match(field, c, p, k, 0.0, truncation(level)).0
     };
-    let mut c = contour(triangles, &pose, k, field.rect, opts);
+    let mut c = extract(&pose);
     let initial = contour_cost(field, &c, &pose, k);
     let mut cost;
     let mut steps = [
@@ -662,7 +598,7 @@ fn search(
             }
         }
         // The contour of the new pose: other surface points may now be the rim.
-        c = contour(triangles, &pose, k, field.rect, opts);
+        c = extract(&pose);
         for s in &mut steps {
             *s *= 0.5;
         }
@@ -681,8 +617,16 @@ pub fn refine(
     starts: &[Pose],
     k: &Intrinsics,
     opts: &EdgeRefineOptions,
+    appearance: Option<&Appearance>,
 ) -> Option<Refined> {
-    best_of(field, triangles, &with_flips(starts, opts), k, opts)
+    best_of(
+        field,
+        triangles,
+        &with_flips(starts, opts),
+        k,
+        opts,
+        appearance,
+    )
 }
 
 /// `starts`, then with `opts.flip_starts` each of them turned by 180° about each of the
@@ -709,6 +653,7 @@ pub fn refine_with_views(
     start: &Pose,
     k: &Intrinsics,
     opts: &EdgeRefineOptions,
+    appearance: Option<&Appearance>,
 ) -> Option<Refined> {
     let mut all = with_flips(&[*start], opts);
     let search = opts.view_search.clone().unwrap_or_default();
@@ -717,43 +662,52 @@ pub fn refine_with_views(
             .into_iter()
             .map(|(p, _)| p),
     );
-    best_of(field, triangles, &all, k, opts)
+    best_of(field, triangles, &all, k, opts, appearance)
 }
 
-/// Each of `all` refined; the cheapest kept, refused below `opts.min_inlier_fraction`.
+/// Each of `all` refined; the cheapest kept (or, with `opts.colour_margin_px` and an
+/// `appearance`, the one among the nearly cheapest whose colours agree best), refused below
+/// `opts.min_inlier_fraction`.
 fn best_of(
     field: &EdgeField,
     triangles: &[[DVec3; 3]],
     all: &[Pose],
     k: &Intrinsics,
     opts: &EdgeRefineOptions,
+    appearance: Option<&Appearance>,
 ) -> Option<Refined> {
-    let mut out: Option<Refined> = None;
-    let mut initial_cost = f64::NAN;
-    for (i, s) in all.iter().enumerate() {
-        let (pose, cost, initial, inliers) = search(field, triangles, *s, k, opts);
-        if i == 0 {
-            initial_cost = initial;
-        }
-        if out.is_none_or(|o| cost < o.cost) {
-            out = Some(Refined {
-                pose,
-                cost,
-                start: i,
-                initial_cost,
-                inliers,
-                accepted: true,
-            });
+    let ends: Vec<(Pose, f64, f64, f64)> = all
+        .iter()
+        .map(|s| search(field, triangles, appearance.map(|a| a.surface), *s, k, opts))
+        .collect();
+    let initial_cost = ends.first()?.2;
+    let mut chosen = 0;
+    for (i, e) in ends.iter().enumerate() {
+        if e.1 < ends[chosen].1 {
+            chosen = i;
         }
     }
-    out.map(|o| {
-        let accepted = o.inliers >= opts.min_inlier_fraction;
-        Refined {
-            initial_cost,
-            accepted,
-            pose: if accepted { o.pose } else { all[0] },
-            ..o
+    if let Some(a) = appearance.filter(|_| opts.colour_weight_px > 0.0) {
+        let score = |e: &(Pose, f64, f64, f64)| {
+            let agreement = a.agreement(&e.0, k, field.rect, opts.raster_px);
+            e.1 - opts.colour_weight_px * agreement.unwrap_or(0.0)
+        };
+        let scores: Vec<f64> = ends.iter().map(score).collect();
+        for (i, v) in scores.iter().enumerate() {
+            if *v < scores[chosen] {
+                chosen = i;
+            }
         }
+    }
+    let (pose, cost, _, inliers) = ends[chosen];
+    let accepted = inliers >= opts.min_inlier_fraction;
+    Some(Refined {
+        pose: if accepted { pose } else { all[0] },
+        cost,
+        start: chosen,
+        initial_cost,
+        inliers,
+        accepted,
     })
 }
 
@@ -1055,7 +1009,7 @@ mod tests {
         let (k, tris, gt, field, opts) = cuboid_scene(220.0);
         let start = moved(&gt, &k, &[0.12, -0.1, 0.15, 5.0, -4.0, 0.06]);
         assert!(rotation_error_deg(&start.rotation, &gt.rotation) > 10.0);
-        let r = refine(&field, &tris, &[start], &k, &opts).unwrap();
+        let r = refine(&field, &tris, &[start], &k, &opts, None).unwrap();
         let re = rotation_error_deg(&r.pose.rotation, &gt.rotation);
         let te = (r.pose.translation_m - gt.translation_m).length();
         assert!(re < 3.0, "rotation error {re}°");
@@ -1068,7 +1022,7 @@ mod tests {
         let (k, tris, gt, field, opts) = cuboid_scene(220.0);
         let far = moved(&gt, &k, &[1.6, 0.9, 0.0, 0.0, 0.0, 0.0]);
         let near = moved(&gt, &k, &[0.05, 0.0, -0.05, 2.0, 0.0, 0.0]);
-        let r = refine(&field, &tris, &[far, near], &k, &opts).unwrap();
+        let r = refine(&field, &tris, &[far, near], &k, &opts, None).unwrap();
         assert_eq!(r.start, 1);
         assert!(rotation_error_deg(&r.pose.rotation, &gt.rotation) < 3.0);
     }
@@ -1093,7 +1047,7 @@ mod tests {
         let rect = Rect::square_in(160.0, 120.0, 220.0, k.width, k.height).unwrap();
         let field = EdgeField::new(&img, k.width, k.height, rect, &opts);
         let start = gt_pose();
-        let r = refine(&field, &tris, &[start], &k, &opts).unwrap();
+        let r = refine(&field, &tris, &[start], &k, &opts, None).unwrap();
         assert!(!r.accepted, "inliers {}", r.inliers);
         assert_eq!(r.pose, start);
     }
@@ -1127,7 +1081,7 @@ mod tests {
         // 70° off, about an axis none of the flips undo, and 3 cm too far.
         let off = DMat3::from_axis_angle(DVec3::new(1.0, 2.0, 0.5).normalize(), 70f64.to_radians());
         let start = Pose::new(off * gt.rotation, gt.translation_m * 1.05);
-        let alone = refine(&field, &tris, &[start], &k, &opts).unwrap();
+        let alone = refine(&field, &tris, &[start], &k, &opts, None).unwrap();
         let alone_re = rotation_error_deg(&alone.pose.rotation, &gt.rotation);
         assert!(alone_re > 20.0, "the start alone got to {alone_re}°");
 
@@ -1143,7 +1097,7 @@ mod tests {
             .fold(f64::INFINITY, f64::min);
         assert!(nearest < 12.0, "nearest candidate {nearest}°");
 
-        let r = refine_with_views(&field, &tris, &templates, &start, &k, &opts).unwrap();
+        let r = refine_with_views(&field, &tris, &templates, &start, &k, &opts, None).unwrap();
         assert!(r.accepted, "inliers {}", r.inliers);
         assert!(
             r.start >= 4,
@@ -1156,5 +1110,41 @@ mod tests {
         // wins here, where the GT itself refines to a slightly lower cost).
         assert!(re < 5.0, "rotation error {re}°");
         assert!(te < 0.01, "translation error {te} m");
+    }
+
+    #[test]
+    fn the_colours_decide_between_outlines_that_look_alike() {
+        use crate::appearance::fixtures::{appearance, camera, facing, photo, plate, region};
+        let surface = ColouredSurface::from_model(&plate()).unwrap();
+        let (k, gt) = (camera(), facing());
+        let img = photo(&surface, &gt, &k);
+        let a = appearance(&img, &surface);
+        // Turned by 180° about the view axis: the very same outline, red where blue is.
+        let turned = Pose::new(
+            DMat3::from_rotation_z(std::f64::consts::PI),
+            gt.translation_m,
+        );
+        let error = |opts: &EdgeRefineOptions| {
+            let field = EdgeField::new(&img, k.width, k.height, region(), opts);
+            let r = refine(&field, &surface.triangles, &[turned], &k, opts, Some(&a)).unwrap();
+            assert!(r.accepted);
+            // The plate seen from behind turned about x shows the same: either is right.
+            let back = gt.rotation * DMat3::from_rotation_x(std::f64::consts::PI);
+            [gt.rotation, back]
+                .iter()
+                .map(|g| rotation_error_deg(&r.pose.rotation, g))
+                .fold(f64::INFINITY, f64::min)
+        };
+        // The outline alone: the start and its flip about z (the truth) cost the same, and
+        // the first of equals is kept.
+        assert!(error(&EdgeRefineOptions::default()) > 170.0);
+        let with_colours = EdgeRefineOptions {
+            interior_points: 100,
+            colour_weight_px: 1.0,
+            ..EdgeRefineOptions::default()
+        };
+        // A flat plate's tilt hardly shows in its outline (9.6° here): the point is the side.
+        let e = error(&with_colours);
+        assert!(e < 15.0, "{e}");
     }
 }

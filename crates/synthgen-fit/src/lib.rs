@@ -12,7 +12,9 @@
 //! Every fit reads its frames through `synthgen_formats::source::FrameSource`, so it works on
 //! BOP, Linemod and YCB-Video folders alike.
 
+pub mod appearance;
 pub mod edge_refine;
+mod raster;
 pub mod rgb_compare;
 pub mod scene_fit;
 pub mod sensor;

@@ -11,6 +11,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 use synthgen_core::glam::DVec3;
 use synthgen_core::{Pose, Progress};
+use synthgen_fit::appearance::{Appearance, ColouredSurface};
 use synthgen_fit::edge_refine::{
     refine, refine_with_views, EdgeField, EdgeRefineOptions, Rect, ViewTemplates,
 };
@@ -89,7 +90,7 @@ pub fn refine_estimates(
         .map(|f| ((f.location.scene_id, f.location.im_id), f))
         .collect();
     let ids: std::collections::BTreeSet<u32> = estimates.iter().map(|e| e.obj_id).collect();
-    let models = load_render_models(ds, ids)
+    let models = load_render_models(ds, ids.iter().copied())
         .with_context(|| format!("cannot load the object models of {}", ds.root().display()))?;
     let tris: BTreeMap<u32, Vec<[DVec3; 3]>> = models
         .iter()
@@ -99,6 +100,28 @@ pub fn refine_estimates(
         .iter()
         .map(|(id, t)| (*id, box_points(t, 500)))
         .collect();
+    // With colours to compare: each object's coloured model (the dataset's own models, which
+    // carry the colours; the eval models may not), None when it has no colours to compare.
+    let surfaces: BTreeMap<u32, ColouredSurface> =
+        if opts.colour_weight_px > 0.0 || opts.interior_points > 0 {
+            ids.iter()
+                .filter_map(|&id| {
+                    let m = match ds.load_model(id, &synthgen_core::NoProgress) {
+                        Ok(m) => m,
+                        Err(e) => return Some(Err(anyhow::Error::from(e))),
+                    };
+                    ColouredSurface::from_model(&m).map(|s| Ok((id, s)))
+                })
+                .collect::<Result<_>>()
+                .with_context(|| {
+                    format!(
+                        "cannot load the coloured object models of {}",
+                        ds.root().display()
+                    )
+                })?
+        } else {
+            BTreeMap::new()
+        };
     // With a view search: each object's contours from every viewpoint, once.
     let templates: BTreeMap<u32, ViewTemplates> = if opts.view_search.is_some() {
         tris.par_iter()
@@ -130,9 +153,18 @@ pub fn refine_estimates(
                 let refined = match (tris.get(&e.obj_id), points.get(&e.obj_id)) {
                     (Some(t), Some(p)) => region(p, &e.pose, &k).and_then(|rect| {
                         let field = EdgeField::new(&img.rgb, img.width, img.height, rect, opts);
+                        let appearance = surfaces.get(&e.obj_id).map(|surface| Appearance {
+                            rgb: &img.rgb,
+                            width: img.width,
+                            height: img.height,
+                            surface,
+                        });
+                        let a = appearance.as_ref();
                         match templates.get(&e.obj_id) {
-                            Some(views) => refine_with_views(&field, t, views, &e.pose, &k, opts),
-                            None => refine(&field, t, &[e.pose], &k, opts),
+                            Some(views) => {
+                                refine_with_views(&field, t, views, &e.pose, &k, opts, a)
+                            }
+                            None => refine(&field, t, &[e.pose], &k, opts, a),
                         }
                     }),
                     _ => None,

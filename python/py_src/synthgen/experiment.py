@@ -170,7 +170,8 @@ def sim2real(
         refine: ``"icp"`` (TNet's centres refined by ICP of the object's model on the real
             depth), ``"edges"`` (the RGB models' estimates refined on the real RGB images:
             each object's outline moved onto the image's edges), ``"views"`` (as edges, after a
-            search over each object's rotations about the estimate) or ``"none"``.
+            search over each object's rotations about the estimate, with the models' colours
+            where they have them) or ``"none"``.
         rows: only these rows.
         progress: as for :func:`synthgen.render`.
 

@@ -239,7 +239,9 @@ pub enum RgbRefineArg {
     Edges,
     /// A search over the object's rotations about the estimate's position first (its contour
     /// from 300 directions, 24 turns each, scored on the image's edges); the best eight and the
-    /// estimate then refined as with edges (slower: ~0.1 s an estimate on 2 cores).
+    /// estimate then refined as with edges, and where the dataset's models have colours, with
+    /// the edges inside the outline too and the colours deciding between near-equal fits
+    /// (slower: ~0.3 s an estimate on 2 cores).
     Views,
 }
 
