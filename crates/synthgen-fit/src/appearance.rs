@@ -414,6 +414,38 @@ mod tests {
     }
 
     #[test]
+    fn a_textured_model_takes_its_corner_colours_from_the_texture() {
+        use std::sync::Arc;
+        use synthgen_core::glam::Vec2;
+        use synthgen_core::Texture;
+        let mut m = plate();
+        let p = &mut m.primitives[0];
+        p.colors = None;
+        // Two texels: red on the left (u < 0.5), blue on the right; the left half's corners
+        // read the left texel, the right half's the right one.
+        p.material.texture = Some(Arc::new(Texture {
+            width: 2,
+            height: 1,
+            rgb: vec![255, 0, 0, 0, 0, 255],
+            source: "two.png".into(),
+        }));
+        p.uvs = Some(
+            [0.1, 0.2, 0.3, 0.4, 0.6, 0.7, 0.8, 0.9]
+                .map(|u| Vec2::new(u, 0.5))
+                .to_vec(),
+        );
+        p.material.base_color = [0.5, 1.0, 1.0];
+        let s = ColouredSurface::from_model(&m).expect("two texels");
+        assert_eq!(s.colours[0], [[0.5, 0.0, 0.0]; 3]);
+        assert_eq!(s.colours[2], [[0.0, 0.0, 1.0]; 3]);
+        // The same picture as the vertex-coloured plate's, so the same verdicts.
+        let (k, pose) = (camera(), facing());
+        let img = photo(&s, &pose, &k);
+        let a = appearance(&img, &s);
+        assert!(a.agreement(&pose, &k, region(), 200).unwrap() > 0.99);
+    }
+
+    #[test]
     fn a_flat_coloured_model_says_nothing() {
         let mut m = plate();
         m.primitives[0].colors = None;
