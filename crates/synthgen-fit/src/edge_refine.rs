@@ -101,7 +101,7 @@ impl Default for ViewSearchOptions {
             in_plane_steps: 24,
             depth_factors: vec![0.9, 1.0, 1.1],
             points: 60,
-            candidates: 8,
+            candidates: 16,
             min_separation_deg: 20.0,
         }
     }

@@ -59,7 +59,7 @@ pub enum RefineArg {
     Edges,
     /// The RGB models: a search over each object's rotations about the estimate's position
     /// first (its contour from 300 directions, 24 turns each, scored on the image's edges),
-    /// the best eight and the estimate then refined as with edges, with the model's colours
+    /// the best sixteen and the estimate then refined as with edges, with the model's colours
     /// where it has them (edges inside the outline, colours deciding near-equal fits).
     Views,
 }

@@ -238,10 +238,10 @@ pub enum RgbRefineArg {
     /// Contours onto the RGB image's edges.
     Edges,
     /// A search over the object's rotations about the estimate's position first (its contour
-    /// from 300 directions, 24 turns each, scored on the image's edges); the best eight and the
-    /// estimate then refined as with edges, and where the dataset's models have colours, with
-    /// the edges inside the outline too and the colours deciding between near-equal fits
-    /// (slower: ~0.3 s an estimate on 2 cores).
+    /// from 300 directions, 24 turns each, scored on the image's edges); the best sixteen and
+    /// the estimate then refined as with edges, and where the dataset's models have colours,
+    /// with the edges inside the outline too and the colours deciding between near-equal fits
+    /// (slower: ~0.5 s an estimate on 2 cores).
     Views,
 }
 
