@@ -74,9 +74,7 @@ impl ColouredSurface {
         });
         varies.then_some(out)
     }
-}
 
-impl ColouredSurface {
     /// The model's edges inside its outline at `pose` over `rect` (rasterized at most
     /// `raster_px` across): where its own colours change (a grey-level gradient of at least
     /// `min_gradient`, thinned to its maxima) or one part of it hides another (a step in

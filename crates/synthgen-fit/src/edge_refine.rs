@@ -665,8 +665,8 @@ pub fn refine_with_views(
     best_of(field, triangles, &all, k, opts, appearance)
 }
 
-/// Each of `all` refined; the cheapest kept (or, with `opts.colour_margin_px` and an
-/// `appearance`, the one among the nearly cheapest whose colours agree best), refused below
+/// Each of `all` refined; the cheapest kept (with `opts.colour_weight_px` and an
+/// `appearance`, cheapest after subtracting the weighted colour agreement), refused below
 /// `opts.min_inlier_fraction`.
 fn best_of(
     field: &EdgeField,
@@ -681,22 +681,21 @@ fn best_of(
         .map(|s| search(field, triangles, appearance.map(|a| a.surface), *s, k, opts))
         .collect();
     let initial_cost = ends.first()?.2;
-    let mut chosen = 0;
-    for (i, e) in ends.iter().enumerate() {
-        if e.1 < ends[chosen].1 {
-            chosen = i;
-        }
-    }
-    if let Some(a) = appearance.filter(|_| opts.colour_weight_px > 0.0) {
-        let score = |e: &(Pose, f64, f64, f64)| {
-            let agreement = a.agreement(&e.0, k, field.rect, opts.raster_px);
-            e.1 - opts.colour_weight_px * agreement.unwrap_or(0.0)
-        };
-        let scores: Vec<f64> = ends.iter().map(score).collect();
-        for (i, v) in scores.iter().enumerate() {
-            if *v < scores[chosen] {
-                chosen = i;
+    let colours = appearance.filter(|_| opts.colour_weight_px > 0.0);
+    let scores: Vec<f64> = ends
+        .iter()
+        .map(|(pose, cost, _, _)| match colours {
+            Some(a) => {
+                let agreement = a.agreement(pose, k, field.rect, opts.raster_px);
+                cost - opts.colour_weight_px * agreement.unwrap_or(0.0)
             }
+            None => *cost,
+        })
+        .collect();
+    let mut chosen = 0;
+    for (i, v) in scores.iter().enumerate() {
+        if *v < scores[chosen] {
+            chosen = i;
         }
     }
     let (pose, cost, _, inliers) = ends[chosen];
