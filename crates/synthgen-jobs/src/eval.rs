@@ -63,6 +63,9 @@ pub struct EvalRequest {
     /// Refine the estimates on the RGB images before scoring ([`crate::rgb_refine`]): the
     /// results CSV's, or the checkpoint's (RGB models).
     pub refine: Option<EdgeRefineOptions>,
+    /// With `refine`: the colours from these meshes (one folder per object, in the dataset's
+    /// frame) instead of the dataset's models ([`refine_estimates`]).
+    pub refine_models: Option<PathBuf>,
 }
 
 /// What an evaluation printed and whether it counts as failed.
@@ -190,8 +193,15 @@ fn refined(
     opts: &EdgeRefineOptions,
     printer: &Printer<'_>,
 ) -> Result<Vec<Estimate>> {
-    let (out, summary) = refine_estimates(ds, split, estimates, opts, printer.progress())
-        .with_context(|| format!("cannot refine the estimates on {}", args.data.display()))?;
+    let (out, summary) = refine_estimates(
+        ds,
+        split,
+        estimates,
+        opts,
+        args.refine_models.as_deref(),
+        printer.progress(),
+    )
+    .with_context(|| format!("cannot refine the estimates on {}", args.data.display()))?;
     printer.info(format!(
         "refined {} of {} estimates on the RGB images, {} of them refused (too little of the contour on the image's edges; kept as estimated); edge contour cost {:.2} -> {:.2} px, {:.1} s",
         summary.refined,
@@ -201,6 +211,18 @@ fn refined(
         summary.mean_cost_after_px,
         summary.seconds
     ));
+    if let Some(dir) = &args.refine_models {
+        printer.info(format!(
+            "colours of {} of {} objects from {} (the others: their dataset models' colours, if any)",
+            summary.colours_from_folder.len(),
+            estimates
+                .iter()
+                .map(|e| e.obj_id)
+                .collect::<std::collections::BTreeSet<_>>()
+                .len(),
+            dir.display()
+        ));
+    }
     Ok(out)
 }
 

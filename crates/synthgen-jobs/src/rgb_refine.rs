@@ -4,6 +4,7 @@
 //! the object's model, so it refines any BOP results file, not only synthgen's.
 
 use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
@@ -37,6 +38,8 @@ pub struct RefineSummary {
     pub mean_cost_before_px: f64,
     pub mean_cost_after_px: f64,
     pub seconds: f64,
+    /// The objects whose colours came from `colour_models` (see [`refine_estimates`]).
+    pub colours_from_folder: Vec<u32>,
 }
 
 /// `n` vertices of the model, strided: where its projected box is read from.
@@ -76,11 +79,17 @@ fn region(points: &[DVec3], pose: &Pose, k: &synthgen_core::Intrinsics) -> Optio
 
 /// `estimates` refined on the RGB images of `split` (each estimate's own image; the others
 /// kept), in the same order; the time each took is added to its `time_s` when known.
+/// `colour_models`: a folder with one subfolder per object (`synthgen model align` writes
+/// one, in the dataset's frame) whose meshes give the colours compared with the image instead
+/// of the dataset's models (a dataset whose models carry no texture, as YCB-Video's own);
+/// objects without a subfolder keep their dataset model's colours. The contour is always the
+/// dataset model's.
 pub fn refine_estimates(
     ds: &dyn FrameSource,
     split: &str,
     estimates: &[Estimate],
     opts: &EdgeRefineOptions,
+    colour_models: Option<&Path>,
     progress: &dyn Progress,
 ) -> Result<(Vec<Estimate>, RefineSummary)> {
     let started = Instant::now();
@@ -100,17 +109,46 @@ pub fn refine_estimates(
         .iter()
         .map(|(id, t)| (*id, box_points(t, 500)))
         .collect();
-    // With colours to compare: each object's coloured model (the dataset's own models, which
-    // carry the colours; the eval models may not), None when it has no colours to compare.
+    // With colours to compare: each object's coloured model (`colour_models`' mesh, else the
+    // dataset's own model, which carries the colours; the eval models may not), None when it
+    // has no colours to compare.
+    let mut colours_from_folder = Vec::new();
     let surfaces: BTreeMap<u32, ColouredSurface> =
         if opts.colour_weight_px > 0.0 || opts.interior_points > 0 {
+            let replaced: BTreeMap<u32, PathBuf> = match colour_models {
+                Some(dir) => {
+                    let (meshes, _) = crate::models::replacement_meshes(
+                        ds,
+                        dir,
+                        ids.iter().copied(),
+                        "--refine-models",
+                    )?;
+                    ids.iter()
+                        .zip(meshes)
+                        .filter_map(|(id, m)| Some((*id, m?)))
+                        .collect()
+                }
+                None => BTreeMap::new(),
+            };
+            colours_from_folder = replaced.keys().copied().collect();
             ids.iter()
                 .filter_map(|&id| {
-                    let m = match ds.load_model(id, &synthgen_core::NoProgress) {
-                        Ok(m) => m,
-                        Err(e) => return Some(Err(anyhow::Error::from(e))),
+                    let m = match replaced.get(&id) {
+                        Some(path) => synthgen_assets::load_model(
+                            path,
+                            synthgen_assets::Units::Auto,
+                            &synthgen_core::NoProgress,
+                        )
+                        .map(|l| l.model)
+                        .with_context(|| format!("cannot load {}", path.display())),
+                        None => ds
+                            .load_model(id, &synthgen_core::NoProgress)
+                            .map_err(anyhow::Error::from),
                     };
-                    ColouredSurface::from_model(&m).map(|s| Ok((id, s)))
+                    match m {
+                        Ok(m) => ColouredSurface::from_model(&m).map(|s| Ok((id, s))),
+                        Err(e) => Some(Err(e)),
+                    }
                 })
                 .collect::<Result<_>>()
                 .with_context(|| {
@@ -190,6 +228,7 @@ pub fn refine_estimates(
     let mut out = estimates.to_vec();
     let mut summary = RefineSummary {
         estimates: estimates.len(),
+        colours_from_folder,
         ..Default::default()
     };
     for (i, r) in done.into_iter().flatten() {

@@ -294,6 +294,14 @@ pub struct EvalArgs {
     #[arg(long, value_enum, default_value_t = RgbRefineArg::None)]
     pub refine: RgbRefineArg,
 
+    /// With --refine views: compare the image with these meshes' colours instead of the
+    /// dataset's models' (YCB-Video's own models carry no texture): a folder with one
+    /// subfolder per object, in the dataset's frame, as `synthgen model align --scans
+    /// ../shared/data/ycb_textured --to-dataset DIR --out models_tex` writes. The contour and
+    /// the scores still use the dataset's models.
+    #[arg(long, value_name = "DIR")]
+    pub refine_models: Option<PathBuf>,
+
     /// Also score with BOP's Average Recall (AR = mean of AR_VSD, AR_MSSD, AR_MSPD), computed
     /// as bop_toolkit's eval_bop19_pose.py does; VSD renders each estimate and needs the test
     /// depth images (without them: MSSD and MSPD only). See docs/metrics.md.

@@ -31,7 +31,14 @@ pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
             RgbRefineArg::Edges => Some(EdgeRefineOptions::default()),
             RgbRefineArg::Views => Some(EdgeRefineOptions::with_view_search()),
         },
+        refine_models: args.refine_models,
     };
+    if request.refine_models.is_some() && request.refine.is_none() {
+        return Err(synthgen_jobs::user_error(
+            "--refine-models gives the colours that --refine compares with the image",
+            "add --refine views (or edges), or drop --refine-models",
+        ));
+    }
     if request.save_results.is_some() && request.checkpoint.is_none() && request.refine.is_none() {
         return Err(synthgen_jobs::user_error(
             "--save-results writes a checkpoint's estimates, or the refined ones of --results",

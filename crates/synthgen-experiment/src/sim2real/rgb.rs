@@ -86,6 +86,10 @@ pub struct RgbSettings {
     /// ... after a search over each object's rotations (`--refine views`).
     #[serde(default)]
     pub refine_views: bool,
+    /// With a refinement: `--models`, whose colours the refinement compares with the real
+    /// images (the dataset's own models may carry none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub colour_models: Option<PathBuf>,
 }
 
 impl RgbSettings {
@@ -320,6 +324,10 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
         // `icp` (the depth models' default) does not apply to the RGB models.
         refine_edges: matches!(args.refine, Refine::Edges | Refine::Views),
         refine_views: args.refine == Refine::Views,
+        colour_models: args
+            .models
+            .clone()
+            .filter(|_| matches!(args.refine, Refine::Edges | Refine::Views)),
     };
     let _lock = OutputLock::acquire(&out)?;
     let mut inputs: Vec<(&str, &Path)> = vec![("--test", &settings.test)];
@@ -793,6 +801,7 @@ fn train_row(
             } else {
                 EdgeRefineOptions::default()
             },
+            s.colour_models.as_deref(),
             &NoProgress,
         )?;
         estimates = refined;
