@@ -302,6 +302,12 @@ pub struct EvalArgs {
     #[arg(long, value_name = "DIR")]
     pub refine_models: Option<PathBuf>,
 
+    /// With --refine views: how many of the view search's best poses are refined (more: a
+    /// little more often the right one among them, and proportionally slower; see
+    /// docs/experiments.md for 16 against 40). Default: 16.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=200))]
+    pub view_candidates: Option<u32>,
+
     /// Also score with BOP's Average Recall (AR = mean of AR_VSD, AR_MSSD, AR_MSPD), computed
     /// as bop_toolkit's eval_bop19_pose.py does; VSD renders each estimate and needs the test
     /// depth images (without them: MSSD and MSPD only). See docs/metrics.md.

@@ -10,6 +10,12 @@ use crate::{ExitStatus, Printer};
 use synthgen_fit::edge_refine::EdgeRefineOptions;
 
 pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
+    if args.view_candidates.is_some() && args.refine != RgbRefineArg::Views {
+        return Err(synthgen_jobs::user_error(
+            "--view-candidates sets how many view-search poses --refine views refines",
+            "add --refine views, or drop --view-candidates",
+        ));
+    }
     let request = EvalRequest {
         data: args.data,
         results: args.results,
@@ -29,7 +35,13 @@ pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
         refine: match args.refine {
             RgbRefineArg::None => None,
             RgbRefineArg::Edges => Some(EdgeRefineOptions::default()),
-            RgbRefineArg::Views => Some(EdgeRefineOptions::with_view_search()),
+            RgbRefineArg::Views => {
+                let mut opts = EdgeRefineOptions::with_view_search();
+                if let (Some(v), Some(n)) = (opts.view_search.as_mut(), args.view_candidates) {
+                    v.candidates = n as usize;
+                }
+                Some(opts)
+            }
         },
         refine_models: args.refine_models,
     };

@@ -262,3 +262,20 @@ fn refine_models_give_the_colours() {
     let (flat, _) = refine(Some(&folder("flat", "models_eval")), "flat.csv");
     assert_ne!(own, flat);
 }
+
+#[test]
+fn view_candidates_needs_refine_views() {
+    let tmp = tempfile::tempdir().unwrap();
+    for refine in [None, Some("edges")] {
+        let mut cmd = synthgen();
+        cmd.args(["eval", "--results"])
+            .arg(tmp.path().join("est.csv"))
+            .arg("--data")
+            .arg(tmp.path())
+            .args(["--view-candidates", "40"]);
+        if let Some(r) = refine {
+            cmd.args(["--refine", r]);
+        }
+        refused(&run(&mut cmd), &["--view-candidates", "--refine views"]);
+    }
+}
