@@ -326,8 +326,9 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
         refine_views: args.refine == Refine::Views,
         colour_models: args
             .models
-            .clone()
-            .filter(|_| matches!(args.refine, Refine::Edges | Refine::Views)),
+            .as_ref()
+            .filter(|_| matches!(args.refine, Refine::Edges | Refine::Views))
+            .map(|p| p.canonicalize().unwrap_or_else(|_| p.clone())),
     };
     let _lock = OutputLock::acquire(&out)?;
     let mut inputs: Vec<(&str, &Path)> = vec![("--test", &settings.test)];
