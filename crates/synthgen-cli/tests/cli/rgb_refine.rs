@@ -4,7 +4,7 @@
 
 use std::fmt::Write as _;
 use std::fs;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use serde_json::Value;
 
@@ -78,27 +78,34 @@ fn numbers(v: &Value) -> Vec<f64> {
         .collect()
 }
 
-/// Four rendered frames of three LM-O objects (seed 3) and every GT instance turned by
-/// `turn_deg`, shifted by [`SHIFT_MM`]: the scores (`all` of `--json`) before and after
-/// `--refine refine`, and the refinement's log.
-fn refined_scores(turn_deg: f64, refine: &str) -> (Value, Value, String) {
+/// `frames` rendered frames of the LM-O objects 1, 6 and 8 (seed 3) in `dir`/data, and
+/// every GT instance turned by `turn_deg` and shifted by [`SHIFT_MM`] in `dir`/est.csv: the
+/// dataset, the CSV and its row count.
+fn rendered_and_turned(dir: &Path, frames: u32, turn_deg: f64) -> (PathBuf, PathBuf, usize) {
     let shared = shared_data();
-    let tmp = tempfile::tempdir().unwrap();
-    let data = tmp.path().join("data");
+    let data = dir.join("data");
     let mut cmd = synthgen();
     cmd.arg("render").arg("--objects");
     for id in [1, 6, 8] {
         cmd.arg(shared.join(format!("lmo/models/obj_{id:06}.ply")));
     }
     let o = run(cmd
-        .args([
-            "--camera", "linemod", "--frames", "4", "--seed", "3", "--split", "test",
-        ])
-        .arg("--out")
+        .args(["--camera", "linemod", "--frames"])
+        .arg(frames.to_string())
+        .args(["--seed", "3", "--split", "test", "--out"])
         .arg(&data));
     assert!(o.status.success(), "{}", stderr(&o));
-    let csv = tmp.path().join("est.csv");
+    let csv = dir.join("est.csv");
     let rows = perturbed_gt(&data.join("test/000000/scene_gt.json"), &csv, turn_deg);
+    (data, csv, rows)
+}
+
+/// Four rendered frames of three LM-O objects (seed 3) and every GT instance turned by
+/// `turn_deg`, shifted by [`SHIFT_MM`]: the scores (`all` of `--json`) before and after
+/// `--refine refine`, and the refinement's log.
+fn refined_scores(turn_deg: f64, refine: &str) -> (Value, Value, String) {
+    let tmp = tempfile::tempdir().unwrap();
+    let (data, csv, rows) = rendered_and_turned(tmp.path(), 4, turn_deg);
     assert!(rows >= 8, "{rows} instances");
     let eval = |refine: Option<&str>, json: &Path| {
         let mut cmd = synthgen();
@@ -208,21 +215,7 @@ fn refine_models_give_the_colours() {
     // models_eval meshes, which must not.
     let shared = shared_data();
     let tmp = tempfile::tempdir().unwrap();
-    let data = tmp.path().join("data");
-    let mut cmd = synthgen();
-    cmd.arg("render").arg("--objects");
-    for id in [1, 6, 8] {
-        cmd.arg(shared.join(format!("lmo/models/obj_{id:06}.ply")));
-    }
-    let o = run(cmd
-        .args([
-            "--camera", "linemod", "--frames", "2", "--seed", "3", "--split", "test",
-        ])
-        .arg("--out")
-        .arg(&data));
-    assert!(o.status.success(), "{}", stderr(&o));
-    let csv = tmp.path().join("est.csv");
-    let rows = perturbed_gt(&data.join("test/000000/scene_gt.json"), &csv, 60.0);
+    let (data, csv, rows) = rendered_and_turned(tmp.path(), 2, 60.0);
     let folder = |name: &str, from: &str| {
         let dir = tmp.path().join(name);
         for id in [1, 6, 8] {
