@@ -140,7 +140,7 @@ pub struct ExperimentSim2realArgs {
 
     /// RGB models: render each test object from the one mesh in DIR/<its name>/ (e.g. the
     /// textured scans aligned by `synthgen model align --scans`) instead of the dataset's
-    /// model; objects without a folder keep the dataset's. With --refine edges|views, the
+    /// model; objects without a folder keep the dataset's. With --refine views, the
     /// refinement compares the real images with these meshes' colours too.
     #[arg(long, value_name = "DIR")]
     pub models: Option<PathBuf>,

@@ -16,6 +16,12 @@ pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
             "add --refine views, or drop --view-candidates",
         ));
     }
+    if args.refine_models.is_some() && args.refine != RgbRefineArg::Views {
+        return Err(synthgen_jobs::user_error(
+            "--refine-models gives the colours that --refine views compares with the image",
+            "add --refine views, or drop --refine-models",
+        ));
+    }
     let request = EvalRequest {
         data: args.data,
         results: args.results,
@@ -45,12 +51,6 @@ pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
         },
         refine_models: args.refine_models,
     };
-    if request.refine_models.is_some() && request.refine.is_none() {
-        return Err(synthgen_jobs::user_error(
-            "--refine-models gives the colours that --refine compares with the image",
-            "add --refine views (or edges), or drop --refine-models",
-        ));
-    }
     if request.save_results.is_some() && request.checkpoint.is_none() && request.refine.is_none() {
         return Err(synthgen_jobs::user_error(
             "--save-results writes a checkpoint's estimates, or the refined ones of --results",

@@ -190,17 +190,30 @@ fn save_results_without_a_checkpoint_needs_refine() {
     assert!(!tmp.path().join("out.csv").exists());
 }
 
-#[test]
-fn refine_models_needs_refine() {
+/// `eval` with `flag` and `value`, without --refine and with --refine edges: refused, the
+/// message naming the flag and --refine views.
+fn refused_without_refine_views(flag: &str, value: &std::ffi::OsStr) {
     let tmp = tempfile::tempdir().unwrap();
-    let o = run(synthgen()
-        .args(["eval", "--results"])
-        .arg(tmp.path().join("est.csv"))
-        .arg("--data")
-        .arg(tmp.path())
-        .arg("--refine-models")
-        .arg(tmp.path()));
-    refused(&o, &["--refine-models", "--refine views"]);
+    for refine in [None, Some("edges")] {
+        let mut cmd = synthgen();
+        cmd.args(["eval", "--results"])
+            .arg(tmp.path().join("est.csv"))
+            .arg("--data")
+            .arg(tmp.path())
+            .arg(flag)
+            .arg(value);
+        if let Some(r) = refine {
+            cmd.args(["--refine", r]);
+        }
+        refused(&run(&mut cmd), &[flag, "--refine views"]);
+    }
+}
+
+#[test]
+fn refine_models_needs_refine_views() {
+    // `edges` compares no colours: the folder would be ignored.
+    let tmp = tempfile::tempdir().unwrap();
+    refused_without_refine_views("--refine-models", tmp.path().as_os_str());
 }
 
 #[test]
@@ -258,17 +271,5 @@ fn refine_models_give_the_colours() {
 
 #[test]
 fn view_candidates_needs_refine_views() {
-    let tmp = tempfile::tempdir().unwrap();
-    for refine in [None, Some("edges")] {
-        let mut cmd = synthgen();
-        cmd.args(["eval", "--results"])
-            .arg(tmp.path().join("est.csv"))
-            .arg("--data")
-            .arg(tmp.path())
-            .args(["--view-candidates", "40"]);
-        if let Some(r) = refine {
-            cmd.args(["--refine", r]);
-        }
-        refused(&run(&mut cmd), &["--view-candidates", "--refine views"]);
-    }
+    refused_without_refine_views("--view-candidates", "40".as_ref());
 }

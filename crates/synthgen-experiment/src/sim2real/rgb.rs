@@ -86,8 +86,8 @@ pub struct RgbSettings {
     /// ... after a search over each object's rotations (`--refine views`).
     #[serde(default)]
     pub refine_views: bool,
-    /// With a refinement: `--models`, whose colours the refinement compares with the real
-    /// images (the dataset's own models may carry none).
+    /// With `--refine views`: `--models`, whose colours the refinement compares with the real
+    /// images (the dataset's own models may carry none; `edges` compares no colours).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub colour_models: Option<PathBuf>,
 }
@@ -327,7 +327,7 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
         colour_models: args
             .models
             .as_ref()
-            .filter(|_| matches!(args.refine, Refine::Edges | Refine::Views))
+            .filter(|_| args.refine == Refine::Views)
             .map(|p| p.canonicalize().unwrap_or_else(|_| p.clone())),
     };
     let _lock = OutputLock::acquire(&out)?;
