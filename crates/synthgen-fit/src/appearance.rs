@@ -8,7 +8,7 @@
 use synthgen_core::glam::{DVec2, DVec3};
 use synthgen_core::{Intrinsics, Model, Pose};
 
-use crate::raster::{project, sobel, Rect, ZBuffer};
+use crate::raster::{sobel, Rect, ZBuffer};
 
 /// A model's triangles (object frame, metres) with each corner's sRGB colour (0..1): from
 /// its vertex colours, else its texture at the corner's texture coordinate, else its base
@@ -184,119 +184,6 @@ impl ColouredSurface {
         } else {
             (0..n).map(|i| found[i * found.len() / n]).collect()
         }
-    }
-}
-
-/// Points of a model's surface seen from one view, in the object frame, each with its colour
-/// (sRGB, 0..255): what [`crate::edge_refine::view_search`] compares with the image at each of
-/// its thousands of poses, instead of rasterizing the model at every one.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct ColourSamples {
-    pub points: Vec<DVec3>,
-    pub colours: Vec<[f32; 3]>,
-}
-
-/// Fewer samples in the image than this and a pose's colours say nothing.
-const MIN_SAMPLES: usize = 20;
-
-impl ColouredSurface {
-    /// Up to `max_points` points of the surface visible at `pose` over `rect` (rasterized at
-    /// most `raster_px` across), two raster pixels in from the outline (its colours are not
-    /// mixed with the background's there), spread evenly over the visible area, with their
-    /// colours.
-    pub fn samples(
-        &self,
-        pose: &Pose,
-        k: &Intrinsics,
-        rect: Rect,
-        raster_px: u32,
-        max_points: usize,
-    ) -> ColourSamples {
-        let z = ZBuffer::new(&self.triangles, pose, k, rect, raster_px);
-        let (w, h) = (z.w, z.h);
-        let inside = |i: usize, j: usize| z.depth[j * w + i].is_finite();
-        let mut found: Vec<(DVec3, [f32; 3])> = Vec::new();
-        for j in 2..h.saturating_sub(2) {
-            for i in 2..w.saturating_sub(2) {
-                if !(j - 2..=j + 2).all(|jj| (i - 2..=i + 2).all(|ii| inside(ii, jj))) {
-                    continue;
-                }
-                let (tri, [b0, b1]) = z.hit[j * w + i];
-                let (Some(t), Some(c)) = (
-                    self.triangles.get(tri as usize),
-                    self.colours.get(tri as usize),
-                ) else {
-                    continue;
-                };
-                let b2 = 1.0 - b0 - b1;
-                let p = t[0] * f64::from(b0) + t[1] * f64::from(b1) + t[2] * f64::from(b2);
-                let colour =
-                    [0, 1, 2].map(|ch| 255.0 * (b0 * c[0][ch] + b1 * c[1][ch] + b2 * c[2][ch]));
-                found.push((p, colour));
-            }
-        }
-        let n = max_points.min(found.len());
-        let picked = (0..n).map(|i| found[i * found.len() / n]);
-        let (points, colours) = picked.unzip();
-        ColourSamples { points, colours }
-    }
-}
-
-impl ColourSamples {
-    /// The normalized cross-correlation of the samples' colours with the image's pixels
-    /// (`rgb`, RGB8, `width × height`) under them at `pose` (nearest pixel; each channel's
-    /// mean removed, the channels pooled, as [`Appearance::agreement`]), in [-1, 1]; None
-    /// with fewer than 20 samples in the image or a flat side.
-    pub fn agreement(
-        &self,
-        pose: &Pose,
-        k: &Intrinsics,
-        rgb: &[u8],
-        width: u32,
-        height: u32,
-    ) -> Option<f64> {
-        let mut n = 0usize;
-        let (mut sa, mut sb, mut sab, mut saa, mut sbb) = (
-            [0.0f64; 3],
-            [0.0f64; 3],
-            [0.0f64; 3],
-            [0.0f64; 3],
-            [0.0f64; 3],
-        );
-        for (p, c) in self.points.iter().zip(&self.colours) {
-            let Some(q) = project(k, pose.rotation * *p + pose.translation_m) else {
-                continue;
-            };
-            let (x, y) = ((q.x + 0.5).floor(), (q.y + 0.5).floor());
-            if x < 0.0 || y < 0.0 || x >= f64::from(width) || y >= f64::from(height) {
-                continue;
-            }
-            let o = (y as usize * width as usize + x as usize) * 3;
-            let Some(px) = rgb.get(o..o + 3) else {
-                continue;
-            };
-            n += 1;
-            for ch in 0..3 {
-                let (a, b) = (f64::from(c[ch]), f64::from(px[ch]));
-                sa[ch] += a;
-                sb[ch] += b;
-                sab[ch] += a * b;
-                saa[ch] += a * a;
-                sbb[ch] += b * b;
-            }
-        }
-        if n < MIN_SAMPLES {
-            return None;
-        }
-        let m = n as f64;
-        let (mut ab, mut aa, mut bb) = (0.0, 0.0, 0.0);
-        for ch in 0..3 {
-            ab += sab[ch] - sa[ch] * sb[ch] / m;
-            aa += saa[ch] - sa[ch] * sa[ch] / m;
-            bb += sbb[ch] - sb[ch] * sb[ch] / m;
-        }
-        // Flat: under one grey level of standard deviation, as [`ncc`].
-        (aa > m && bb > m).then(|| ab / (aa * bb).sqrt())
     }
 }
 
@@ -505,40 +392,6 @@ mod tests {
         let wrong = a.agreement(&turned, &k, region(), 200).unwrap();
         assert!(right > 0.99, "true pose agrees {right}");
         assert!(wrong < -0.9, "turned pose agrees {wrong}");
-    }
-
-    #[test]
-    fn samples_agree_as_the_rasterized_model_does() {
-        let surface = ColouredSurface::from_model(&plate()).unwrap();
-        let (k, pose) = (camera(), facing());
-        let img = photo(&surface, &pose, &k);
-        let samples = surface.samples(&pose, &k, region(), 200, 60);
-        assert_eq!(samples.points.len(), 60);
-        // On the plate (z = 0), inside it by two pixels (1 mm each), both halves' colours.
-        for (p, c) in samples.points.iter().zip(&samples.colours) {
-            assert!(
-                p.z.abs() < 1e-9 && p.x.abs() < 0.049 && p.y.abs() < 0.049,
-                "{p}"
-            );
-            let red = (p.x < 0.0) == (c[0] > c[2]);
-            assert!(red || p.x.abs() < 0.001, "{p} {c:?}");
-        }
-        assert!(samples.colours.iter().any(|c| c[0] > 200.0));
-        assert!(samples.colours.iter().any(|c| c[2] > 200.0));
-        let (w, h) = (k.width, k.height);
-        let right = samples.agreement(&pose, &k, &img, w, h).unwrap();
-        let turned = Pose::new(
-            DMat3::from_rotation_z(std::f64::consts::PI),
-            pose.translation_m,
-        );
-        let wrong = samples.agreement(&turned, &k, &img, w, h).unwrap();
-        assert!(right > 0.99, "true pose agrees {right}");
-        assert!(wrong < -0.9, "turned pose agrees {wrong}");
-        // Off the image, or on a flat one: nothing to say.
-        let away = Pose::new(DMat3::IDENTITY, DVec3::new(2.0, 0.0, 0.5));
-        assert_eq!(samples.agreement(&away, &k, &img, w, h), None);
-        let flat = vec![0u8; img.len()];
-        assert_eq!(samples.agreement(&pose, &k, &flat, w, h), None);
     }
 
     #[test]

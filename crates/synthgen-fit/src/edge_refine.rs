@@ -22,7 +22,7 @@ use synthgen_core::glam::{DMat3, DQuat, DVec2, DVec3};
 use synthgen_core::pose::rotation_angle_rad;
 use synthgen_core::{Intrinsics, Pose};
 
-use crate::appearance::{Appearance, ColourSamples, ColouredSurface};
+use crate::appearance::{Appearance, ColouredSurface};
 pub use crate::raster::Rect;
 use crate::raster::{project, sobel, ZBuffer};
 
@@ -82,11 +82,7 @@ pub struct EdgeRefineOptions {
 /// directions spread evenly over the sphere, each turned in the image plane in
 /// `in_plane_steps` equal steps, at the start's distance times each of `depth_factors`;
 /// scored with `points` of its contour points and the coarse truncation; the best
-/// `candidates` at least `min_separation_deg` apart in rotation are refined. With a coloured
-/// model (templates [`ViewTemplates::with_colours`] and an [`Appearance`]), each pose's cost
-/// is its contour's minus `colour_weight_px` times the agreement of `colour_points` of the
-/// surface's colours with the image ([`ColourSamples::agreement`], -1..1; 0 when it says
-/// nothing): a pose whose outline fits the clutter but whose colours do not falls back.
+/// `candidates` at least `min_separation_deg` apart in rotation are refined.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ViewSearchOptions {
@@ -96,8 +92,6 @@ pub struct ViewSearchOptions {
     pub points: usize,
     pub candidates: usize,
     pub min_separation_deg: f64,
-    pub colour_weight_px: f64,
-    pub colour_points: usize,
 }
 
 impl Default for ViewSearchOptions {
@@ -109,8 +103,6 @@ impl Default for ViewSearchOptions {
             points: 60,
             candidates: 16,
             min_separation_deg: 20.0,
-            colour_weight_px: 2.0,
-            colour_points: 60,
         }
     }
 }
@@ -666,17 +658,9 @@ pub fn refine_with_views(
     let mut all = with_flips(&[*start], opts);
     let search = opts.view_search.clone().unwrap_or_default();
     all.extend(
-        view_search(
-            field,
-            templates,
-            start,
-            k,
-            &search,
-            opts.coarse_truncate_px,
-            appearance,
-        )
-        .into_iter()
-        .map(|(p, _)| p),
+        view_search(field, templates, start, k, &search, opts.coarse_truncate_px)
+            .into_iter()
+            .map(|(p, _)| p),
     );
     best_of(field, triangles, &all, k, opts, appearance)
 }
@@ -734,9 +718,6 @@ pub struct ViewTemplates {
     /// optical axis (object frame to camera frame; any turn about the axis) and the contour
     /// it sees, in the object frame.
     pub views: Vec<(DMat3, Contour)>,
-    /// Per view (empty without [`ViewTemplates::with_colours`]), the surface's colours it
-    /// sees.
-    pub colours: Vec<ColourSamples>,
 }
 
 /// `n` unit vectors spread evenly over the sphere (a Fibonacci lattice).
@@ -758,8 +739,30 @@ impl ViewTemplates {
     /// from ten times the model's radius.
     pub fn new(triangles: &[[DVec3; 3]], opts: &EdgeRefineOptions) -> ViewTemplates {
         let search = opts.view_search.clone().unwrap_or_default();
-        let Some((distance, k, rect)) = template_camera(triangles) else {
+        let radius = triangles
+            .iter()
+            .flatten()
+            .map(|v| v.length())
+            .fold(0.0, f64::max);
+        if radius <= 0.0 || !radius.is_finite() {
             return ViewTemplates::default();
+        }
+        // The model 160 px across on a 200 px raster.
+        let distance = 10.0 * radius;
+        let f = 80.0 * distance / radius;
+        let k = Intrinsics {
+            width: 200,
+            height: 200,
+            fx: f,
+            fy: f,
+            cx: 100.0,
+            cy: 100.0,
+        };
+        let rect = Rect {
+            x0: 0,
+            y0: 0,
+            w: 200,
+            h: 200,
         };
         let raster = EdgeRefineOptions {
             raster_px: 200,
@@ -781,76 +784,15 @@ impl ViewTemplates {
             })
             .filter(|(_, c)| !c.points.is_empty())
             .collect();
-        ViewTemplates {
-            views,
-            colours: Vec::new(),
-        }
+        ViewTemplates { views }
     }
-
-    /// These templates with `surface`'s colours seen from each view (`colour_points` of
-    /// `opts.view_search`'s options, or its defaults', per view), for [`view_search`] to
-    /// compare with the image. `triangles` are those the templates were made from: their
-    /// camera is the one the colours are seen with.
-    pub fn with_colours(
-        mut self,
-        triangles: &[[DVec3; 3]],
-        surface: &ColouredSurface,
-        opts: &EdgeRefineOptions,
-    ) -> ViewTemplates {
-        let search = opts.view_search.clone().unwrap_or_default();
-        let Some((distance, k, rect)) = template_camera(triangles) else {
-            return self;
-        };
-        self.colours = self
-            .views
-            .iter()
-            .map(|(r, _)| {
-                let pose = Pose::new(*r, DVec3::new(0.0, 0.0, distance));
-                surface.samples(&pose, &k, rect, 200, search.colour_points)
-            })
-            .collect();
-        self
-    }
-}
-
-/// The camera the view templates of `triangles` are seen with: from ten times the model's
-/// radius, the model 160 px across on a 200 px image (the distance, the intrinsics, the
-/// image); None for an empty or degenerate model.
-fn template_camera(triangles: &[[DVec3; 3]]) -> Option<(f64, Intrinsics, Rect)> {
-    let radius = triangles
-        .iter()
-        .flatten()
-        .map(|v| v.length())
-        .fold(0.0, f64::max);
-    if radius <= 0.0 || !radius.is_finite() {
-        return None;
-    }
-    let distance = 10.0 * radius;
-    let f = 80.0 * distance / radius;
-    let k = Intrinsics {
-        width: 200,
-        height: 200,
-        fx: f,
-        fy: f,
-        cx: 100.0,
-        cy: 100.0,
-    };
-    let rect = Rect {
-        x0: 0,
-        y0: 0,
-        w: 200,
-        h: 200,
-    };
-    Some((distance, k, rect))
 }
 
 /// The coarse search: every view of `templates` turned in the image plane and placed at
 /// `start`'s position (the view turned onto the ray through it, so the object shows the
 /// camera the same side anywhere in the image) at each of the depth factors, scored by
-/// [`contour_match`] truncated at `truncate` (less the colours' weighted agreement with
-/// `appearance`'s image where the templates have colours and `opts.colour_weight_px` > 0);
-/// the best `opts.candidates` poses at least `opts.min_separation_deg` apart, cheapest first,
-/// with their costs.
+/// [`contour_match`] truncated at `truncate`; the best `opts.candidates` poses at least
+/// `opts.min_separation_deg` apart, cheapest first, with their costs.
 pub fn view_search(
     field: &EdgeField,
     templates: &ViewTemplates,
@@ -858,7 +800,6 @@ pub fn view_search(
     k: &Intrinsics,
     opts: &ViewSearchOptions,
     truncate: f32,
-    appearance: Option<&Appearance>,
 ) -> Vec<(Pose, f64)> {
     let t = start.translation_m;
     if t.z.is_nan() || t.z <= 1e-6 || templates.views.is_empty() {
@@ -866,22 +807,14 @@ pub fn view_search(
     }
     let onto_ray = DMat3::from_quat(DQuat::from_rotation_arc(DVec3::Z, t.normalize()));
     let steps = opts.in_plane_steps.max(1);
-    let image = appearance.filter(|_| {
-        opts.colour_weight_px > 0.0 && templates.colours.len() == templates.views.len()
-    });
     let mut scored: Vec<(DMat3, DVec3, f64)> = Vec::new();
-    for (v, (r, c)) in templates.views.iter().enumerate() {
+    for (r, c) in &templates.views {
         for s in 0..steps {
             let turn = DMat3::from_rotation_z(std::f64::consts::TAU * s as f64 / steps as f64);
             let rotation = onto_ray * turn * *r;
             for &f in &opts.depth_factors {
                 let pose = Pose::new(rotation, t * f);
-                let mut cost = contour_match(field, c, &pose, k, 0.0, truncate).0;
-                if let Some(a) = image {
-                    let agreement =
-                        templates.colours[v].agreement(&pose, k, a.rgb, a.width, a.height);
-                    cost -= opts.colour_weight_px * agreement.unwrap_or(0.0);
-                }
+                let cost = contour_match(field, c, &pose, k, 0.0, truncate).0;
                 scored.push((rotation, t * f, cost));
             }
         }
@@ -1154,7 +1087,7 @@ mod tests {
         let templates = ViewTemplates::new(&tris, &opts);
         assert_eq!(templates.views.len(), 300);
         let search = opts.view_search.clone().unwrap();
-        let found = view_search(&field, &templates, &start, &k, &search, 18.0, None);
+        let found = view_search(&field, &templates, &start, &k, &search, 18.0);
         assert_eq!(found.len(), search.candidates);
         assert!(found.windows(2).all(|w| w[0].1 <= w[1].1));
         let nearest = found
@@ -1212,45 +1145,5 @@ mod tests {
         // A flat plate's tilt hardly shows in its outline (9.6° here): the point is the side.
         let e = error(&with_colours);
         assert!(e < 15.0, "{e}");
-    }
-
-    #[test]
-    fn the_view_search_ranks_by_colour_where_outlines_look_alike() {
-        use crate::appearance::fixtures::{appearance, camera, facing, photo, plate, region};
-        let model = plate();
-        let surface = ColouredSurface::from_model(&model).unwrap();
-        let (k, gt) = (camera(), facing());
-        let img = photo(&surface, &gt, &k);
-        let a = appearance(&img, &surface);
-        let opts = EdgeRefineOptions::with_view_search();
-        let field = EdgeField::new(&img, k.width, k.height, region(), &opts);
-        let tris = &surface.triangles;
-        let plain = ViewTemplates::new(tris, &opts);
-        let coloured = plain.clone().with_colours(tris, &surface, &opts);
-        assert_eq!(coloured.colours.len(), coloured.views.len());
-        assert!(coloured.colours.iter().any(|c| c.points.len() == 60));
-        // The first candidate's error from the truth (the plate from behind, turned about x,
-        // shows the same red and blue halves: either is right).
-        let back = gt.rotation * DMat3::from_rotation_x(std::f64::consts::PI);
-        let first = |templates: &ViewTemplates, weight: f64| {
-            let search = ViewSearchOptions {
-                colour_weight_px: weight,
-                ..ViewSearchOptions::default()
-            };
-            let found = view_search(&field, templates, &gt, &k, &search, 18.0, Some(&a));
-            let r = found[0].0.rotation;
-            [gt.rotation, back]
-                .iter()
-                .map(|g| rotation_error_deg(&r, g))
-                .fold(f64::INFINITY, f64::min)
-        };
-        // Contours alone: the square outline fits four turns equally, colours break the tie.
-        let by_colour = first(&coloured, 4.0);
-        assert!(by_colour < 10.0, "{by_colour}°");
-        // Without colours (no weight, or templates without them) the turns tie and the first
-        // in the search's order wins (88° off here), the same with both.
-        let by_outline = first(&coloured, 0.0);
-        assert!(by_outline > 45.0, "{by_outline}°");
-        assert_eq!(by_outline, first(&plain, 4.0));
     }
 }

@@ -163,14 +163,7 @@ pub fn refine_estimates(
     // With a view search: each object's contours from every viewpoint, once.
     let templates: BTreeMap<u32, ViewTemplates> = if opts.view_search.is_some() {
         tris.par_iter()
-            .map(|(id, t)| {
-                let views = ViewTemplates::new(t, opts);
-                let views = match surfaces.get(id) {
-                    Some(surface) => views.with_colours(t, surface, opts),
-                    None => views,
-                };
-                (*id, views)
-            })
+            .map(|(id, t)| (*id, ViewTemplates::new(t, opts)))
             .collect()
     } else {
         BTreeMap::new()
