@@ -110,10 +110,12 @@ impl Default for ViewSearchOptions {
 impl EdgeRefineOptions {
     /// The defaults with the default view search first, and with the model's colours where
     /// it has them: 100 interior edge points, the colours' agreement weighing 1 px, refusal
-    /// below 20 % inliers (`--refine views`; chosen on synthetic validation frames, see
+    /// below 20 % inliers, edges from a gradient of 4 grey levels per pixel (a camera's blur
+    /// softens them) (`--refine views`; chosen on synthetic validation frames, see
     /// docs/experiments.md).
     pub fn with_view_search() -> Self {
         Self {
+            min_gradient: 4.0,
             view_search: Some(ViewSearchOptions::default()),
             interior_points: 100,
             colour_weight_px: 1.0,
