@@ -14,7 +14,8 @@
 //! - [`refine`]: a pattern search over six parameters (rotation about the camera's axes
 //!   through the object's origin, image-plane shift, scale along the viewing ray) from each
 //!   start pose, the contour re-extracted at each step size; the start whose final contour
-//!   costs least wins.
+//!   costs least wins. With `region_weight_px`, the cost adds the colour regions either side
+//!   of the outline ([`crate::region`]).
 //!
 //! [`synthgen_physics::refine`]: ../../synthgen_physics/refine/index.html
 
@@ -25,6 +26,7 @@ use synthgen_core::{Intrinsics, Pose};
 use crate::appearance::{Appearance, ColouredSurface};
 pub use crate::raster::Rect;
 use crate::raster::{project, sobel, ZBuffer};
+use crate::region::{RegionColours, RegionField};
 
 /// How [`refine`] reads the image and searches.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -76,6 +78,11 @@ pub struct EdgeRefineOptions {
     /// First search the object's rotations exhaustively about the start's position (see
     /// [`ViewSearchOptions`]) and refine the best of them too; None: the starts alone.
     pub view_search: Option<ViewSearchOptions>,
+    /// Pixels of contour cost per unit of the colour regions' cost ([`RegionField::cost`],
+    /// nats) added to it while refining and when the ends are compared: the pixels inside the
+    /// outline should look like the object, those outside like its surroundings; 0: the
+    /// edges alone.
+    pub region_weight_px: f64,
 }
 
 /// The coarse search of [`view_search`]: the model's contour seen from `viewpoints`
@@ -111,11 +118,13 @@ impl EdgeRefineOptions {
     /// The defaults with the default view search first, and with the model's colours where
     /// it has them: 100 interior edge points, the colours' agreement weighing 1 px, refusal
     /// below 20 % inliers, edges from a gradient of 4 grey levels per pixel (a camera's blur
-    /// softens them) (`--refine views`; chosen on synthetic validation frames, see
-    /// docs/experiments.md).
+    /// softens them), the colour regions either side of the outline weighing 3 px per nat
+    /// (`--refine views`; chosen on validation frames, synthetic and YCB-Video's real scenes 0
+    /// and 1, see docs/experiments.md).
     pub fn with_view_search() -> Self {
         Self {
             min_gradient: 4.0,
+            region_weight_px: 3.0,
             view_search: Some(ViewSearchOptions::default()),
             interior_points: 100,
             colour_weight_px: 1.0,
@@ -146,6 +155,7 @@ impl Default for EdgeRefineOptions {
             colour_weight_px: 0.0,
             interior_points: 0,
             view_search: None,
+            region_weight_px: 0.0,
         }
     }
 }
@@ -162,6 +172,9 @@ pub struct EdgeField {
     cost: Vec<Vec<f32>>,
     /// Edge pixels found.
     pub edges: usize,
+    /// The region's colours, kept when the refinement compares colour regions
+    /// (`region_weight_px` > 0).
+    colours: Option<RegionColours>,
 }
 
 /// Orientation of a direction modulo 180°, in [0, π).
@@ -358,6 +371,8 @@ impl EdgeField {
             truncate,
             cost,
             edges,
+            colours: (opts.region_weight_px > 0.0)
+                .then(|| RegionColours::new(rgb, width, height, rect)),
         }
     }
 
@@ -518,7 +533,8 @@ fn moved(pose: &Pose, k: &Intrinsics, d: &[f64; 6]) -> Pose {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Refined {
     pub pose: Pose,
-    /// The winning contour's mean cost (pixels) at the refined pose.
+    /// The winning contour's mean cost (pixels) at the refined pose, plus
+    /// `region_weight_px` times its colour regions' cost.
     pub cost: f64,
     /// Index of the start it came from.
     pub start: usize,
@@ -540,8 +556,15 @@ fn search(
     k: &Intrinsics,
     opts: &EdgeRefineOptions,
 ) -> (Pose, f64, f64, f64) {
+    // The contour at a pose, how many of its points are the outline (the interior edges
+    // follow them), and the colour regions on either side of that outline.
     let extract = |pose: &Pose| {
         let mut c = contour(triangles, pose, k, field.rect, opts);
+        let outline = c.points.len();
+        let regions = field
+            .colours
+            .as_ref()
+            .and_then(|col| RegionField::new(col, triangles, pose, k, opts.raster_px));
         if let Some(s) = surface {
             c.points.extend(s.interior_edges(
                 pose,
@@ -552,7 +575,7 @@ fn search(
                 opts.interior_points,
             ));
         }
-        c
+        (c, outline, regions)
     };
     let mut pose = start;
     let levels = opts.halvings + 1;
@@ -564,11 +587,23 @@ fn search(
         };
         opts.coarse_truncate_px * (opts.truncate_px / opts.coarse_truncate_px).powf(f)
     };
-    let at = |c: &Contour, p: &Pose, level: usize| {
-        contour_match(field, c, p, k, 0.0, truncation(level)).0
+    // The contour's cost plus, with colour regions, theirs.
+    let with_regions = |edges: f64, c: &(Contour, usize, Option<RegionField>), p: &Pose| match &c.2
+    {
+        Some(r) if opts.region_weight_px > 0.0 => {
+            edges + opts.region_weight_px * r.cost(&c.0.points[..c.1], p, k).unwrap_or(0.0)
+        }
+        _ => edges,
+    };
+    let at = |c: &(Contour, usize, Option<RegionField>), p: &Pose, level: usize| {
+        with_regions(
+            contour_match(field, &c.0, p, k, 0.0, truncation(level)).0,
+            c,
+            p,
+        )
     };
     let mut c = extract(&pose);
-    let initial = contour_cost(field, &c, &pose, k);
+    let initial = with_regions(contour_cost(field, &c.0, &pose, k), &c, &pose);
     let mut cost;
     let mut steps = [
         opts.rotation_step_deg.to_radians(),
@@ -605,8 +640,8 @@ fn search(
             *s *= 0.5;
         }
     }
-    let (cost, inliers) = contour_match(field, &c, &pose, k, opts.inlier_px, field.truncate);
-    (pose, cost, initial, inliers)
+    let (cost, inliers) = contour_match(field, &c.0, &pose, k, opts.inlier_px, field.truncate);
+    (pose, with_regions(cost, &c, &pose), initial, inliers)
 }
 
 /// Refines each of `starts` (and their flips with `opts.flip_starts`) against `field` and
@@ -1016,6 +1051,75 @@ mod tests {
         assert!(re < 3.0, "rotation error {re}°");
         assert!(te < 0.01, "translation error {te} m");
         assert!(r.cost < r.initial_cost);
+    }
+
+    #[test]
+    fn the_colour_regions_cost_least_at_the_true_pose() {
+        let (k, tris, gt, _, opts) = cuboid_scene(220.0);
+        let img = image(&tris, &gt, &k);
+        let rect = Rect::square_in(160.0, 120.0, 220.0, k.width, k.height).unwrap();
+        let colours = RegionColours::new(&img, k.width, k.height, rect);
+        let regions = RegionField::new(&colours, &tris, &gt, &k, 200).unwrap();
+        let outline = contour(&tris, &gt, &k, rect, &opts);
+        let at = |p: &Pose| regions.cost(&outline.points, p, &k).unwrap();
+        // The white box on the dark ground: object inside, ground outside, both near certain.
+        assert!(at(&gt) < 0.3, "{}", at(&gt));
+        for d in [
+            [0.0, 0.0, 0.0, 3.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0, 0.0, -3.0, 0.0],
+            [0.1, 0.0, 0.0, 0.0, 0.0, 0.0],
+            [0.0, 0.0, 0.1, 0.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0, 0.0, 0.0, 0.05],
+        ] {
+            let off = moved(&gt, &k, &d);
+            assert!(
+                at(&off) > at(&gt) + 0.3,
+                "{d:?}: {} vs {}",
+                at(&off),
+                at(&gt)
+            );
+        }
+    }
+
+    #[test]
+    fn the_colour_regions_bring_a_pose_back_where_the_edges_are_faint() {
+        let k = camera();
+        let tris = cuboid(DVec3::new(0.05, 0.03, 0.04));
+        let gt = gt_pose();
+        // A reddish box on a greenish ground of the same brightness, both speckled: the grey
+        // edges of its outline are lost among the speckles' own.
+        let mut img = vec![0u8; (k.width * k.height * 3) as usize];
+        for y in 0..k.height {
+            for x in 0..k.width {
+                let i = ((y * k.width + x) * 3) as usize;
+                let speckle = (((x * 31 + y * 17) ^ (x * y)) % 40) as u8;
+                let px = if in_hull(&tris, &gt, &k, f64::from(x), f64::from(y)) {
+                    [150 + speckle, 90, 90]
+                } else {
+                    [90, 120 + speckle / 2, 90 + speckle]
+                };
+                img[i..i + 3].copy_from_slice(&px);
+            }
+        }
+        let start = moved(&gt, &k, &[0.1, -0.08, 0.1, 4.0, -3.0, 0.04]);
+        let rect = Rect::square_in(160.0, 120.0, 220.0, k.width, k.height).unwrap();
+        let error = |opts: &EdgeRefineOptions| {
+            let field = EdgeField::new(&img, k.width, k.height, rect, opts);
+            let r = refine(&field, &tris, &[start], &k, opts, None).unwrap();
+            rotation_error_deg(&r.pose.rotation, &gt.rotation)
+        };
+        let edges = EdgeRefineOptions {
+            flip_starts: false,
+            min_inlier_fraction: 0.0,
+            ..Default::default()
+        };
+        let with_regions = EdgeRefineOptions {
+            region_weight_px: 2.0,
+            ..edges.clone()
+        };
+        let (alone, both) = (error(&edges), error(&with_regions));
+        assert!(both < 3.0, "with the colour regions: {both}°");
+        assert!(both < alone, "{both}° with the regions, {alone}° without");
     }
 
     #[test]

@@ -15,6 +15,7 @@
 pub mod appearance;
 pub mod edge_refine;
 mod raster;
+pub mod region;
 pub mod rgb_compare;
 pub mod scene_fit;
 pub mod sensor;

@@ -138,6 +138,16 @@ impl ZBuffer {
         )
     }
 
+    /// Whether the surface covers the raster pixel that image pixel (x, y)'s centre falls in.
+    pub(crate) fn covers(&self, x: f64, y: f64) -> bool {
+        let r = self.to_raster(DVec2::new(x, y));
+        if r.x < 0.0 || r.y < 0.0 {
+            return false;
+        }
+        let (i, j) = (r.x as usize, r.y as usize);
+        i < self.w && j < self.h && self.depth[j * self.w + i].is_finite()
+    }
+
     pub(crate) fn to_image(&self, r: DVec2) -> DVec2 {
         DVec2::new(
             self.x0 + r.x / self.scale - 0.5,

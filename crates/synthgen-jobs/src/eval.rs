@@ -203,7 +203,7 @@ fn refined(
     )
     .with_context(|| format!("cannot refine the estimates on {}", args.data.display()))?;
     printer.info(format!(
-        "refined {} of {} estimates on the RGB images, {} of them refused (too little of the contour on the image's edges; kept as estimated); edge contour cost {:.2} -> {:.2} px, {:.1} s",
+        "refined {} of {} estimates on the RGB images, {} of them refused (too little of the contour on the image's edges; kept as estimated); cost {:.2} -> {:.2} px, {:.1} s",
         summary.refined,
         summary.estimates,
         summary.refused,

@@ -34,7 +34,8 @@ pub struct RefineSummary {
     /// Of those, refinements refused (too few contour points on matching edges): the
     /// estimate kept.
     pub refused: usize,
-    /// Mean contour cost (pixels) of the refined estimates before and after.
+    /// Mean cost of the refined estimates before and after: contour pixels, plus the colour
+    /// regions' weighted cost where the options weigh them (`--refine views`).
     pub mean_cost_before_px: f64,
     pub mean_cost_after_px: f64,
     pub seconds: f64,

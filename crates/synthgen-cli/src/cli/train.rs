@@ -308,6 +308,13 @@ pub struct EvalArgs {
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=200))]
     pub view_candidates: Option<u32>,
 
+    /// With --refine views: how much the colour regions either side of the outline weigh
+    /// beside its edges, pixels of edge cost per nat (the pixels just inside the outline should
+    /// look like the object, those just outside like its surroundings; docs/metrics.md).
+    /// Default: 3; 0: the edges alone, as before 2026-12-05.
+    #[arg(long, value_name = "PX", value_parser = parse_region_weight, allow_hyphen_values = true)]
+    pub region_weight: Option<f64>,
+
     /// Also score with BOP's Average Recall (AR = mean of AR_VSD, AR_MSSD, AR_MSPD), computed
     /// as bop_toolkit's eval_bop19_pose.py does; VSD renders each estimate and needs the test
     /// depth images (without them: MSSD and MSPD only). See docs/metrics.md.
@@ -343,4 +350,14 @@ pub struct EvalArgs {
 
     #[arg(long, value_enum, default_value_t = DeviceArg::Cpu)]
     pub device: DeviceArg,
+}
+
+/// `--region-weight`: a finite weight of 0 or more.
+fn parse_region_weight(v: &str) -> Result<f64, String> {
+    match v.parse::<f64>() {
+        Ok(w) if w.is_finite() && w >= 0.0 => Ok(w),
+        _ => Err(format!(
+            "expected a weight of 0 or more (pixels per nat; 0: the edges alone), got {v:?}"
+        )),
+    }
 }

@@ -16,6 +16,12 @@ pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
             "add --refine views, or drop --view-candidates",
         ));
     }
+    if args.region_weight.is_some() && args.refine != RgbRefineArg::Views {
+        return Err(synthgen_jobs::user_error(
+            "--region-weight sets how much the colour regions weigh in --refine views",
+            "add --refine views, or drop --region-weight",
+        ));
+    }
     if args.refine_models.is_some() && args.refine != RgbRefineArg::Views {
         return Err(synthgen_jobs::user_error(
             "--refine-models gives the colours that --refine views compares with the image",
@@ -45,6 +51,9 @@ pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
                 let mut opts = EdgeRefineOptions::with_view_search();
                 if let (Some(v), Some(n)) = (opts.view_search.as_mut(), args.view_candidates) {
                     v.candidates = n as usize;
+                }
+                if let Some(w) = args.region_weight {
+                    opts.region_weight_px = w;
                 }
                 Some(opts)
             }

@@ -2,6 +2,7 @@
 //! CSV's, here the GT of rendered frames turned and shifted by known amounts), the refined CSV
 //! written, and the flags it needs.
 
+use std::ffi::OsStr;
 use std::fmt::Write as _;
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -192,7 +193,7 @@ fn save_results_without_a_checkpoint_needs_refine() {
 
 /// `eval` with `flag` and `value`, without --refine and with --refine edges: refused, the
 /// message naming the flag and --refine views.
-fn refused_without_refine_views(flag: &str, value: &std::ffi::OsStr) {
+fn refused_without_refine_views(flag: &str, value: &OsStr) {
     let tmp = tempfile::tempdir().unwrap();
     for refine in [None, Some("edges")] {
         let mut cmd = synthgen();
@@ -214,6 +215,21 @@ fn refine_models_needs_refine_views() {
     // `edges` compares no colours: the folder would be ignored.
     let tmp = tempfile::tempdir().unwrap();
     refused_without_refine_views("--refine-models", tmp.path().as_os_str());
+}
+
+/// `eval --results CSV --data DATA --refine views --save-results OUT` with `extra` flags: the
+/// refined estimates written and the log.
+fn refine_views(data: &Path, csv: &Path, out: &Path, extra: &[&OsStr]) -> (String, String) {
+    let o = run(synthgen()
+        .args(["eval", "--results"])
+        .arg(csv)
+        .arg("--data")
+        .arg(data)
+        .args(["--refine", "views", "--save-results"])
+        .arg(out)
+        .args(extra));
+    assert!(o.status.success(), "{}", stderr(&o));
+    (fs::read_to_string(out).unwrap(), stderr(&o))
 }
 
 #[test]
@@ -243,22 +259,11 @@ fn refine_models_give_the_colours() {
         dir
     };
     let refine = |models: Option<&Path>, out: &str| {
-        let mut cmd = synthgen();
-        cmd.args(["eval", "--results"])
-            .arg(&csv)
-            .arg("--data")
-            .arg(&data)
-            .args(["--refine", "views", "--save-results"])
-            .arg(tmp.path().join(out));
-        if let Some(m) = models {
-            cmd.arg("--refine-models").arg(m);
-        }
-        let o = run(&mut cmd);
-        assert!(o.status.success(), "{}", stderr(&o));
-        (
-            fs::read_to_string(tmp.path().join(out)).unwrap(),
-            stderr(&o),
-        )
+        let extra: Vec<&OsStr> = match models {
+            Some(m) => vec!["--refine-models".as_ref(), m.as_os_str()],
+            None => Vec::new(),
+        };
+        refine_views(&data, &csv, &tmp.path().join(out), &extra)
     };
     let (own, _) = refine(None, "own.csv");
     let (same, log) = refine(Some(&folder("same", "models")), "same.csv");
@@ -272,4 +277,49 @@ fn refine_models_give_the_colours() {
 #[test]
 fn view_candidates_needs_refine_views() {
     refused_without_refine_views("--view-candidates", "40".as_ref());
+}
+
+#[test]
+fn region_weight_needs_refine_views() {
+    refused_without_refine_views("--region-weight", "0".as_ref());
+}
+
+#[test]
+fn a_negative_region_weight_is_refused() {
+    // Refused by the argument parser, before any file is read.
+    let o = run(synthgen().args([
+        "eval",
+        "--results",
+        "est.csv",
+        "--data",
+        "nowhere",
+        "--refine",
+        "views",
+        "--region-weight",
+        "-1",
+    ]));
+    refused(&o, &["--region-weight", "expected a weight of 0 or more"]);
+}
+
+#[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
+fn region_weight_sets_what_the_colour_regions_weigh() {
+    // The estimates of `refined_scores` 60° off, refined with the view search: the default
+    // weighs the colour regions 3 px per nat (`--region-weight 3` is the same), 0 leaves the
+    // edges alone and ends elsewhere.
+    let tmp = tempfile::tempdir().unwrap();
+    let (data, csv, _) = rendered_and_turned(tmp.path(), 2, 60.0);
+    let refine = |weight: Option<&str>, out: &str| {
+        let extra: Vec<&OsStr> = match weight {
+            Some(w) => vec!["--region-weight".as_ref(), w.as_ref()],
+            None => Vec::new(),
+        };
+        refine_views(&data, &csv, &tmp.path().join(out), &extra).0
+    };
+    let default = refine(None, "default.csv");
+    assert_eq!(default, refine(Some("3"), "three.csv"));
+    assert_ne!(default, refine(Some("0"), "edges.csv"));
 }
