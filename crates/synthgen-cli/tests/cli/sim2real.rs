@@ -454,6 +454,18 @@ fn quick_rgb_dense_sim2real_on_real_lmo_photographs() {
     let o = go();
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("(0 computed now)"), "{}", stderr(&o));
+    // The refinement's settings are recorded: a folder refined with other ones (an older
+    // synthgen's thresholds) is not resumed with rows refined two ways.
+    let path = out.join("experiment.json");
+    let mut settings: Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    assert_eq!(
+        settings["refine_options"]["min_gradient"], 8.0,
+        "{settings}"
+    );
+    settings["refine_options"]["min_gradient"] = 4.0.into();
+    std::fs::write(&path, settings.to_string()).unwrap();
+    refused(&go(), &["other settings", "--force"]);
 }
 
 /// Issue 29: the RGB models with --fit (a scene fitted to real frames), --models (each

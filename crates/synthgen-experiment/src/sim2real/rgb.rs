@@ -90,6 +90,11 @@ pub struct RgbSettings {
     /// images (the dataset's own models may carry none; `edges` compares no colours).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub colour_models: Option<PathBuf>,
+    /// With `--refine`: every setting of the refinement (thresholds, weights, the view
+    /// search), so that resuming an experiment refined with other settings (an older
+    /// synthgen's defaults) is refused rather than mixing rows refined two ways.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refine_options: Option<EdgeRefineOptions>,
 }
 
 impl RgbSettings {
@@ -329,6 +334,11 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
             .as_ref()
             .filter(|_| args.refine == Refine::Views)
             .map(|p| p.canonicalize().unwrap_or_else(|_| p.clone())),
+        refine_options: match args.refine {
+            Refine::Views => Some(EdgeRefineOptions::with_view_search()),
+            Refine::Edges => Some(EdgeRefineOptions::default()),
+            _ => None,
+        },
     };
     let _lock = OutputLock::acquire(&out)?;
     let mut inputs: Vec<(&str, &Path)> = vec![("--test", &settings.test)];
@@ -789,7 +799,7 @@ fn train_row(
     let preds = net.predict(&tested, Some(&test.objects), PREDICT_BATCH)?;
     let mut estimates = prediction_estimates(&preds, tested.iter().copied());
     let (mut before_refine, mut refine_accepted) = (None, None);
-    if s.refine_edges {
+    if let Some(opts) = &s.refine_options {
         before_refine = Some(score(&estimates, test)?.0);
         let src =
             open_source(&s.test).with_context(|| format!("cannot open {}", s.test.display()))?;
@@ -797,11 +807,7 @@ fn train_row(
             src.as_ref(),
             &test.split,
             &estimates,
-            &if s.refine_views {
-                EdgeRefineOptions::with_view_search()
-            } else {
-                EdgeRefineOptions::default()
-            },
+            opts,
             s.colour_models.as_deref(),
             &NoProgress,
         )?;
