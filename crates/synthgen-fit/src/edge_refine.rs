@@ -415,6 +415,11 @@ pub fn contour(
     opts: &EdgeRefineOptions,
 ) -> Contour {
     let z = ZBuffer::new(triangles, pose, k, rect, opts.raster_px);
+    contour_of(&z, pose, k, opts)
+}
+
+/// [`contour`] from the model already rasterized at `pose`.
+fn contour_of(z: &ZBuffer, pose: &Pose, k: &Intrinsics, opts: &EdgeRefineOptions) -> Contour {
     let (w, h, depth) = (z.w, z.h, &z.depth);
     let to_image = |r: DVec2| z.to_image(r);
     let inside = |i: i64, j: i64| {
@@ -559,12 +564,14 @@ fn search(
     // The contour at a pose, how many of its points are the outline (the interior edges
     // follow them), and the colour regions on either side of that outline.
     let extract = |pose: &Pose| {
-        let mut c = contour(triangles, pose, k, field.rect, opts);
+        // One rasterization gives both the outline and the silhouette.
+        let z = ZBuffer::new(triangles, pose, k, field.rect, opts.raster_px);
+        let mut c = contour_of(&z, pose, k, opts);
         let outline = c.points.len();
         let regions = field
             .colours
             .as_ref()
-            .and_then(|col| RegionField::new(col, triangles, pose, k, opts.raster_px));
+            .and_then(|col| RegionField::of_silhouette(col, &z));
         if let Some(s) = surface {
             c.points.extend(s.interior_edges(
                 pose,

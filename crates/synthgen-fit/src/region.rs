@@ -67,8 +67,13 @@ impl RegionField {
         k: &Intrinsics,
         raster_px: u32,
     ) -> Option<RegionField> {
+        let z = ZBuffer::new(triangles, pose, k, colours.rect, raster_px);
+        RegionField::of_silhouette(colours, &z)
+    }
+
+    /// [`RegionField::new`] with the model already rasterized over `colours.rect`.
+    pub(crate) fn of_silhouette(colours: &RegionColours, z: &ZBuffer) -> Option<RegionField> {
         let rect = colours.rect;
-        let z = ZBuffer::new(triangles, pose, k, rect, raster_px);
         let (w, h) = (rect.w as usize, rect.h as usize);
         let inside: Vec<bool> = (0..w * h)
             .map(|i| {
