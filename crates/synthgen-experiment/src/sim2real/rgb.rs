@@ -80,18 +80,13 @@ pub struct RgbSettings {
     pub crop_size: u32,
     pub seed: u64,
     pub quick: bool,
-    /// Each trained row's estimates refined on the real RGB images (`--refine edges`).
-    #[serde(default)]
-    pub refine_edges: bool,
-    /// ... after a search over each object's rotations (`--refine views`).
-    #[serde(default)]
-    pub refine_views: bool,
     /// With `--refine views`: `--models`, whose colours the refinement compares with the real
     /// images (the dataset's own models may carry none; `edges` compares no colours).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub colour_models: Option<PathBuf>,
-    /// With `--refine`: every setting of the refinement (thresholds, weights, the view
-    /// search), so that resuming an experiment refined with other settings (an older
+    /// With `--refine edges` or `views` (the latter with a view search): each trained row's
+    /// estimates refined on the real RGB images with these settings (thresholds, weights, the
+    /// view search), recorded whole so that resuming an experiment refined with other settings (an older
     /// synthgen's defaults) is refused rather than mixing rows refined two ways.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub refine_options: Option<EdgeRefineOptions>,
@@ -326,14 +321,12 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
         crop_size: DEFAULT_RGB_CROP,
         seed: args.seed,
         quick: args.quick,
-        // `icp` (the depth models' default) does not apply to the RGB models.
-        refine_edges: matches!(args.refine, Refine::Edges | Refine::Views),
-        refine_views: args.refine == Refine::Views,
         colour_models: args
             .models
             .as_ref()
             .filter(|_| args.refine == Refine::Views)
             .map(|p| p.canonicalize().unwrap_or_else(|_| p.clone())),
+        // `icp` (the depth models' default) does not apply to the RGB models.
         refine_options: match args.refine {
             Refine::Views => Some(EdgeRefineOptions::with_view_search()),
             Refine::Edges => Some(EdgeRefineOptions::default()),
@@ -1013,7 +1006,11 @@ fn markdown(s: &RgbSettings, rows: &[RgbRow], notes: &[String]) -> String {
     let refined: Vec<&RgbRow> = rows.iter().filter(|r| r.before_refine.is_some()).collect();
     if !refined.is_empty() {
         md += &format!("\nThe trained rows' estimates were refined on the real RGB images (`--refine {}`); before the refinement, and the share of estimates whose refined pose was kept:\n\n| row | AR_MSPD before | 5cm5° before | median E_re before | kept |\n|---|---:|---:|---:|---:|\n",
-            if s.refine_views { "views" } else { "edges" }
+            if s.refine_options.as_ref().is_some_and(|o| o.view_search.is_some()) {
+                "views"
+            } else {
+                "edges"
+            }
         );
         for r in refined {
             if let Some(b) = &r.before_refine {
