@@ -8,7 +8,8 @@
 use synthgen_core::glam::{DVec2, DVec3};
 use synthgen_core::{Intrinsics, Model, Pose};
 
-use crate::raster::{sobel, Rect, ZBuffer};
+use crate::raster::{project, sobel, Rect, ZBuffer};
+use crate::region::RegionColours;
 
 /// A model's triangles (object frame, metres) with each corner's sRGB colour (0..1): from
 /// its vertex colours, else its texture at the corner's texture coordinate, else its base
@@ -94,6 +95,21 @@ impl ColouredSurface {
             return Vec::new();
         }
         let z = ZBuffer::new(&self.triangles, pose, k, rect, raster_px);
+        self.interior_edges_of(&z, pose, k, min_gradient, max_points)
+    }
+
+    /// [`ColouredSurface::interior_edges`] from the surface already rasterized at `pose`.
+    pub(crate) fn interior_edges_of(
+        &self,
+        z: &ZBuffer,
+        pose: &Pose,
+        k: &Intrinsics,
+        min_gradient: f32,
+        max_points: usize,
+    ) -> Vec<[DVec3; 2]> {
+        if max_points == 0 {
+            return Vec::new();
+        }
         let (w, h) = (z.w, z.h);
         let grey: Vec<f32> = (0..w * h)
             .map(|at| {
@@ -185,6 +201,61 @@ impl ColouredSurface {
             (0..n).map(|i| found[i * found.len() / n]).collect()
         }
     }
+
+    /// Up to `max_points` points of the surface seen in `z` (rasterized at `pose`), spread
+    /// evenly over its pixels, each in the object frame with its colour there (0..255): what
+    /// [`photometric_cost`] compares with the image as the pose moves.
+    pub(crate) fn samples_of(
+        &self,
+        z: &ZBuffer,
+        pose: &Pose,
+        k: &Intrinsics,
+        max_points: usize,
+    ) -> Vec<(DVec3, [f32; 3])> {
+        let covered: Vec<usize> = (0..z.w * z.h)
+            .filter(|&at| z.depth[at].is_finite())
+            .collect();
+        if max_points == 0 || covered.is_empty() {
+            return Vec::new();
+        }
+        let r_inv = pose.rotation.transpose();
+        let n = max_points.min(covered.len());
+        (0..n)
+            .filter_map(|i| {
+                let at = covered[i * covered.len() / n];
+                let (tri, [b0, b1]) = z.hit[at];
+                let c = self.colours.get(tri as usize)?;
+                let b2 = 1.0 - b0 - b1;
+                let colour =
+                    [0, 1, 2].map(|ch| 255.0 * (b0 * c[0][ch] + b1 * c[1][ch] + b2 * c[2][ch]));
+                let p = z.to_image(DVec2::new((at % z.w) as f64 + 0.5, (at / z.w) as f64 + 0.5));
+                let d = f64::from(z.depth[at]);
+                let cam = DVec3::new((p.x - k.cx) * d / k.fx, (p.y - k.cy) * d / k.fy, d);
+                Some((r_inv * (cam - pose.translation_m), colour))
+            })
+            .collect()
+    }
+}
+
+/// How far the image's colours under `samples` (from [`ColouredSurface::samples_of`]) at
+/// `pose` are from the samples' own: 1 minus their normalized cross-correlation ([`ncc`]),
+/// 0..2, 0 where they agree up to a gain and an offset. Samples projecting outside `colours`'
+/// region do not count; None with too few left or a flat side.
+pub(crate) fn photometric_cost(
+    samples: &[(DVec3, [f32; 3])],
+    colours: &RegionColours,
+    pose: &Pose,
+    k: &Intrinsics,
+) -> Option<f64> {
+    let pairs: Vec<([f64; 3], [f64; 3])> = samples
+        .iter()
+        .filter_map(|(p, c)| {
+            let at = project(k, pose.rotation * *p + pose.translation_m)?;
+            let px = colours.at(at.x, at.y)?;
+            Some((c.map(f64::from), px.map(f64::from)))
+        })
+        .collect();
+    ncc(&pairs).map(|v| 1.0 - v)
 }
 
 /// An RGB8 image (`width × height × 3` bytes, row-major) and the coloured model to compare

@@ -31,6 +31,15 @@ impl Rect {
         })
     }
 
+    /// The row-major index within the rectangle of the image pixel that (x, y) falls in
+    /// (pixel centres at whole coordinates: pixel i spans [i - 0.5, i + 0.5)); None outside.
+    pub(crate) fn index_of(&self, x: f64, y: f64) -> Option<usize> {
+        let (x, y) = ((x + 0.5).floor(), (y + 0.5).floor());
+        self.contains(x, y).then(|| {
+            (y as i32 - self.y0) as usize * self.w as usize + (x as i32 - self.x0) as usize
+        })
+    }
+
     pub(crate) fn contains(&self, x: f64, y: f64) -> bool {
         x >= f64::from(self.x0)
             && y >= f64::from(self.y0)

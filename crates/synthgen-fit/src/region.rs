@@ -42,6 +42,12 @@ impl RegionColours {
         }
         RegionColours { rect, rgb: out }
     }
+
+    /// The colour of image pixel (x, y) (pixel centres at whole coordinates); None outside
+    /// the region.
+    pub(crate) fn at(&self, x: f64, y: f64) -> Option<[u8; 3]> {
+        self.rect.index_of(x, y).map(|at| self.rgb[at])
+    }
 }
 
 fn bin(c: [u8; 3]) -> usize {
@@ -115,15 +121,9 @@ impl RegionField {
     /// The posterior at image pixel (x, y) (pixel centres at whole coordinates); 0.5 outside
     /// the region.
     fn at(&self, x: f64, y: f64) -> f32 {
-        let (x, y) = ((x + 0.5).floor(), (y + 0.5).floor());
-        if !self.rect.contains(x, y) {
-            return 0.5;
-        }
-        let (i, j) = (
-            (x as i32 - self.rect.x0) as usize,
-            (y as i32 - self.rect.y0) as usize,
-        );
-        self.posterior[j * self.rect.w as usize + i]
+        self.rect
+            .index_of(x, y)
+            .map_or(0.5, |at| self.posterior[at])
     }
 
     /// The mean cost of `points` (outline points of a contour: each with a second point one

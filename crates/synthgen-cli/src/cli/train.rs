@@ -315,6 +315,16 @@ pub struct EvalArgs {
     #[arg(long, value_name = "PX", value_parser = parse_region_weight, allow_hyphen_values = true)]
     pub region_weight: Option<f64>,
 
+    /// With --refine views: how much the model's own colours weigh beside the edges, pixels
+    /// of edge cost per unit of photometric disagreement (1 minus the correlation of the
+    /// model's colours at 300 points of its visible surface with the image's under them): the
+    /// texture inside the outline pins the turns the outline hardly shows. Needs coloured
+    /// models (vertex colours or a texture; --refine-models); the view search's best 64 poses
+    /// are also ranked again with it before the best 16 are refined. Default: 3; 0: neither,
+    /// as before 2026-12-06.
+    #[arg(long, value_name = "PX", value_parser = parse_photometric_weight, allow_hyphen_values = true)]
+    pub photometric_weight: Option<f64>,
+
     /// Also score with BOP's Average Recall (AR = mean of AR_VSD, AR_MSSD, AR_MSPD), computed
     /// as bop_toolkit's eval_bop19_pose.py does; VSD renders each estimate and needs the test
     /// depth images (without them: MSSD and MSPD only). See docs/metrics.md.
@@ -350,6 +360,17 @@ pub struct EvalArgs {
 
     #[arg(long, value_enum, default_value_t = DeviceArg::Cpu)]
     pub device: DeviceArg,
+}
+
+/// `--photometric-weight`: a finite weight of 0 or more.
+fn parse_photometric_weight(v: &str) -> Result<f64, String> {
+    match v.parse::<f64>() {
+        Ok(w) if w.is_finite() && w >= 0.0 => Ok(w),
+        _ => Err(format!(
+            "expected a weight of 0 or more (pixels per unit of disagreement; 0: colours not \
+             compared), got {v:?}"
+        )),
+    }
 }
 
 /// `--region-weight`: a finite weight of 0 or more.

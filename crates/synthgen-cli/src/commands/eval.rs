@@ -22,6 +22,12 @@ pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
             "add --refine views, or drop --region-weight",
         ));
     }
+    if args.photometric_weight.is_some() && args.refine != RgbRefineArg::Views {
+        return Err(synthgen_jobs::user_error(
+            "--photometric-weight sets how much the model's colours weigh in --refine views",
+            "add --refine views, or drop --photometric-weight",
+        ));
+    }
     if args.refine_models.is_some() && args.refine != RgbRefineArg::Views {
         return Err(synthgen_jobs::user_error(
             "--refine-models gives the colours that --refine views compares with the image",
@@ -54,6 +60,16 @@ pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
                 }
                 if let Some(w) = args.region_weight {
                     opts.region_weight_px = w;
+                }
+                if let Some(w) = args.photometric_weight {
+                    opts.photometric_weight_px = w;
+                    if w == 0.0 {
+                        // Ranked again by the edges and regions alone, the candidates were
+                        // worse on validation than the search's own order.
+                        if let Some(v) = opts.view_search.as_mut() {
+                            v.rescored = 0;
+                        }
+                    }
                 }
                 Some(opts)
             }

@@ -286,7 +286,11 @@ fn region_weight_needs_refine_views() {
 
 #[test]
 fn a_negative_region_weight_is_refused() {
-    // Refused by the argument parser, before any file is read.
+    a_negative_weight_is_refused("--region-weight");
+}
+
+/// Refused by the argument parser, before any file is read.
+fn a_negative_weight_is_refused(flag: &str) {
     let o = run(synthgen().args([
         "eval",
         "--results",
@@ -295,10 +299,10 @@ fn a_negative_region_weight_is_refused() {
         "nowhere",
         "--refine",
         "views",
-        "--region-weight",
+        flag,
         "-1",
     ]));
-    refused(&o, &["--region-weight", "expected a weight of 0 or more"]);
+    refused(&o, &[flag, "expected a weight of 0 or more"]);
 }
 
 #[test]
@@ -307,19 +311,43 @@ fn a_negative_region_weight_is_refused() {
     ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
 )]
 fn region_weight_sets_what_the_colour_regions_weigh() {
-    // The estimates of `refined_scores` 60° off, refined with the view search: the default
-    // weighs the colour regions 3 px per nat (`--region-weight 3` is the same), 0 leaves the
-    // edges alone and ends elsewhere.
+    // The default weighs the colour regions 3 px per nat; 0 leaves the edges alone.
+    the_default_weight_is("--region-weight", "3");
+}
+
+/// The estimates of `refined_scores` 60° off, refined with the view search: `flag` at
+/// `default` refines as the default does, at 0 it ends elsewhere.
+fn the_default_weight_is(flag: &str, default: &str) {
     let tmp = tempfile::tempdir().unwrap();
     let (data, csv, _) = rendered_and_turned(tmp.path(), 2, 60.0);
     let refine = |weight: Option<&str>, out: &str| {
         let extra: Vec<&OsStr> = match weight {
-            Some(w) => vec!["--region-weight".as_ref(), w.as_ref()],
+            Some(w) => vec![flag.as_ref(), w.as_ref()],
             None => Vec::new(),
         };
         refine_views(&data, &csv, &tmp.path().join(out), &extra).0
     };
-    let default = refine(None, "default.csv");
-    assert_eq!(default, refine(Some("3"), "three.csv"));
-    assert_ne!(default, refine(Some("0"), "edges.csv"));
+    let by_default = refine(None, "default.csv");
+    assert_eq!(by_default, refine(Some(default), "same.csv"), "{flag}");
+    assert_ne!(by_default, refine(Some("0"), "none.csv"), "{flag}");
+}
+
+#[test]
+fn photometric_weight_needs_refine_views() {
+    refused_without_refine_views("--photometric-weight", "0".as_ref());
+}
+
+#[test]
+fn a_negative_photometric_weight_is_refused() {
+    a_negative_weight_is_refused("--photometric-weight");
+}
+#[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
+fn photometric_weight_sets_what_the_model_colours_weigh() {
+    // The vertex-coloured models' colours weigh 3 px by default; 0 leaves them out (and the
+    // view search's candidates in their own order).
+    the_default_weight_is("--photometric-weight", "3");
 }
