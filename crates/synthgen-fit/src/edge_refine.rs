@@ -156,6 +156,15 @@ impl EdgeRefineOptions {
     }
 }
 
+impl EdgeRefineOptions {
+    /// Whether refining with these options reads the model's own colours (an
+    /// [`Appearance`]): its interior edges, its colours' agreement between the ends, or the
+    /// photometric samples. A caller without them passes None and loses only those cues.
+    pub fn reads_model_colours(&self) -> bool {
+        self.interior_points > 0 || self.colour_weight_px > 0.0 || self.photometric_weight_px > 0.0
+    }
+}
+
 impl Default for EdgeRefineOptions {
     fn default() -> Self {
         Self {
@@ -1427,6 +1436,28 @@ mod tests {
             triangles.push([base, base + 2, base + 3]);
         }
         vertex_coloured("brick", positions_m, colors, triangles)
+    }
+
+    #[test]
+    fn each_colour_cue_asks_for_the_model_colours() {
+        assert!(!EdgeRefineOptions::default().reads_model_colours());
+        assert!(EdgeRefineOptions::with_view_search().reads_model_colours());
+        for opts in [
+            EdgeRefineOptions {
+                interior_points: 1,
+                ..EdgeRefineOptions::default()
+            },
+            EdgeRefineOptions {
+                colour_weight_px: 0.5,
+                ..EdgeRefineOptions::default()
+            },
+            EdgeRefineOptions {
+                photometric_weight_px: 0.5,
+                ..EdgeRefineOptions::default()
+            },
+        ] {
+            assert!(opts.reads_model_colours(), "{opts:?}");
+        }
     }
 
     #[test]

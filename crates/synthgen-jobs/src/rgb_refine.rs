@@ -114,53 +114,52 @@ pub fn refine_estimates(
     // dataset's own model, which carries the colours; the eval models may not), None when it
     // has no colours to compare.
     let mut colours_from_folder = Vec::new();
-    let surfaces: BTreeMap<u32, ColouredSurface> =
-        if opts.colour_weight_px > 0.0 || opts.interior_points > 0 {
-            let replaced: BTreeMap<u32, PathBuf> = match colour_models {
-                Some(dir) => {
-                    let (meshes, _) = crate::models::replacement_meshes(
-                        ds,
-                        dir,
-                        ids.iter().copied(),
-                        "--refine-models",
-                    )?;
-                    ids.iter()
-                        .zip(meshes)
-                        .filter_map(|(id, m)| Some((*id, m?)))
-                        .collect()
-                }
-                None => BTreeMap::new(),
-            };
-            colours_from_folder = replaced.keys().copied().collect();
-            ids.iter()
-                .filter_map(|&id| {
-                    let m = match replaced.get(&id) {
-                        Some(path) => synthgen_assets::load_model(
-                            path,
-                            synthgen_assets::Units::Auto,
-                            &synthgen_core::NoProgress,
-                        )
-                        .map(|l| l.model)
-                        .with_context(|| format!("cannot load {}", path.display())),
-                        None => ds
-                            .load_model(id, &synthgen_core::NoProgress)
-                            .map_err(anyhow::Error::from),
-                    };
-                    match m {
-                        Ok(m) => ColouredSurface::from_model(&m).map(|s| Ok((id, s))),
-                        Err(e) => Some(Err(e)),
-                    }
-                })
-                .collect::<Result<_>>()
-                .with_context(|| {
-                    format!(
-                        "cannot load the coloured object models of {}",
-                        ds.root().display()
-                    )
-                })?
-        } else {
-            BTreeMap::new()
+    let surfaces: BTreeMap<u32, ColouredSurface> = if opts.reads_model_colours() {
+        let replaced: BTreeMap<u32, PathBuf> = match colour_models {
+            Some(dir) => {
+                let (meshes, _) = crate::models::replacement_meshes(
+                    ds,
+                    dir,
+                    ids.iter().copied(),
+                    "--refine-models",
+                )?;
+                ids.iter()
+                    .zip(meshes)
+                    .filter_map(|(id, m)| Some((*id, m?)))
+                    .collect()
+            }
+            None => BTreeMap::new(),
         };
+        colours_from_folder = replaced.keys().copied().collect();
+        ids.iter()
+            .filter_map(|&id| {
+                let m = match replaced.get(&id) {
+                    Some(path) => synthgen_assets::load_model(
+                        path,
+                        synthgen_assets::Units::Auto,
+                        &synthgen_core::NoProgress,
+                    )
+                    .map(|l| l.model)
+                    .with_context(|| format!("cannot load {}", path.display())),
+                    None => ds
+                        .load_model(id, &synthgen_core::NoProgress)
+                        .map_err(anyhow::Error::from),
+                };
+                match m {
+                    Ok(m) => ColouredSurface::from_model(&m).map(|s| Ok((id, s))),
+                    Err(e) => Some(Err(e)),
+                }
+            })
+            .collect::<Result<_>>()
+            .with_context(|| {
+                format!(
+                    "cannot load the coloured object models of {}",
+                    ds.root().display()
+                )
+            })?
+    } else {
+        BTreeMap::new()
+    };
     // With a view search: each object's contours from every viewpoint, once.
     let templates: BTreeMap<u32, ViewTemplates> = if opts.view_search.is_some() {
         tris.par_iter()
