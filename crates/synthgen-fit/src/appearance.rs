@@ -8,7 +8,7 @@
 use synthgen_core::glam::{DVec2, DVec3};
 use synthgen_core::{Intrinsics, Model, Pose};
 
-use crate::raster::{project, sobel, Rect, ZBuffer};
+use crate::raster::{project, sobel, to_object, Rect, ZBuffer};
 use crate::region::RegionColours;
 
 /// A model's triangles (object frame, metres) with each corner's sRGB colour (0..1): from
@@ -113,14 +113,9 @@ impl ColouredSurface {
         let (w, h) = (z.w, z.h);
         let grey: Vec<f32> = (0..w * h)
             .map(|at| {
-                if !z.depth[at].is_finite() {
-                    return 0.0;
-                }
-                let (tri, [b0, b1]) = z.hit[at];
-                let c = self.colours[tri as usize];
-                let b2 = 1.0 - b0 - b1;
-                let ch = |i: usize| b0 * c[0][i] + b1 * c[1][i] + b2 * c[2][i];
-                255.0 * (0.299 * ch(0) + 0.587 * ch(1) + 0.114 * ch(2))
+                self.colour_at(z, at).map_or(0.0, |c| {
+                    255.0 * (0.299 * c[0] + 0.587 * c[1] + 0.114 * c[2])
+                })
             })
             .collect();
         let inside = |i: usize, j: usize| z.depth[j * w + i].is_finite();
@@ -142,11 +137,6 @@ impl ColouredSurface {
                 (gx[j * w + i], gy[j * w + i]) = sobel(g);
             }
         }
-        let r_inv = pose.rotation.transpose();
-        let to_object = |x: f64, y: f64, d: f64| {
-            let cam = DVec3::new((x - k.cx) * d / k.fx, (y - k.cy) * d / k.fy, d);
-            r_inv * (cam - pose.translation_m)
-        };
         let mut found = Vec::new();
         for j in 1..h.saturating_sub(1) {
             for i in 1..w.saturating_sub(1) {
@@ -189,8 +179,8 @@ impl ColouredSurface {
                 let at_img = z.to_image(DVec2::new(i as f64 + 0.5, j as f64 + 0.5));
                 let dd = f64::from(d);
                 found.push([
-                    to_object(at_img.x, at_img.y, dd),
-                    to_object(at_img.x + tangent.x, at_img.y + tangent.y, dd),
+                    to_object(k, pose, at_img, dd),
+                    to_object(k, pose, at_img + tangent, dd),
                 ]);
             }
         }
@@ -218,22 +208,27 @@ impl ColouredSurface {
         if max_points == 0 || covered.is_empty() {
             return Vec::new();
         }
-        let r_inv = pose.rotation.transpose();
         let n = max_points.min(covered.len());
         (0..n)
             .filter_map(|i| {
                 let at = covered[i * covered.len() / n];
-                let (tri, [b0, b1]) = z.hit[at];
-                let c = self.colours.get(tri as usize)?;
-                let b2 = 1.0 - b0 - b1;
-                let colour =
-                    [0, 1, 2].map(|ch| 255.0 * (b0 * c[0][ch] + b1 * c[1][ch] + b2 * c[2][ch]));
+                let colour = self.colour_at(z, at)?.map(|v| 255.0 * v);
                 let p = z.to_image(DVec2::new((at % z.w) as f64 + 0.5, (at / z.w) as f64 + 0.5));
-                let d = f64::from(z.depth[at]);
-                let cam = DVec3::new((p.x - k.cx) * d / k.fx, (p.y - k.cy) * d / k.fy, d);
-                Some((r_inv * (cam - pose.translation_m), colour))
+                Some((to_object(k, pose, p, f64::from(z.depth[at])), colour))
             })
             .collect()
+    }
+
+    /// The model's colour (0..1) at raster pixel `at` of `z` (these triangles rasterized),
+    /// interpolated between its triangle's corners; None where no surface is seen.
+    pub(crate) fn colour_at(&self, z: &ZBuffer, at: usize) -> Option<[f32; 3]> {
+        if !z.depth[at].is_finite() {
+            return None;
+        }
+        let (tri, [b0, b1]) = z.hit[at];
+        let c = self.colours.get(tri as usize)?;
+        let b2 = 1.0 - b0 - b1;
+        Some([0, 1, 2].map(|ch| b0 * c[0][ch] + b1 * c[1][ch] + b2 * c[2][ch]))
     }
 }
 
@@ -296,13 +291,10 @@ impl Appearance<'_> {
                 if x < 0.0 || y < 0.0 || x >= f64::from(self.width) || y >= f64::from(self.height) {
                     continue;
                 }
-                let (tri, [b0, b1]) = z.hit[at];
-                let Some(c) = s.colours.get(tri as usize) else {
+                let Some(c) = s.colour_at(&z, at) else {
                     continue;
                 };
-                let b2 = 1.0 - b0 - b1;
-                let rendered = [0, 1, 2]
-                    .map(|ch| f64::from(b0 * c[0][ch] + b1 * c[1][ch] + b2 * c[2][ch]) * 255.0);
+                let rendered = c.map(|v| f64::from(v) * 255.0);
                 let o = (y as usize * self.width as usize + x as usize) * 3;
                 let Some(px) = self.rgb.get(o..o + 3) else {
                     continue;
@@ -416,13 +408,10 @@ pub(crate) mod fixtures {
         };
         let z = ZBuffer::new(&surface.triangles, pose, k, rect, 1000);
         let mut img = vec![128u8; (k.width * k.height * 3) as usize];
-        for (at, d) in z.depth.iter().enumerate() {
-            if d.is_finite() {
-                let (tri, [b0, b1]) = z.hit[at];
-                let c = surface.colours[tri as usize];
+        for at in 0..z.depth.len() {
+            if let Some(c) = surface.colour_at(&z, at) {
                 for ch in 0..3 {
-                    let v = b0 * c[0][ch] + b1 * c[1][ch] + (1.0 - b0 - b1) * c[2][ch];
-                    img[at * 3 + ch] = (20.0 + 0.6 * 255.0 * v) as u8;
+                    img[at * 3 + ch] = (20.0 + 0.6 * 255.0 * c[ch]) as u8;
                 }
             }
         }

@@ -27,7 +27,7 @@ use synthgen_core::{Intrinsics, Pose};
 
 use crate::appearance::{photometric_cost, Appearance, ColouredSurface};
 pub use crate::raster::Rect;
-use crate::raster::{project, sobel, ZBuffer};
+use crate::raster::{project, sobel, to_object, ZBuffer};
 use crate::region::{RegionColours, RegionField};
 
 /// How [`refine`] reads the image and searches.
@@ -154,9 +154,20 @@ impl EdgeRefineOptions {
             ..Self::default()
         }
     }
-}
 
-impl EdgeRefineOptions {
+    /// `photometric_weight_px` set to `w`; at 0 the view search's candidates are no longer
+    /// ranked again either (`rescored` 0): ranked by the edges and regions alone they were
+    /// worse on validation than in the search's own order (docs/experiments.md).
+    pub fn with_photometric_weight(mut self, w: f64) -> Self {
+        self.photometric_weight_px = w;
+        if w == 0.0 {
+            if let Some(v) = self.view_search.as_mut() {
+                v.rescored = 0;
+            }
+        }
+        self
+    }
+
     /// Whether refining with these options reads the model's own colours (an
     /// [`Appearance`]): its interior edges, its colours' agreement between the ends, or the
     /// photometric samples. A caller without them passes None and loses only those cues.
@@ -206,7 +217,7 @@ pub struct EdgeField {
     /// Edge pixels found.
     pub edges: usize,
     /// The region's colours, kept when the refinement compares colour regions
-    /// (`region_weight_px` > 0).
+    /// (`region_weight_px` > 0) or the model's colours (`photometric_weight_px` > 0).
     colours: Option<RegionColours>,
 }
 
@@ -456,11 +467,6 @@ fn contour_of(z: &ZBuffer, pose: &Pose, k: &Intrinsics, opts: &EdgeRefineOptions
             && (j as usize) < h
             && depth[j as usize * w + i as usize].is_finite()
     };
-    let r_inv = pose.rotation.transpose();
-    let to_object = |x: f64, y: f64, z: f64| {
-        let cam = DVec3::new((x - k.cx) * z / k.fx, (y - k.cy) * z / k.fy, z);
-        r_inv * (cam - pose.translation_m)
-    };
     let mut found = Vec::new();
     for j in 1..h as i64 - 1 {
         for i in 1..w as i64 - 1 {
@@ -487,8 +493,8 @@ fn contour_of(z: &ZBuffer, pose: &Pose, k: &Intrinsics, opts: &EdgeRefineOptions
             // mask's gradient points inwards).
             let at = to_image(DVec2::new(i as f64 + 0.5, j as f64 + 0.5) - 0.5 * n);
             found.push([
-                to_object(at.x, at.y, z),
-                to_object(at.x + tangent.x, at.y + tangent.y, z),
+                to_object(k, pose, at, z),
+                to_object(k, pose, at + tangent, z),
             ]);
         }
     }
@@ -600,16 +606,10 @@ fn search(
         };
         opts.coarse_truncate_px * (opts.truncate_px / opts.coarse_truncate_px).powf(f)
     };
-    let with_regions = |edges: f64, c: &Extracted, p: &Pose| edges + cues(field, c, p, k, opts);
-    let at = |c: &Extracted, p: &Pose, level: usize| {
-        with_regions(
-            contour_match(field, &c.contour, p, k, 0.0, truncation(level)).0,
-            c,
-            p,
-        )
-    };
+    let at =
+        |c: &Extracted, p: &Pose, level: usize| cost_at(field, c, p, k, opts, truncation(level));
     let mut c = extract(&pose);
-    let initial = with_regions(contour_cost(field, &c.contour, &pose, k), &c, &pose);
+    let initial = cost_at(field, &c, &pose, k, opts, field.truncate);
     let mut cost;
     let mut steps = [
         opts.rotation_step_deg.to_radians(),
@@ -648,7 +648,12 @@ fn search(
     }
     let (cost, inliers) =
         contour_match(field, &c.contour, &pose, k, opts.inlier_px, field.truncate);
-    (pose, with_regions(cost, &c, &pose), initial, inliers)
+    (
+        pose,
+        cost + cues(field, &c, &pose, k, opts),
+        initial,
+        inliers,
+    )
 }
 
 /// What [`search`] extracts at a pose: the contour (the outline's points first, then the
@@ -683,7 +688,8 @@ fn extract(
         .filter(|_| opts.region_weight_px > 0.0)
         .and_then(|col| RegionField::of_silhouette(col, &z));
     let mut samples = Vec::new();
-    if let Some(s) = surface {
+    let sampled = opts.photometric_weight_px > 0.0 && field.colours.is_some();
+    if let Some(s) = surface.filter(|_| opts.interior_points > 0 || sampled) {
         // One rasterization of the coloured surface for its edges and its samples.
         let zs = ZBuffer::new(&s.triangles, pose, k, field.rect, opts.raster_px);
         contour.points.extend(s.interior_edges_of(
@@ -693,7 +699,7 @@ fn extract(
             opts.min_gradient,
             opts.interior_points,
         ));
-        if opts.photometric_weight_px > 0.0 && field.colours.is_some() {
+        if sampled {
             samples = s.samples_of(&zs, pose, k, opts.photometric_points);
         }
     }
@@ -703,6 +709,19 @@ fn extract(
         regions,
         samples,
     }
+}
+
+/// What [`search`] minimizes: the mean cost of `c`'s contour at `p` ([`contour_match`],
+/// truncated at `truncate`) plus its [`cues`].
+fn cost_at(
+    field: &EdgeField,
+    c: &Extracted,
+    p: &Pose,
+    k: &Intrinsics,
+    opts: &EdgeRefineOptions,
+    truncate: f32,
+) -> f64 {
+    contour_match(field, &c.contour, p, k, 0.0, truncate).0 + cues(field, c, p, k, opts)
 }
 
 /// The costs beside the edges of `c` at `p`: its colour regions' times
@@ -793,8 +812,7 @@ pub fn refine_with_views(
         let surface = appearance.map(|a| a.surface);
         for (p, cost) in &mut found {
             let c = extract(field, triangles, surface, p, k, opts);
-            let edges = contour_match(field, &c.contour, p, k, 0.0, opts.coarse_truncate_px).0;
-            *cost = edges + cues(field, &c, p, k, opts);
+            *cost = cost_at(field, &c, p, k, opts, opts.coarse_truncate_px);
         }
         found.sort_by(|a, b| a.1.total_cmp(&b.1));
         found.truncate(wanted);

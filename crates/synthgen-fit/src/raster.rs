@@ -48,6 +48,17 @@ impl Rect {
     }
 }
 
+/// The object-frame point seen at image point `p` (pixels) at camera depth `depth` (metres)
+/// with the object at `pose`: [`project`]'s inverse, back into the object frame.
+pub(crate) fn to_object(k: &Intrinsics, pose: &Pose, p: DVec2, depth: f64) -> DVec3 {
+    let cam = DVec3::new(
+        (p.x - k.cx) * depth / k.fx,
+        (p.y - k.cy) * depth / k.fy,
+        depth,
+    );
+    pose.rotation.transpose() * (cam - pose.translation_m)
+}
+
 /// The projection of camera-frame point `p` (pixels); None behind the camera.
 pub(crate) fn project(k: &Intrinsics, p: DVec3) -> Option<DVec2> {
     (p.z > 1e-6).then(|| DVec2::new(k.fx * p.x / p.z + k.cx, k.fy * p.y / p.z + k.cy))

@@ -35,7 +35,8 @@ pub struct RefineSummary {
     /// estimate kept.
     pub refused: usize,
     /// Mean cost of the refined estimates before and after: contour pixels, plus the colour
-    /// regions' weighted cost where the options weigh them (`--refine views`).
+    /// regions' and the model colours' weighted costs where the options weigh them
+    /// (`--refine views`).
     pub mean_cost_before_px: f64,
     pub mean_cost_after_px: f64,
     pub seconds: f64,

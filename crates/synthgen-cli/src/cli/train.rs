@@ -364,21 +364,23 @@ pub struct EvalArgs {
 
 /// `--photometric-weight`: a finite weight of 0 or more.
 fn parse_photometric_weight(v: &str) -> Result<f64, String> {
-    match v.parse::<f64>() {
-        Ok(w) if w.is_finite() && w >= 0.0 => Ok(w),
-        _ => Err(format!(
-            "expected a weight of 0 or more (pixels per unit of disagreement; 0: colours not \
-             compared), got {v:?}"
-        )),
-    }
+    parse_weight(
+        v,
+        "pixels per unit of disagreement; 0: colours not compared",
+    )
 }
 
 /// `--region-weight`: a finite weight of 0 or more.
 fn parse_region_weight(v: &str) -> Result<f64, String> {
+    parse_weight(v, "pixels per nat; 0: the edges alone")
+}
+
+/// A finite weight of 0 or more; `meaning` (its unit, what 0 does) in the refusal.
+fn parse_weight(v: &str, meaning: &str) -> Result<f64, String> {
     match v.parse::<f64>() {
         Ok(w) if w.is_finite() && w >= 0.0 => Ok(w),
         _ => Err(format!(
-            "expected a weight of 0 or more (pixels per nat; 0: the edges alone), got {v:?}"
+            "expected a weight of 0 or more ({meaning}), got {v:?}"
         )),
     }
 }

@@ -62,14 +62,7 @@ pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
                     opts.region_weight_px = w;
                 }
                 if let Some(w) = args.photometric_weight {
-                    opts.photometric_weight_px = w;
-                    if w == 0.0 {
-                        // Ranked again by the edges and regions alone, the candidates were
-                        // worse on validation than the search's own order.
-                        if let Some(v) = opts.view_search.as_mut() {
-                            v.rescored = 0;
-                        }
-                    }
+                    opts = opts.with_photometric_weight(w);
                 }
                 Some(opts)
             }
