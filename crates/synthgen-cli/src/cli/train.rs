@@ -325,6 +325,13 @@ pub struct EvalArgs {
     #[arg(long, value_name = "PX", value_parser = parse_photometric_weight, allow_hyphen_values = true)]
     pub photometric_weight: Option<f64>,
 
+    /// With --refine views: the winning end turned by this many degrees each way about the
+    /// image's two axes (turns out of the image plane, which the outline shows least) and
+    /// refined again from each, the cheapest kept, twice at most: an end a few degrees off
+    /// the right view is finished. Default: 6; 0: no restarts, as before 2026-12-06.
+    #[arg(long, value_name = "DEG", value_parser = parse_restart_deg, allow_hyphen_values = true)]
+    pub restart_deg: Option<f64>,
+
     /// Also score with BOP's Average Recall (AR = mean of AR_VSD, AR_MSSD, AR_MSPD), computed
     /// as bop_toolkit's eval_bop19_pose.py does; VSD renders each estimate and needs the test
     /// depth images (without them: MSSD and MSPD only). See docs/metrics.md.
@@ -368,6 +375,16 @@ fn parse_photometric_weight(v: &str) -> Result<f64, String> {
         v,
         "pixels per unit of disagreement; 0: colours not compared",
     )
+}
+
+/// `--restart-deg`: degrees from 0 to 90.
+fn parse_restart_deg(v: &str) -> Result<f64, String> {
+    match v.parse::<f64>() {
+        Ok(d) if (0.0..=90.0).contains(&d) => Ok(d),
+        _ => Err(format!(
+            "expected a turn of 0 to 90 degrees (0: no restarts), got {v:?}"
+        )),
+    }
 }
 
 /// `--region-weight`: a finite weight of 0 or more.

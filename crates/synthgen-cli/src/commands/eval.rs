@@ -28,6 +28,12 @@ pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
             "add --refine views, or drop --photometric-weight",
         ));
     }
+    if args.restart_deg.is_some() && args.refine != RgbRefineArg::Views {
+        return Err(synthgen_jobs::user_error(
+            "--restart-deg sets how far --refine views turns its winning end to refine again",
+            "add --refine views, or drop --restart-deg",
+        ));
+    }
     if args.refine_models.is_some() && args.refine != RgbRefineArg::Views {
         return Err(synthgen_jobs::user_error(
             "--refine-models gives the colours that --refine views compares with the image",
@@ -63,6 +69,9 @@ pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
                 }
                 if let Some(w) = args.photometric_weight {
                     opts = opts.with_photometric_weight(w);
+                }
+                if let Some(d) = args.restart_deg {
+                    opts.restart_deg = d;
                 }
                 Some(opts)
             }

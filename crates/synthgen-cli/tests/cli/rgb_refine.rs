@@ -351,3 +351,37 @@ fn photometric_weight_sets_what_the_model_colours_weigh() {
     // view search's candidates in their own order).
     the_default_weight_is("--photometric-weight", "3");
 }
+
+#[test]
+fn restart_deg_needs_refine_views() {
+    refused_without_refine_views("--restart-deg", "0".as_ref());
+}
+
+#[test]
+fn a_restart_turn_out_of_range_is_refused() {
+    for turn in ["-1", "91", "NaN"] {
+        let o = run(synthgen().args([
+            "eval",
+            "--results",
+            "est.csv",
+            "--data",
+            "nowhere",
+            "--refine",
+            "views",
+            "--restart-deg",
+            turn,
+        ]));
+        refused(&o, &["--restart-deg", "expected a turn of 0 to 90 degrees"]);
+    }
+}
+
+#[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
+fn restart_deg_sets_how_far_the_winning_end_is_turned() {
+    // The winning end is turned 6° out of the image plane and refined again by default;
+    // 0 keeps it as the search left it.
+    the_default_weight_is("--restart-deg", "6");
+}
