@@ -240,8 +240,9 @@ pub enum RgbRefineArg {
     /// A search over the object's rotations about the estimate's position first (its contour
     /// from 300 directions, 24 turns each, scored on the image's edges); the best sixteen and
     /// the estimate then refined as with edges, and where the dataset's models have colours,
-    /// with the edges inside the outline too and the colours deciding between near-equal fits
-    /// (slower: ~0.5 s an estimate on 2 cores).
+    /// with the edges inside the outline too and the colours deciding between near-equal fits;
+    /// the winner then turned a few degrees out of the image plane and refined again
+    /// (--restart-deg) (slower: ~0.5 s an estimate on 2 cores).
     Views,
 }
 
