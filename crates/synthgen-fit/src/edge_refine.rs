@@ -853,23 +853,13 @@ fn cheapest(scores: &[f64]) -> usize {
 }
 
 /// `pose` turned by `deg` each way about the camera's x and y axes through the object's
-/// origin.
-fn turned_out_of_plane(pose: &Pose, deg: f64) -> Vec<Pose> {
+/// origin: [`moved`] by the search's first two rotation steps.
+fn turned_out_of_plane(pose: &Pose, k: &Intrinsics, deg: f64) -> Vec<Pose> {
     let a = deg.to_radians();
-    [
-        DVec3::X * a,
-        DVec3::NEG_X * a,
-        DVec3::Y * a,
-        DVec3::NEG_Y * a,
-    ]
-    .into_iter()
-    .map(|w| {
-        Pose::new(
-            DMat3::from_quat(DQuat::from_scaled_axis(w)) * pose.rotation,
-            pose.translation_m,
-        )
-    })
-    .collect()
+    [[a, 0.0], [-a, 0.0], [0.0, a], [0.0, -a]]
+        .into_iter()
+        .map(|[x, y]| moved(pose, k, &[x, y, 0.0, 0.0, 0.0, 0.0]))
+        .collect()
 }
 
 /// Each of `all` refined; the cheapest kept (with `opts.colour_weight_px` and an
@@ -902,7 +892,7 @@ fn best_of(
     let mut chosen = cheapest(&scores);
     if opts.restart_deg > 0.0 {
         for _ in 0..opts.restart_rounds {
-            let more: Vec<End> = turned_out_of_plane(&ends[chosen].0, opts.restart_deg)
+            let more: Vec<End> = turned_out_of_plane(&ends[chosen].0, k, opts.restart_deg)
                 .into_iter()
                 .map(|s| search(field, triangles, surface, s, k, opts, 1))
                 .collect();
@@ -1539,24 +1529,25 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_restart_reaches_the_turn_a_short_search_stops_short_of() {
+    /// The rotation error (degrees) of [`refine`] with `opts` from the coloured ball of a
+    /// photo taken at `facing()` (identity rotation), the start turned by `turn`.
+    fn ball_refined_from(turn: DMat3, opts: &EdgeRefineOptions) -> f64 {
         use crate::appearance::fixtures::{appearance, camera, facing, photo, region};
         let surface = ColouredSurface::from_model(&coloured_ball()).unwrap();
         let (k, gt) = (camera(), facing());
         let img = photo(&surface, &gt, &k);
         let a = appearance(&img, &surface);
+        let start = Pose::new(turn * gt.rotation, gt.translation_m);
+        let field = EdgeField::new(&img, k.width, k.height, region(), opts);
+        let r = refine(&field, &surface.triangles, &[start], &k, opts, Some(&a)).unwrap();
+        rotation_error_deg(&r.pose.rotation, &gt.rotation)
+    }
+
+    #[test]
+    fn a_restart_reaches_the_turn_a_short_search_stops_short_of() {
         // Turned 12° out of the image plane, about an axis 20° from the camera's x axis.
         let axis = DVec3::new(20f64.to_radians().cos(), 20f64.to_radians().sin(), 0.0);
-        let start = Pose::new(
-            DMat3::from_axis_angle(axis, 12f64.to_radians()) * gt.rotation,
-            gt.translation_m,
-        );
-        let error = |opts: &EdgeRefineOptions| {
-            let field = EdgeField::new(&img, k.width, k.height, region(), opts);
-            let r = refine(&field, &surface.triangles, &[start], &k, opts, Some(&a)).unwrap();
-            rotation_error_deg(&r.pose.rotation, &gt.rotation)
-        };
+        let turn = DMat3::from_axis_angle(axis, 12f64.to_radians());
         // A search that can travel 6° at most: 2 moves of 2°, then 2 of 1°.
         let short = EdgeRefineOptions {
             flip_starts: false,
@@ -1566,41 +1557,31 @@ mod tests {
             max_moves: 2,
             ..EdgeRefineOptions::default()
         };
-        let e = error(&short);
+        let e = ball_refined_from(turn, &short);
         assert!(e > 6.0, "{e}");
         let restarted = EdgeRefineOptions {
             restart_deg: 12.0,
             ..short
         };
-        let e = error(&restarted);
+        let e = ball_refined_from(turn, &restarted);
         assert!(e < 4.0, "{e}");
     }
 
     #[test]
     fn the_model_colours_pin_a_turn_the_outline_cannot_show() {
-        use crate::appearance::fixtures::{appearance, camera, facing, photo, region};
-        let surface = ColouredSurface::from_model(&coloured_ball()).unwrap();
-        let (k, gt) = (camera(), facing());
-        let img = photo(&surface, &gt, &k);
-        let a = appearance(&img, &surface);
         // Turned 12° out of the image plane: the very same outline.
-        let start = Pose::new(DMat3::from_rotation_x(12f64.to_radians()), gt.translation_m);
-        let error = |opts: &EdgeRefineOptions| {
-            let field = EdgeField::new(&img, k.width, k.height, region(), opts);
-            let r = refine(&field, &surface.triangles, &[start], &k, opts, Some(&a)).unwrap();
-            rotation_error_deg(&r.pose.rotation, &gt.rotation)
-        };
+        let turn = DMat3::from_rotation_x(12f64.to_radians());
         let outline_only = EdgeRefineOptions {
             flip_starts: false,
             ..EdgeRefineOptions::default()
         };
-        let e = error(&outline_only);
+        let e = ball_refined_from(turn, &outline_only);
         assert!(e > 10.0, "{e}");
         let with_photometric = EdgeRefineOptions {
             photometric_weight_px: 4.0,
             ..outline_only
         };
-        let e = error(&with_photometric);
+        let e = ball_refined_from(turn, &with_photometric);
         assert!(e < 4.0, "{e}");
     }
 

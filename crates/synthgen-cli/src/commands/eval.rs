@@ -10,35 +10,41 @@ use crate::{ExitStatus, Printer};
 use synthgen_fit::edge_refine::EdgeRefineOptions;
 
 pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
-    if args.view_candidates.is_some() && args.refine != RgbRefineArg::Views {
-        return Err(synthgen_jobs::user_error(
-            "--view-candidates sets how many view-search poses --refine views refines",
-            "add --refine views, or drop --view-candidates",
-        ));
-    }
-    if args.region_weight.is_some() && args.refine != RgbRefineArg::Views {
-        return Err(synthgen_jobs::user_error(
-            "--region-weight sets how much the colour regions weigh in --refine views",
-            "add --refine views, or drop --region-weight",
-        ));
-    }
-    if args.photometric_weight.is_some() && args.refine != RgbRefineArg::Views {
-        return Err(synthgen_jobs::user_error(
-            "--photometric-weight sets how much the model's colours weigh in --refine views",
-            "add --refine views, or drop --photometric-weight",
-        ));
-    }
-    if args.restart_deg.is_some() && args.refine != RgbRefineArg::Views {
-        return Err(synthgen_jobs::user_error(
-            "--restart-deg sets how far --refine views turns its winning end to refine again",
-            "add --refine views, or drop --restart-deg",
-        ));
-    }
-    if args.refine_models.is_some() && args.refine != RgbRefineArg::Views {
-        return Err(synthgen_jobs::user_error(
-            "--refine-models gives the colours that --refine views compares with the image",
-            "add --refine views, or drop --refine-models",
-        ));
+    // Flags that only --refine views reads, and what each sets there.
+    let views_only = [
+        (
+            args.view_candidates.is_some(),
+            "--view-candidates",
+            "sets how many view-search poses --refine views refines",
+        ),
+        (
+            args.region_weight.is_some(),
+            "--region-weight",
+            "sets how much the colour regions weigh in --refine views",
+        ),
+        (
+            args.photometric_weight.is_some(),
+            "--photometric-weight",
+            "sets how much the model's colours weigh in --refine views",
+        ),
+        (
+            args.restart_deg.is_some(),
+            "--restart-deg",
+            "sets how far --refine views turns its winning end to refine again",
+        ),
+        (
+            args.refine_models.is_some(),
+            "--refine-models",
+            "gives the colours that --refine views compares with the image",
+        ),
+    ];
+    if args.refine != RgbRefineArg::Views {
+        if let Some((_, flag, what)) = views_only.iter().find(|(given, _, _)| *given) {
+            return Err(synthgen_jobs::user_error(
+                format!("{flag} {what}"),
+                format!("add --refine views, or drop {flag}"),
+            ));
+        }
     }
     let request = EvalRequest {
         data: args.data,

@@ -289,8 +289,13 @@ fn a_negative_region_weight_is_refused() {
     a_negative_weight_is_refused("--region-weight");
 }
 
-/// Refused by the argument parser, before any file is read.
 fn a_negative_weight_is_refused(flag: &str) {
+    refused_by_the_parser(flag, "-1", "expected a weight of 0 or more");
+}
+
+/// `eval --refine views FLAG VALUE` refused by the argument parser, before any file is read,
+/// naming the flag and saying `expected`.
+fn refused_by_the_parser(flag: &str, value: &str, expected: &str) {
     let o = run(synthgen().args([
         "eval",
         "--results",
@@ -300,9 +305,9 @@ fn a_negative_weight_is_refused(flag: &str) {
         "--refine",
         "views",
         flag,
-        "-1",
+        value,
     ]));
-    refused(&o, &[flag, "expected a weight of 0 or more"]);
+    refused(&o, &[flag, expected]);
 }
 
 #[test]
@@ -360,18 +365,7 @@ fn restart_deg_needs_refine_views() {
 #[test]
 fn a_restart_turn_out_of_range_is_refused() {
     for turn in ["-1", "91", "NaN"] {
-        let o = run(synthgen().args([
-            "eval",
-            "--results",
-            "est.csv",
-            "--data",
-            "nowhere",
-            "--refine",
-            "views",
-            "--restart-deg",
-            turn,
-        ]));
-        refused(&o, &["--restart-deg", "expected a turn of 0 to 90 degrees"]);
+        refused_by_the_parser("--restart-deg", turn, "expected a turn of 0 to 90 degrees");
     }
 }
 
