@@ -24,7 +24,7 @@ pub use sensor::{SensorCommand, SensorCompareArgs, SensorCompareRgbArgs, SensorF
 pub use sim2real::{ExperimentSim2realArgs, RefineArg, Sim2realModelArg};
 pub use train::{
     DeviceArg, EvalArgs, ModelArg, RgbRefineArg, ScheduleArg, TrainArgs, TrainModelArg,
-    TranslationArg,
+    TranslationArg, VisibleBoxArg,
 };
 
 #[derive(Debug, Parser)]

@@ -102,6 +102,11 @@ pub struct EdgeRefineOptions {
     /// kept; repeated from a new winner up to `restart_rounds` times. 0: no restarts.
     pub restart_deg: f64,
     pub restart_rounds: usize,
+    /// With a [`VisibleBox`] ([`EdgeField::with_visible_box`]): how far outside it (pixels)
+    /// the image's edges still count, and what each pixel by which the box reaches beyond the
+    /// outline's extent costs, summed over its four sides.
+    pub box_margin_px: f64,
+    pub box_gap_weight: f64,
 }
 
 /// The coarse search of [`view_search`]: the model's contour seen from `viewpoints`
@@ -212,6 +217,8 @@ impl Default for EdgeRefineOptions {
             photometric_points: 300,
             restart_deg: 0.0,
             restart_rounds: 2,
+            box_margin_px: 4.0,
+            box_gap_weight: 0.1,
         }
     }
 }
@@ -231,6 +238,62 @@ pub struct EdgeField {
     /// The region's colours, kept when the refinement compares colour regions
     /// (`region_weight_px` > 0) or the model's colours (`photometric_weight_px` > 0).
     colours: Option<RegionColours>,
+    /// What of the object shows, when known ([`EdgeField::with_visible_box`]).
+    pub visible: Option<VisibleBox>,
+}
+
+/// The box a detector gives an instance: where it shows (BOP's `bbox_visib`; with GT boxes,
+/// the GT's). A refinement that knows it keeps its contour to it: no edge outside the box
+/// (widened by a margin) is the object's, so a contour point there costs the truncation as
+/// on a bare background, however near an occluder's edge it falls; and a pose whose outline
+/// does not reach each of its sides pays `gap_weight` per pixel of the gap (what shows is
+/// part of the object, so the object covers the box).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VisibleBox {
+    /// The box widened by the margin: first and last columns, first and last rows.
+    pub lo: DVec2,
+    pub hi: DVec2,
+    pub margin_px: f64,
+    pub gap_weight: f64,
+}
+
+impl VisibleBox {
+    /// BOP's `[x, y, w, h]` (x, y the first pixel; w, h in pixels) with `opts`' margin and
+    /// gap weight; None for an empty or non-finite box.
+    pub fn from_xywh(b: [f64; 4], opts: &EdgeRefineOptions) -> Option<VisibleBox> {
+        let [x, y, w, h] = b;
+        if !(b.iter().all(|v| v.is_finite()) && w > 0.0 && h > 0.0) {
+            return None;
+        }
+        let m = opts.box_margin_px.max(0.0);
+        Some(VisibleBox {
+            lo: DVec2::new(x - m, y - m),
+            hi: DVec2::new(x + w - 1.0 + m, y + h - 1.0 + m),
+            margin_px: m,
+            gap_weight: opts.box_gap_weight.max(0.0),
+        })
+    }
+
+    /// Whether image point `p` (pixel centres at whole coordinates) is within the widened box.
+    pub fn shows(&self, p: DVec2) -> bool {
+        p.x >= self.lo.x && p.y >= self.lo.y && p.x <= self.hi.x && p.y <= self.hi.y
+    }
+
+    /// The pixels by which the box (not widened) reaches beyond an outline spanning `lo..hi`,
+    /// summed over its sides.
+    pub fn gap_px(&self, lo: DVec2, hi: DVec2) -> f64 {
+        let m = self.margin_px;
+        let (blo, bhi) = (self.lo + m, self.hi - m);
+        (lo.x - blo.x).max(0.0)
+            + (lo.y - blo.y).max(0.0)
+            + (bhi.x - hi.x).max(0.0)
+            + (bhi.y - hi.y).max(0.0)
+    }
+}
+
+/// Whether `p` counts as seen: everywhere without a box.
+pub(crate) fn seen(visible: Option<&VisibleBox>, p: DVec2) -> bool {
+    visible.is_none_or(|v| v.shows(p))
 }
 
 /// Orientation of a direction modulo 180°, in [0, π).
@@ -429,17 +492,27 @@ impl EdgeField {
             edges,
             colours: (opts.region_weight_px > 0.0 || opts.photometric_weight_px > 0.0)
                 .then(|| RegionColours::new(rgb, width, height, rect)),
+            visible: None,
         }
     }
 
+    /// The field with what of the object shows ([`VisibleBox`]), or without (None).
+    pub fn with_visible_box(mut self, visible: Option<VisibleBox>) -> Self {
+        self.visible = visible;
+        self
+    }
+
     /// The cost of a contour point at image pixel (x, y) whose normal has orientation `angle`
-    /// (radians mod π): the truncation outside the region.
+    /// (radians mod π): the truncation outside the region and outside its [`VisibleBox`].
     pub fn cost(&self, x: f64, y: f64, angle: f64) -> f32 {
         self.cost_within(x, y, angle, self.truncate)
     }
 
     /// [`EdgeField::cost`] truncated at `truncate` (at most the field's larger truncation).
     pub fn cost_within(&self, x: f64, y: f64, angle: f64, truncate: f32) -> f32 {
+        if !seen(self.visible.as_ref(), DVec2::new(x, y)) {
+            return truncate;
+        }
         match self.rect.index_of(x, y) {
             Some(at) => self.cost[bin_of(angle, self.bins)][at].min(truncate),
             None => truncate,
@@ -521,13 +594,15 @@ fn contour_of(z: &ZBuffer, pose: &Pose, k: &Intrinsics, opts: &EdgeRefineOptions
 
 /// The mean cost of `contour` at `pose`: each point's [`EdgeField::cost`] at its projection
 /// with the orientation of its reprojected tangent's normal. Points outside the image do not
-/// count; with fewer than a third of them inside, the truncation.
+/// count; with fewer than a third of them inside, the truncation. With a [`VisibleBox`],
+/// points outside it cost the truncation wherever they fall (no edge there is the object's)
+/// and the box's gap beyond the contour's extent is added.
 pub fn contour_cost(field: &EdgeField, contour: &Contour, pose: &Pose, k: &Intrinsics) -> f64 {
     contour_match(field, contour, pose, k, 0.0, field.truncate).0
 }
 
-/// [`contour_cost`] and the fraction of the contour's points (in the image) whose cost is
-/// within `inlier_px`.
+/// [`contour_cost`] and the fraction of the contour's points (in the image and its
+/// [`VisibleBox`]: those that can show) whose cost is within `inlier_px`.
 pub fn contour_match(
     field: &EdgeField,
     contour: &Contour,
@@ -536,7 +611,8 @@ pub fn contour_match(
     inlier_px: f32,
     truncate: f32,
 ) -> (f64, f64) {
-    let (mut sum, mut n, mut inliers) = (0.0f64, 0usize, 0usize);
+    let (mut sum, mut n, mut shown, mut inliers) = (0.0f64, 0usize, 0usize, 0usize);
+    let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
     for [p, q] in &contour.points {
         let (Some(a), Some(b)) = (
             project(k, pose.rotation * *p + pose.translation_m),
@@ -544,6 +620,7 @@ pub fn contour_match(
         ) else {
             continue;
         };
+        (lo, hi) = (lo.min(a), hi.max(a));
         if a.x < 0.0
             || a.y < 0.0
             || (k.width > 0 && a.x >= f64::from(k.width))
@@ -556,13 +633,19 @@ pub fn contour_match(
         let c = field.cost_within(a.x, a.y, angle, truncate);
         sum += f64::from(c);
         n += 1;
-        inliers += usize::from(c <= inlier_px);
+        if seen(field.visible.as_ref(), a) {
+            shown += 1;
+            inliers += usize::from(c <= inlier_px);
+        }
     }
     if n * 3 < contour.points.len() || n == 0 {
-        (f64::from(truncate), 0.0)
-    } else {
-        (sum / n as f64, inliers as f64 / n as f64)
+        return (f64::from(truncate), 0.0);
     }
+    let gap = field
+        .visible
+        .as_ref()
+        .map_or(0.0, |v| v.gap_weight * v.gap_px(lo, hi));
+    (sum / n as f64 + gap, inliers as f64 / shown.max(1) as f64)
 }
 
 /// The pose moved by `d` = (rotation vector about the camera's axes through the object's
@@ -1208,6 +1291,116 @@ mod tests {
         let off = moved(&gt, &k, &[0.0, 0.0, 0.0, 6.0, 6.0, 0.0]);
         let shifted = contour_cost(&field, &c, &off, &k);
         assert!(shifted > at_gt + 3.0, "{shifted} vs {at_gt}");
+    }
+
+    /// The GT box (`[x, y, w, h]`) of the pixels where `shows` holds and the cuboid covers.
+    fn box_of(
+        tris: &[[DVec3; 3]],
+        pose: &Pose,
+        k: &Intrinsics,
+        shows: impl Fn(u32, u32) -> bool,
+    ) -> [f64; 4] {
+        let (mut lo, mut hi) = ([u32::MAX; 2], [0u32; 2]);
+        for y in 0..k.height {
+            for x in 0..k.width {
+                if shows(x, y) && in_hull(tris, pose, k, f64::from(x), f64::from(y)) {
+                    (lo, hi) = ([lo[0].min(x), lo[1].min(y)], [hi[0].max(x), hi[1].max(y)]);
+                }
+            }
+        }
+        [lo[0], lo[1], hi[0] - lo[0] + 1, hi[1] - lo[1] + 1].map(f64::from)
+    }
+
+    #[test]
+    fn a_visible_box_is_read_as_bop_writes_it() {
+        let opts = EdgeRefineOptions::default();
+        let b = VisibleBox::from_xywh([10.0, 20.0, 5.0, 4.0], &opts).unwrap();
+        // Pixels 10..=14, 20..=23, widened by the 4 px margin.
+        assert_eq!(
+            (b.lo, b.hi),
+            (DVec2::new(6.0, 16.0), DVec2::new(18.0, 27.0))
+        );
+        assert!(b.shows(DVec2::new(18.0, 16.0)) && !b.shows(DVec2::new(18.5, 16.0)));
+        // An outline spanning the box exactly, and one 3 px short on the left, 2 below.
+        assert_eq!(
+            b.gap_px(DVec2::new(10.0, 20.0), DVec2::new(14.0, 23.0)),
+            0.0
+        );
+        assert_eq!(
+            b.gap_px(DVec2::new(13.0, 20.0), DVec2::new(20.0, 21.0)),
+            5.0
+        );
+        for bad in [
+            [0.0, 0.0, 0.0, 3.0],
+            [0.0, 0.0, 3.0, -1.0],
+            [f64::NAN, 0.0, 3.0, 3.0],
+        ] {
+            assert_eq!(VisibleBox::from_xywh(bad, &opts), None, "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn an_outline_short_of_the_visible_box_pays_for_the_gap() {
+        let (k, tris, gt, field, opts) = cuboid_scene(220.0);
+        let b = box_of(&tris, &gt, &k, |_, _| true);
+        let boxed = field
+            .clone()
+            .with_visible_box(VisibleBox::from_xywh(b, &opts));
+        let c = contour(&tris, &gt, &k, field.rect, &opts);
+        // At the true pose the outline spans the box: nothing to pay.
+        let (free, kept) = (
+            contour_cost(&field, &c, &gt, &k),
+            contour_cost(&boxed, &c, &gt, &k),
+        );
+        // (Within a fraction of a pixel: the outline's points are the mask's boundary pixels.)
+        assert!((kept - free).abs() < 0.15, "{kept} vs {free}");
+        // 15 % further away, the outline shrinks inside the box on every side.
+        let far = moved(&gt, &k, &[0.0, 0.0, 0.0, 0.0, 0.0, 0.15]);
+        let (free, kept) = (
+            contour_cost(&field, &c, &far, &k),
+            contour_cost(&boxed, &c, &far, &k),
+        );
+        assert!(opts.box_gap_weight > 0.0);
+        assert!(
+            kept > free + opts.box_gap_weight * 4.0 * 3.0,
+            "{kept} vs {free}"
+        );
+    }
+
+    #[test]
+    fn an_occluders_edge_outside_the_visible_box_no_longer_pulls() {
+        const BAR: u32 = 40;
+        // The cuboid's right part hidden behind a flat bar whose far edge lies near where the
+        // hidden outline would be.
+        let (k, tris, gt, _, opts) = cuboid_scene(220.0);
+        let split = 165;
+        let mut img = image(&tris, &gt, &k);
+        for y in 0..k.height {
+            for x in split..split + BAR {
+                let i = ((y * k.width + x) * 3) as usize;
+                img[i..i + 3].fill(110);
+            }
+        }
+        let rect = Rect::square_in(160.0, 120.0, 220.0, k.width, k.height).unwrap();
+        let field = EdgeField::new(&img, k.width, k.height, rect, &opts);
+        let b = box_of(&tris, &gt, &k, |x, _| x < split);
+        let boxed = field
+            .clone()
+            .with_visible_box(VisibleBox::from_xywh(b, &opts));
+        // From a perturbed start, the box brings the pose back near the truth ...
+        let start = moved(&gt, &k, &[0.1, -0.08, 0.12, 4.0, -3.0, 0.0]);
+        let r = refine(&boxed, &tris, &[start], &k, &opts, None).unwrap();
+        let re = rotation_error_deg(&r.pose.rotation, &gt.rotation);
+        let te = (r.pose.translation_m - gt.translation_m).length();
+        assert!(re < 5.0 && te < 0.005, "with the box: {re}°, {te} m");
+        // ... without it the bar's far edge pulls the hidden outline.
+        let r = refine(&field, &tris, &[start], &k, &opts, None).unwrap();
+        let without = rotation_error_deg(&r.pose.rotation, &gt.rotation);
+        let te_without = (r.pose.translation_m - gt.translation_m).length();
+        assert!(
+            without > re + 2.5 && te_without > 2.0 * te,
+            "without the box: {without}°, {te_without} m against {re}°, {te} m"
+        );
     }
 
     #[test]

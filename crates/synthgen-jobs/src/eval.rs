@@ -29,7 +29,7 @@ use synthgen_core::Progress;
 use synthgen_fit::edge_refine::EdgeRefineOptions;
 use synthgen_train::metrics::Rotations;
 
-use crate::rgb_refine::refine_estimates;
+use crate::rgb_refine::{refine_estimates, VisibleBoxes};
 
 use crate::{user_error, Printer, Stdout};
 
@@ -66,6 +66,8 @@ pub struct EvalRequest {
     /// With `refine`: the colours from these meshes (one folder per object, in the dataset's
     /// frame) instead of the dataset's models ([`refine_estimates`]).
     pub refine_models: Option<PathBuf>,
+    /// With `refine`: what of each instance shows, when the refinement keeps to it.
+    pub visible_boxes: VisibleBoxes,
 }
 
 /// What an evaluation printed and whether it counts as failed.
@@ -199,6 +201,7 @@ fn refined(
         estimates,
         opts,
         args.refine_models.as_deref(),
+        args.visible_boxes,
         printer.progress(),
     )
     .with_context(|| format!("cannot refine the estimates on {}", args.data.display()))?;
@@ -211,6 +214,12 @@ fn refined(
         summary.mean_cost_after_px,
         summary.seconds
     ));
+    if args.visible_boxes == VisibleBoxes::Gt {
+        printer.info(format!(
+            "{} of {} refined estimates kept to their GT visible box (the others: no GT instance of their object in their image)",
+            summary.with_box, summary.refined
+        ));
+    }
     if let Some(dir) = &args.refine_models {
         printer.info(format!(
             "colours of {} of {} objects from {} (the others: their dataset models' colours, if any)",

@@ -14,10 +14,10 @@ use synthgen_core::glam::DVec3;
 use synthgen_core::{Pose, Progress};
 use synthgen_fit::appearance::{Appearance, ColouredSurface};
 use synthgen_fit::edge_refine::{
-    refine, refine_with_views, EdgeField, EdgeRefineOptions, Rect, ViewTemplates,
+    refine, refine_with_views, EdgeField, EdgeRefineOptions, Rect, ViewTemplates, VisibleBox,
 };
 use synthgen_formats::bop::image::read_rgb;
-use synthgen_formats::source::FrameSource;
+use synthgen_formats::source::{FrameSource, SourceFrame};
 use synthgen_train::bop::load_render_models;
 use synthgen_train::results::{Estimate, RawPose};
 
@@ -42,6 +42,62 @@ pub struct RefineSummary {
     pub seconds: f64,
     /// The objects whose colours came from `colour_models` (see [`refine_estimates`]).
     pub colours_from_folder: Vec<u32>,
+    /// Of the refined estimates, those refined within a visible box ([`VisibleBoxes`]).
+    pub with_box: usize,
+}
+
+/// Where the refinement learns what of each instance shows ([`VisibleBox`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum VisibleBoxes {
+    /// Nothing: the whole contour counts wherever it falls.
+    #[default]
+    None,
+    /// The GT visible box (`scene_gt_info`'s `bbox_visib`, else the visible mask's bounding
+    /// box) of the frame's instance of the estimate's object nearest the estimate (its
+    /// projected origin): the box an RGB model's crop comes from with GT boxes. Numbers made
+    /// with it are numbers with GT boxes.
+    Gt,
+}
+
+/// The GT visible boxes (`[x, y, w, h]`) of `frame`'s instances of `obj_id`.
+fn gt_boxes(frame: &SourceFrame, obj_id: u32) -> Result<Vec<[f64; 4]>> {
+    let mut out = Vec::new();
+    for (gt_id, g) in frame.gt.iter().enumerate() {
+        if g.obj_id != obj_id {
+            continue;
+        }
+        let info = frame.gt_info.as_ref().and_then(|i| i.get(gt_id));
+        if let Some(b) = info.map(|i| i.bbox_visib).filter(|b| b[2] > 0 && b[3] > 0) {
+            out.push(b.map(f64::from));
+            continue;
+        }
+        let Some(mask) = frame.masks_visib.get(gt_id).and_then(Option::as_ref) else {
+            continue;
+        };
+        let m = mask.read()?;
+        let (mut lo, mut hi) = ([u32::MAX; 2], [0u32; 2]);
+        for (i, _) in m.data.iter().enumerate().filter(|(_, v)| **v > 0) {
+            let (x, y) = (i as u32 % m.width, i as u32 / m.width);
+            (lo, hi) = ([lo[0].min(x), lo[1].min(y)], [hi[0].max(x), hi[1].max(y)]);
+        }
+        if lo[0] <= hi[0] {
+            out.push([lo[0], lo[1], hi[0] - lo[0] + 1, hi[1] - lo[1] + 1].map(f64::from));
+        }
+    }
+    Ok(out)
+}
+
+/// Of `boxes`, the one whose centre is nearest `pose`'s projected origin.
+fn nearest_box(boxes: &[[f64; 4]], pose: &Pose, k: &synthgen_core::Intrinsics) -> Option<[f64; 4]> {
+    let t = pose.translation_m;
+    let (x, y) = if t.z > 1e-6 {
+        (k.fx * t.x / t.z + k.cx, k.fy * t.y / t.z + k.cy)
+    } else {
+        (k.cx, k.cy)
+    };
+    let d = |b: &[f64; 4]| (b[0] + 0.5 * b[2] - x).hypot(b[1] + 0.5 * b[3] - y);
+    boxes.iter().copied().min_by(|a, b| d(a).total_cmp(&d(b)))
 }
 
 /// `n` vertices of the model, strided: where its projected box is read from.
@@ -85,13 +141,15 @@ fn region(points: &[DVec3], pose: &Pose, k: &synthgen_core::Intrinsics) -> Optio
 /// one, in the dataset's frame) whose meshes give the colours compared with the image instead
 /// of the dataset's models (a dataset whose models carry no texture, as YCB-Video's own);
 /// objects without a subfolder keep their dataset model's colours. The contour is always the
-/// dataset model's.
+/// dataset model's. `boxes`: what of each instance shows, when the refinement should keep to
+/// it ([`VisibleBoxes`]).
 pub fn refine_estimates(
     ds: &dyn FrameSource,
     split: &str,
     estimates: &[Estimate],
     opts: &EdgeRefineOptions,
     colour_models: Option<&Path>,
+    boxes: VisibleBoxes,
     progress: &dyn Progress,
 ) -> Result<(Vec<Estimate>, RefineSummary)> {
     let started = Instant::now();
@@ -175,7 +233,7 @@ pub fn refine_estimates(
     }
     progress.start("refining on the RGB images", estimates.len() as u64);
     let groups: Vec<_> = groups.into_iter().collect();
-    type Done = (usize, Option<(Estimate, f64, f64, bool)>);
+    type Done = (usize, Option<(Estimate, f64, f64, bool, bool)>);
     let done: Vec<Vec<Done>> = groups
         .par_iter()
         .map(|(frame, idx)| -> Result<_> {
@@ -185,13 +243,28 @@ pub fn refine_estimates(
             };
             let img = read_rgb(&f.rgb)?;
             let k = f.camera.intrinsics(img.width, img.height);
+            // With GT boxes: the frame's visible boxes of each estimated object.
+            let mut frame_boxes: BTreeMap<u32, Vec<[f64; 4]>> = BTreeMap::new();
+            if boxes == VisibleBoxes::Gt {
+                for &i in idx {
+                    let obj = estimates[i].obj_id;
+                    if let std::collections::btree_map::Entry::Vacant(v) = frame_boxes.entry(obj) {
+                        v.insert(gt_boxes(f, obj)?);
+                    }
+                }
+            }
             let mut out = Vec::with_capacity(idx.len());
             for &i in idx {
                 let e = &estimates[i];
                 let t0 = Instant::now();
+                let visible = frame_boxes
+                    .get(&e.obj_id)
+                    .and_then(|b| nearest_box(b, &e.pose, &k))
+                    .and_then(|b| VisibleBox::from_xywh(b, opts));
                 let refined = match (tris.get(&e.obj_id), points.get(&e.obj_id)) {
                     (Some(t), Some(p)) => region(p, &e.pose, &k).and_then(|rect| {
-                        let field = EdgeField::new(&img.rgb, img.width, img.height, rect, opts);
+                        let field = EdgeField::new(&img.rgb, img.width, img.height, rect, opts)
+                            .with_visible_box(visible);
                         let appearance = surfaces.get(&e.obj_id).map(|surface| Appearance {
                             rgb: &img.rgb,
                             width: img.width,
@@ -217,7 +290,7 @@ pub fn refine_estimates(
                         if new.time_s >= 0.0 {
                             new.time_s += t0.elapsed().as_secs_f64();
                         }
-                        (new, r.initial_cost, r.cost, r.accepted)
+                        (new, r.initial_cost, r.cost, r.accepted, visible.is_some())
                     }),
                 ));
                 progress.advance(1);
@@ -233,7 +306,8 @@ pub fn refine_estimates(
         ..Default::default()
     };
     for (i, r) in done.into_iter().flatten() {
-        if let Some((e, before, after, accepted)) = r {
+        if let Some((e, before, after, accepted, boxed)) = r {
+            summary.with_box += usize::from(boxed);
             out[i] = e;
             summary.refined += 1;
             summary.refused += usize::from(!accepted);

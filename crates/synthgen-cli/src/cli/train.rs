@@ -75,6 +75,25 @@ impl From<RotationsArg> for synthgen_train::metrics::Rotations {
     }
 }
 
+/// `eval --visible-box` (synthgen_jobs::rgb_refine::VisibleBoxes).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum VisibleBoxArg {
+    /// The whole contour counts wherever it falls.
+    None,
+    /// Each instance's GT visible box (bbox_visib, else its visible mask's box): what a
+    /// checkpoint's crops come from; the numbers are then numbers with GT boxes.
+    Gt,
+}
+
+impl From<VisibleBoxArg> for synthgen_jobs::rgb_refine::VisibleBoxes {
+    fn from(b: VisibleBoxArg) -> Self {
+        match b {
+            VisibleBoxArg::None => Self::None,
+            VisibleBoxArg::Gt => Self::Gt,
+        }
+    }
+}
+
 pub const TRAIN_EXAMPLES: &str = "Examples:
   # Render 2000 driller frames, train TNet on them (10% of the frames held out):
   synthgen render --objects obj_000008.ply --frames 2000 --seed 1 --out data/drill
@@ -333,6 +352,21 @@ pub struct EvalArgs {
     #[arg(long, value_name = "DEG", value_parser = parse_restart_deg, allow_hyphen_values = true)]
     pub restart_deg: Option<f64>,
 
+    /// With --refine: what of each instance shows, which the refinement then keeps to: no
+    /// edge outside the box (widened by 4 px) is the object's, so a contour point there costs
+    /// as on a bare background however near an occluder's edge it falls, and an outline that
+    /// does not reach each side of the box pays for the gap (--box-gap-weight). `gt`: the GT
+    /// visible box (BOP's bbox_visib), the box a checkpoint's crops come from; numbers made
+    /// with it are numbers with GT boxes (LM-O: docs/experiments.md). Default: none.
+    #[arg(long, value_enum, default_value_t = VisibleBoxArg::None)]
+    pub visible_box: VisibleBoxArg,
+
+    /// With --visible-box: what each pixel by which the box reaches beyond the outline costs,
+    /// summed over its four sides, pixels of edge cost per pixel of gap. Default: 0.1; 0: the
+    /// box only hides the edges outside it.
+    #[arg(long, value_name = "PX", value_parser = parse_box_gap_weight, allow_hyphen_values = true)]
+    pub box_gap_weight: Option<f64>,
+
     /// Also score with BOP's Average Recall (AR = mean of AR_VSD, AR_MSSD, AR_MSPD), computed
     /// as bop_toolkit's eval_bop19_pose.py does; VSD renders each estimate and needs the test
     /// depth images (without them: MSSD and MSPD only). See docs/metrics.md.
@@ -386,6 +420,14 @@ fn parse_restart_deg(v: &str) -> Result<f64, String> {
             "expected a turn of 0 to 90 degrees (0: no restarts), got {v:?}"
         )),
     }
+}
+
+/// `--box-gap-weight`: a finite weight of 0 or more.
+fn parse_box_gap_weight(v: &str) -> Result<f64, String> {
+    parse_weight(
+        v,
+        "pixels of edge cost per pixel of gap; 0: no cost for a gap",
+    )
 }
 
 /// `--region-weight`: a finite weight of 0 or more.

@@ -5,7 +5,7 @@
 use anyhow::Result;
 use synthgen_jobs::eval::{evaluate_request, EvalRequest};
 
-use crate::cli::{DeviceArg, EvalArgs, RgbRefineArg};
+use crate::cli::{DeviceArg, EvalArgs, RgbRefineArg, VisibleBoxArg};
 use crate::{ExitStatus, Printer};
 use synthgen_fit::edge_refine::EdgeRefineOptions;
 
@@ -46,6 +46,41 @@ pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
             ));
         }
     }
+    if args.box_gap_weight.is_some() && args.visible_box == VisibleBoxArg::None {
+        return Err(synthgen_jobs::user_error(
+            "--box-gap-weight sets what a gap between the visible box and the outline costs, and no box is given",
+            "add --visible-box gt, or drop --box-gap-weight",
+        ));
+    }
+    if args.refine == RgbRefineArg::None && args.visible_box != VisibleBoxArg::None {
+        return Err(synthgen_jobs::user_error(
+            "--visible-box is what the refinement keeps to, and nothing is refined",
+            "add --refine views (or edges), or drop --visible-box",
+        ));
+    }
+    let mut refine = match args.refine {
+        RgbRefineArg::None => None,
+        RgbRefineArg::Edges => Some(EdgeRefineOptions::default()),
+        RgbRefineArg::Views => {
+            let mut opts = EdgeRefineOptions::with_view_search();
+            if let (Some(v), Some(n)) = (opts.view_search.as_mut(), args.view_candidates) {
+                v.candidates = n as usize;
+            }
+            if let Some(w) = args.region_weight {
+                opts.region_weight_px = w;
+            }
+            if let Some(w) = args.photometric_weight {
+                opts = opts.with_photometric_weight(w);
+            }
+            if let Some(d) = args.restart_deg {
+                opts.restart_deg = d;
+            }
+            Some(opts)
+        }
+    };
+    if let (Some(o), Some(w)) = (refine.as_mut(), args.box_gap_weight) {
+        o.box_gap_weight = w;
+    }
     let request = EvalRequest {
         data: args.data,
         results: args.results,
@@ -62,27 +97,9 @@ pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
         stability: args.stability,
         rotations: args.rotations.into(),
         cuda: args.device == DeviceArg::Cuda,
-        refine: match args.refine {
-            RgbRefineArg::None => None,
-            RgbRefineArg::Edges => Some(EdgeRefineOptions::default()),
-            RgbRefineArg::Views => {
-                let mut opts = EdgeRefineOptions::with_view_search();
-                if let (Some(v), Some(n)) = (opts.view_search.as_mut(), args.view_candidates) {
-                    v.candidates = n as usize;
-                }
-                if let Some(w) = args.region_weight {
-                    opts.region_weight_px = w;
-                }
-                if let Some(w) = args.photometric_weight {
-                    opts = opts.with_photometric_weight(w);
-                }
-                if let Some(d) = args.restart_deg {
-                    opts.restart_deg = d;
-                }
-                Some(opts)
-            }
-        },
+        refine,
         refine_models: args.refine_models,
+        visible_boxes: args.visible_box.into(),
     };
     if request.save_results.is_some() && request.checkpoint.is_none() && request.refine.is_none() {
         return Err(synthgen_jobs::user_error(

@@ -177,18 +177,24 @@ fn estimates_far_off_are_found_by_the_view_search() {
     assert!(f(&views, "median_re_deg") < 5.0, "{views}");
 }
 
+/// `eval --results DIR/est.csv --data DIR` with `extra`, DIR an empty folder: what a flag
+/// refused before any file is read gives.
+fn eval_on_nothing(dir: &Path, extra: &[&OsStr]) -> std::process::Output {
+    run(synthgen()
+        .args(["eval", "--results"])
+        .arg(dir.join("est.csv"))
+        .arg("--data")
+        .arg(dir)
+        .args(extra))
+}
+
 #[test]
 fn save_results_without_a_checkpoint_needs_refine() {
     let tmp = tempfile::tempdir().unwrap();
-    let o = run(synthgen()
-        .args(["eval", "--results"])
-        .arg(tmp.path().join("est.csv"))
-        .arg("--data")
-        .arg(tmp.path())
-        .arg("--save-results")
-        .arg(tmp.path().join("out.csv")));
+    let out = tmp.path().join("out.csv");
+    let o = eval_on_nothing(tmp.path(), &["--save-results".as_ref(), out.as_os_str()]);
     refused(&o, &["--save-results", "--refine edges"]);
-    assert!(!tmp.path().join("out.csv").exists());
+    assert!(!out.exists());
 }
 
 /// `eval` with `flag` and `value`, without --refine and with --refine edges: refused, the
@@ -378,4 +384,61 @@ fn restart_deg_sets_how_far_the_winning_end_is_turned() {
     // The winning end is turned 6° out of the image plane and refined again by default;
     // 0 keeps it as the search left it.
     the_default_weight_is("--restart-deg", "6");
+}
+
+#[test]
+fn visible_box_needs_refine() {
+    let tmp = tempfile::tempdir().unwrap();
+    let o = eval_on_nothing(tmp.path(), &["--visible-box".as_ref(), "gt".as_ref()]);
+    refused(&o, &["--visible-box", "--refine views"]);
+}
+
+#[test]
+fn an_unknown_visible_box_is_refused() {
+    refused_by_the_parser("--visible-box", "detector", "possible values: none, gt");
+}
+
+#[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
+fn visible_box_gt_keeps_the_refinement_to_the_gt_boxes() {
+    // The estimates of `refined_scores` 60° off, refined with the view search: `none` is the
+    // default; `gt` reads each instance's bbox_visib and ends elsewhere.
+    let tmp = tempfile::tempdir().unwrap();
+    let (data, csv, rows) = rendered_and_turned(tmp.path(), 2, 60.0);
+    let refine_and_log = |extra: &[&str], out: &str| {
+        let extra: Vec<&OsStr> = extra.iter().map(|s| s.as_ref()).collect();
+        refine_views(&data, &csv, &tmp.path().join(out), &extra)
+    };
+    let refine = |extra: &[&str], out: &str| refine_and_log(extra, out).0;
+    let by_default = refine(&[], "default.csv");
+    assert_eq!(by_default.lines().count(), rows + 1);
+    assert_eq!(by_default, refine(&["--visible-box", "none"], "none.csv"));
+    let (boxed, log) = refine_and_log(&["--visible-box", "gt"], "gt.csv");
+    assert!(
+        log.contains(&format!(
+            "{rows} of {rows} refined estimates kept to their GT visible box"
+        )),
+        "{log}"
+    );
+    assert_ne!(by_default, boxed);
+    // The gap between the box and the outline costs 0.1 px per pixel by default.
+    let gap = |w: &str, out: &str| refine(&["--visible-box", "gt", "--box-gap-weight", w], out);
+    assert_eq!(boxed, gap("0.1", "gap_default.csv"));
+    assert_ne!(boxed, gap("0", "gap_none.csv"));
+}
+
+#[test]
+fn box_gap_weight_needs_a_visible_box() {
+    let tmp = tempfile::tempdir().unwrap();
+    let extra = ["--refine", "views", "--box-gap-weight", "0"].map(OsStr::new);
+    let o = eval_on_nothing(tmp.path(), &extra);
+    refused(&o, &["--box-gap-weight", "--visible-box gt"]);
+}
+
+#[test]
+fn a_negative_box_gap_weight_is_refused() {
+    a_negative_weight_is_refused("--box-gap-weight");
 }

@@ -42,7 +42,7 @@ use crate::settings::{read_row_file, row_dir, ROW_FILE};
 use crate::user_error;
 use crate::Log;
 use synthgen_fit::edge_refine::EdgeRefineOptions;
-use synthgen_jobs::rgb_refine::refine_estimates;
+use synthgen_jobs::rgb_refine::{refine_estimates, VisibleBoxes};
 
 /// Instances below this visible fraction are neither trained on nor scored (BOP's rule).
 const MIN_VISIB_FRACT: f64 = 0.1;
@@ -802,6 +802,7 @@ fn train_row(
             &estimates,
             opts,
             s.colour_models.as_deref(),
+            VisibleBoxes::None,
             &NoProgress,
         )?;
         estimates = refined;
