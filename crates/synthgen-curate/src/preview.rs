@@ -222,12 +222,7 @@ mod tests {
                 scene_id: 0,
                 im_id: 0,
             },
-            camera: SceneCamera {
-                cam_k: k.k_row_major(),
-                cam_r_w2c: None,
-                cam_t_w2c: None,
-                depth_scale: 1.0,
-            },
+            camera: SceneCamera::without_world(k.k_row_major(), 1.0),
             gt: vec![GtEntry::new(1, &pose)],
             gt_info: None,
             rgb: "x.png".into(),

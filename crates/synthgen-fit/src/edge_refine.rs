@@ -258,17 +258,18 @@ pub struct VisibleBox {
 }
 
 impl VisibleBox {
-    /// BOP's `[x, y, w, h]` (x, y the first pixel; w, h in pixels) with `opts`' margin and
-    /// gap weight; None for an empty or non-finite box.
+    /// BOP's `[x, y, w, h]` as bop_toolkit writes `bbox_visib` (x, y the first pixel, x + w
+    /// and y + h the last: a one-pixel box has w = h = 0) with `opts`' margin and gap weight;
+    /// None for an empty (BOP's `-1`) or non-finite box.
     pub fn from_xywh(b: [f64; 4], opts: &EdgeRefineOptions) -> Option<VisibleBox> {
         let [x, y, w, h] = b;
-        if !(b.iter().all(|v| v.is_finite()) && w > 0.0 && h > 0.0) {
+        if !(b.iter().all(|v| v.is_finite()) && w >= 0.0 && h >= 0.0) {
             return None;
         }
         let m = opts.box_margin_px.max(0.0);
         Some(VisibleBox {
             lo: DVec2::new(x - m, y - m),
-            hi: DVec2::new(x + w - 1.0 + m, y + h - 1.0 + m),
+            hi: DVec2::new(x + w + m, y + h + m),
             margin_px: m,
             gap_weight: opts.box_gap_weight.max(0.0),
         })
@@ -513,6 +514,11 @@ impl EdgeField {
         if !seen(self.visible.as_ref(), DVec2::new(x, y)) {
             return truncate;
         }
+        self.edge_cost(x, y, angle, truncate)
+    }
+
+    /// [`EdgeField::cost_within`] for a point already known to be inside the visible box.
+    fn edge_cost(&self, x: f64, y: f64, angle: f64, truncate: f32) -> f32 {
         match self.rect.index_of(x, y) {
             Some(at) => self.cost[bin_of(angle, self.bins)][at].min(truncate),
             None => truncate,
@@ -630,13 +636,15 @@ pub fn contour_match(
         }
         let t = b - a;
         let angle = orientation(-t.y, t.x);
-        let c = field.cost_within(a.x, a.y, angle, truncate);
-        sum += f64::from(c);
         n += 1;
-        if seen(field.visible.as_ref(), a) {
-            shown += 1;
-            inliers += usize::from(c <= inlier_px);
+        if !seen(field.visible.as_ref(), a) {
+            sum += f64::from(truncate);
+            continue;
         }
+        let c = field.edge_cost(a.x, a.y, angle, truncate);
+        sum += f64::from(c);
+        shown += 1;
+        inliers += usize::from(c <= inlier_px);
     }
     if n * 3 < contour.points.len() || n == 0 {
         return (f64::from(truncate), 0.0);
@@ -1308,14 +1316,15 @@ mod tests {
                 }
             }
         }
-        [lo[0], lo[1], hi[0] - lo[0] + 1, hi[1] - lo[1] + 1].map(f64::from)
+        [lo[0], lo[1], hi[0] - lo[0], hi[1] - lo[1]].map(f64::from)
     }
 
     #[test]
     fn a_visible_box_is_read_as_bop_writes_it() {
         let opts = EdgeRefineOptions::default();
-        let b = VisibleBox::from_xywh([10.0, 20.0, 5.0, 4.0], &opts).unwrap();
-        // Pixels 10..=14, 20..=23, widened by the 4 px margin.
+        // bop_toolkit's calc_2d_bbox: w = x_max - x_min, so pixels 10..=14, 20..=23 ...
+        let b = VisibleBox::from_xywh([10.0, 20.0, 4.0, 3.0], &opts).unwrap();
+        // ... widened by the 4 px margin.
         assert_eq!(
             (b.lo, b.hi),
             (DVec2::new(6.0, 16.0), DVec2::new(18.0, 27.0))
@@ -1330,8 +1339,11 @@ mod tests {
             b.gap_px(DVec2::new(13.0, 20.0), DVec2::new(20.0, 21.0)),
             5.0
         );
+        // One pixel: w = h = 0.
+        let one = VisibleBox::from_xywh([7.0, 8.0, 0.0, 0.0], &opts).unwrap();
+        assert_eq!(one.gap_px(DVec2::new(7.0, 8.0), DVec2::new(7.0, 8.0)), 0.0);
         for bad in [
-            [0.0, 0.0, 0.0, 3.0],
+            [-1.0, -1.0, -1.0, -1.0],
             [0.0, 0.0, 3.0, -1.0],
             [f64::NAN, 0.0, 3.0, 3.0],
         ] {

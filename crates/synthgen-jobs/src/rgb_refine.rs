@@ -9,7 +9,8 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
+use synthgen_core::annotate::mask_bbox;
 use synthgen_core::glam::DVec3;
 use synthgen_core::{Pose, Progress};
 use synthgen_fit::appearance::{Appearance, ColouredSurface};
@@ -47,7 +48,7 @@ pub struct RefineSummary {
 }
 
 /// Where the refinement learns what of each instance shows ([`VisibleBox`]).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum VisibleBoxes {
     /// Nothing: the whole contour counts wherever it falls.
@@ -68,21 +69,21 @@ fn gt_boxes(frame: &SourceFrame, obj_id: u32) -> Result<Vec<[f64; 4]>> {
             continue;
         }
         let info = frame.gt_info.as_ref().and_then(|i| i.get(gt_id));
-        if let Some(b) = info.map(|i| i.bbox_visib).filter(|b| b[2] > 0 && b[3] > 0) {
-            out.push(b.map(f64::from));
-            continue;
-        }
-        let Some(mask) = frame.masks_visib.get(gt_id).and_then(Option::as_ref) else {
-            continue;
+        let b = match info
+            .map(|i| i.bbox_visib)
+            .filter(|b| b[2] >= 0 && b[3] >= 0)
+        {
+            Some(b) => b,
+            None => match frame.masks_visib.get(gt_id).and_then(Option::as_ref) {
+                Some(mask) => {
+                    let m = mask.read()?;
+                    mask_bbox(&m.data, m.width)
+                }
+                None => continue,
+            },
         };
-        let m = mask.read()?;
-        let (mut lo, mut hi) = ([u32::MAX; 2], [0u32; 2]);
-        for (i, _) in m.data.iter().enumerate().filter(|(_, v)| **v > 0) {
-            let (x, y) = (i as u32 % m.width, i as u32 / m.width);
-            (lo, hi) = ([lo[0].min(x), lo[1].min(y)], [hi[0].max(x), hi[1].max(y)]);
-        }
-        if lo[0] <= hi[0] {
-            out.push([lo[0], lo[1], hi[0] - lo[0] + 1, hi[1] - lo[1] + 1].map(f64::from));
+        if b[2] >= 0 && b[3] >= 0 {
+            out.push(b.map(f64::from));
         }
     }
     Ok(out)
@@ -321,4 +322,105 @@ pub fn refine_estimates(
     }
     summary.seconds = started.elapsed().as_secs_f64();
     Ok((out, summary))
+}
+
+#[cfg(test)]
+mod tests {
+    use synthgen_core::annotate::GtInfo;
+    use synthgen_core::glam::DMat3;
+    use synthgen_core::Intrinsics;
+    use synthgen_formats::bop::image::{encode_gray8_png, PngCompression};
+    use synthgen_formats::bop::{GtEntry, SceneCamera};
+    use synthgen_formats::source::{FrameLocation, MaskRef};
+
+    use super::*;
+
+    /// A 32 x 24 frame of object 3 (twice) and object 5; the first visible mask covers
+    /// pixels 10..=14 x 20..=23, the others nothing.
+    fn frame(dir: &Path, gt_info: Option<Vec<GtInfo>>) -> SourceFrame {
+        let (w, h) = (32u32, 24u32);
+        let mut m = vec![0u8; (w * h) as usize];
+        for y in 20..24 {
+            for x in 10..15 {
+                m[(y * w + x) as usize] = 255;
+            }
+        }
+        let path = dir.join("000000_000000.png");
+        std::fs::write(
+            &path,
+            encode_gray8_png(&m, w, h, PngCompression::Fast, &path).unwrap(),
+        )
+        .unwrap();
+        let empty = dir.join("empty.png");
+        let none = vec![0u8; (w * h) as usize];
+        std::fs::write(
+            &empty,
+            encode_gray8_png(&none, w, h, PngCompression::Fast, &empty).unwrap(),
+        )
+        .unwrap();
+        let pose = Pose::new(DMat3::IDENTITY, DVec3::new(0.0, 0.0, 0.5));
+        let k = Intrinsics {
+            width: w,
+            height: h,
+            fx: 100.0,
+            fy: 100.0,
+            cx: 15.5,
+            cy: 11.5,
+        };
+        SourceFrame {
+            location: FrameLocation {
+                split: "test".into(),
+                scene_id: 0,
+                im_id: 0,
+            },
+            camera: SceneCamera::without_world(k.k_row_major(), 1.0),
+            gt: vec![
+                GtEntry::new(3, &pose),
+                GtEntry::new(5, &pose),
+                GtEntry::new(3, &pose),
+            ],
+            gt_info,
+            rgb: dir.join("rgb.png"),
+            depth: None,
+            masks: vec![None; 3],
+            masks_visib: vec![
+                Some(MaskRef::File(path)),
+                Some(MaskRef::File(empty.clone())),
+                Some(MaskRef::File(empty)),
+            ],
+        }
+    }
+
+    #[test]
+    fn gt_boxes_are_bops_from_the_info_or_the_mask() {
+        let dir = tempfile::tempdir().unwrap();
+        // bop_toolkit's calc_2d_bbox: w = x_max - x_min.
+        let want = vec![[10.0, 20.0, 4.0, 3.0]];
+        // From the visible masks alone: the empty one gives no box.
+        let from_masks = frame(dir.path(), None);
+        assert_eq!(gt_boxes(&from_masks, 3).unwrap(), want);
+        assert!(gt_boxes(&from_masks, 5).unwrap().is_empty());
+        // scene_gt_info's bbox_visib as written (-1 where nothing shows) says the same.
+        let info = |bbox_visib| GtInfo {
+            bbox_obj: bbox_visib,
+            bbox_visib,
+            px_count_all: 20,
+            px_count_valid: 20,
+            px_count_visib: 20,
+            visib_fract: 1.0,
+        };
+        let mut from_info = frame(dir.path(), None);
+        from_info.gt_info = Some(vec![info([10, 20, 4, 3]), info([-1; 4]), info([-1; 4])]);
+        from_info.masks_visib = vec![None; 3];
+        assert_eq!(gt_boxes(&from_info, 3).unwrap(), want);
+        assert!(gt_boxes(&from_info, 5).unwrap().is_empty());
+        // And the box the refinement keeps to ends on the mask's last pixel (+ the margin).
+        let opts = EdgeRefineOptions::default();
+        let b = VisibleBox::from_xywh(want[0], &opts).unwrap();
+        let m = opts.box_margin_px;
+        assert_eq!(
+            (b.lo.x, b.lo.y, b.hi.x, b.hi.y),
+            (10.0 - m, 20.0 - m, 14.0 + m, 23.0 + m)
+        );
+    }
 }

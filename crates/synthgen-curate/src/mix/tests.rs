@@ -103,12 +103,10 @@ impl FakeSource {
                     scene_id: i.checked_div(per_scene).unwrap_or(0) as u32,
                     im_id: i as u32,
                 },
-                camera: SceneCamera {
-                    cam_k: [500.0, 0.0, 320.0, 0.0, 500.0, 240.0, 0.0, 0.0, 1.0],
-                    cam_r_w2c: None,
-                    cam_t_w2c: None,
-                    depth_scale: 1.0,
-                },
+                camera: SceneCamera::without_world(
+                    [500.0, 0.0, 320.0, 0.0, 500.0, 240.0, 0.0, 0.0, 1.0],
+                    1.0,
+                ),
                 gt: vec![GtEntry::new(obj_id, &synthgen_core::Pose::IDENTITY)],
                 gt_info: None,
                 rgb,

@@ -105,6 +105,17 @@ pub struct SceneCamera {
 }
 
 impl SceneCamera {
+    /// A camera with intrinsics `cam_k` (row-major) and no world pose (Linemod's frames,
+    /// test fixtures).
+    pub fn without_world(cam_k: [f64; 9], depth_scale: f64) -> SceneCamera {
+        SceneCamera {
+            cam_k,
+            cam_r_w2c: None,
+            cam_t_w2c: None,
+            depth_scale,
+        }
+    }
+
     pub fn intrinsics(&self, width: u32, height: u32) -> Intrinsics {
         Intrinsics::from_k(&self.cam_k, width, height)
     }

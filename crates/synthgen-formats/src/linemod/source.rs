@@ -104,12 +104,7 @@ impl FrameSource for LinemodSource {
                     scene_id: image.scene_id,
                     im_id: image.im_id,
                 },
-                camera: SceneCamera {
-                    cam_k: info.cam_k,
-                    cam_r_w2c: None,
-                    cam_t_w2c: None,
-                    depth_scale: info.depth_scale,
-                },
+                camera: SceneCamera::without_world(info.cam_k, info.depth_scale),
                 gt: gts
                     .iter()
                     .map(|(g, _)| GtEntry {
