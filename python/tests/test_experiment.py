@@ -54,6 +54,12 @@ def test_bad_options_are_input_errors(tmp_path: Path) -> None:
         synthgen.experiment.sim2real(test=tmp_path, model="resnet", out=tmp_path / "o")
     with pytest.raises(synthgen.InputError, match="unknown variant `snap`, expected"):
         synthgen.experiment.sim2real(test=tmp_path, refine="snap", out=tmp_path / "o")
+    with pytest.raises(synthgen.InputError, match="unknown variant `yes`, expected"):
+        synthgen.experiment.sim2real(test=tmp_path, visible_box="yes", out=tmp_path / "o")
+    with pytest.raises(synthgen.InputError, match="--visible-box applies to the RGB models"):
+        synthgen.experiment.sim2real(
+            test=tmp_path, fit=tmp_path, visible_box="gt", out=tmp_path / "o"
+        )
     with pytest.raises(synthgen.InputError, match="not found"):
         synthgen.experiment.sim2real(
             test=tmp_path / "missing", fit=tmp_path / "missing", out=tmp_path / "o"

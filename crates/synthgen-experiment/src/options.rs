@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use synthgen_core::scene::UpAxis;
 use synthgen_curate::mix::SceneRef;
+use synthgen_jobs::rgb_refine::VisibleBoxes;
 use synthgen_train::models::rgb::Translation;
 
 /// The depth models of the experiments (`--model`).
@@ -246,6 +247,9 @@ pub struct Sim2realOptions {
     pub ensemble: Option<usize>,
     /// The depth models' centres refined on the real depth.
     pub refine: Refine,
+    /// With `Refine::Edges` or `Views` (the RGB models): what of each test instance shows,
+    /// which the refinement keeps to (`synthgen_jobs::rgb_refine::VisibleBoxes`).
+    pub visible_box: VisibleBoxes,
     pub seed: u64,
     /// Only these rows.
     pub rows: Vec<String>,
@@ -280,6 +284,7 @@ impl Default for Sim2realOptions {
             per_object: false,
             ensemble: None,
             refine: Refine::Icp,
+            visible_box: VisibleBoxes::None,
             seed: 0,
             rows: Vec::new(),
             max_failed_fraction: 0.01,

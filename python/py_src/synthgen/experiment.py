@@ -145,6 +145,7 @@ def sim2real(
     per_object: bool = False,
     ensemble: Optional[int] = None,
     refine: str = "icp",
+    visible_box: str = "none",
     seed: int = 0,
     rows: Sequence[str] = (),
     max_failed_fraction: float = 0.01,
@@ -172,6 +173,9 @@ def sim2real(
             each object's outline moved onto the image's edges), ``"views"`` (as edges, after a
             search over each object's rotations about the estimate, with the models' colours
             where they have them) or ``"none"``.
+        visible_box: with ``refine="edges"`` or ``"views"``: ``"gt"`` keeps each refinement
+            to its instance's GT visible box (as ``synthgen eval --visible-box gt``), ``"none"``
+            does not.
         rows: only these rows.
         progress: as for :func:`synthgen.render`.
 
@@ -200,6 +204,7 @@ def sim2real(
             per_object=per_object,
             ensemble=ensemble,
             refine=refine,
+            visible_box=visible_box,
             seed=int(seed),
             rows=[str(r) for r in rows],
             max_failed_fraction=float(max_failed_fraction),

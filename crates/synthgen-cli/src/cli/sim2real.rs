@@ -6,6 +6,7 @@ use clap::{Args, ValueEnum};
 
 use synthgen_core::scene::UpAxis;
 
+use super::train::VisibleBoxArg;
 use super::ModelArg;
 
 fn parse_up(s: &str) -> Result<UpAxis, String> {
@@ -81,6 +82,9 @@ pub const SIM2REAL_EXAMPLES: &str = "Examples:
   # Cycles at --cycles-frames, the naive box baseline:
   synthgen experiment sim2real --model rgb-dense --scene scenes/linemod_rgb.toml \\
       --test ../shared/data/lmo --out runs/s2r_lmo
+  # ... each trained row's estimates refined on the photographs, kept to the GT visible boxes:
+  synthgen experiment sim2real --model rgb-dense --scene scenes/linemod_rgb.toml \\
+      --test ../shared/data/lmo --refine views --visible-box gt --out runs/s2r_lmo_views
 
   # YCB-Video with the textured scans (`synthgen model align --scans ... --out models_tex`):
   synthgen experiment sim2real --model rgb-dense --fit REAL --test REAL --test-scenes 2 \\
@@ -209,12 +213,19 @@ pub struct ExperimentSim2realArgs {
     /// finish theirs), `none` keeps the network's centre. With `icp` each trained row also
     /// reports its centres before the refinement, and the row naive_icp (the same ICP from
     /// the naive centroid) shows what the network adds. --model rnet|full keep their poses as
-    /// predicted. The RGB models (--model rgb|rgb-dense) take `edges`: each trained row's
-    /// estimates refined on the real RGB images (the contour onto the image's edges), with
-    /// its scores before the refinement beside them; with `icp` (the default) they keep
-    /// theirs.
+    /// predicted. The RGB models (--model rgb|rgb-dense) take `edges` or `views`: each trained
+    /// row's estimates refined on the real RGB images (the contour onto the image's edges;
+    /// `views` searches the rotations first), with its scores before the refinement beside
+    /// them; with `icp` (the default) they keep theirs.
     #[arg(long, value_enum, default_value_t = RefineArg::Icp)]
     pub refine: RefineArg,
+
+    /// The RGB models with --refine edges|views: what of each test instance shows, which the
+    /// refinement keeps to, as `eval --visible-box`. `gt`: its GT visible box (the box the
+    /// crops already come from), so no edge outside it is the object's and an outline short
+    /// of it pays for the gap. Default: none.
+    #[arg(long, value_enum, default_value_t = VisibleBoxArg::None)]
+    pub visible_box: VisibleBoxArg,
 
     /// Seeds the renders and the training.
     #[arg(long, default_value_t = 0)]

@@ -107,6 +107,7 @@ pub fn sim2real_options(a: ExperimentSim2realArgs) -> Sim2realOptions {
             RefineArg::Edges => Refine::Edges,
             RefineArg::Views => Refine::Views,
         },
+        visible_box: a.visible_box.into(),
         seed: a.seed,
         rows: a.rows,
         max_failed_fraction: a.max_failed_fraction,

@@ -355,7 +355,8 @@ fn quick_sim2real_on_objects_the_fit_never_saw() {
 /// Issue 29: `--model rgb-dense` on the RGB-only Linemod-Occluded photographs (no depth, no
 /// masks), the scene from a scene file: the rows, the naive box baseline, report.json in the
 /// issue's shape, per object and per scene, the trained rows refined on the photographs
-/// (`--refine edges`) with their scores before; a re-run computes nothing.
+/// (`--refine edges`, kept to the GT visible boxes) with their scores before; a re-run
+/// computes nothing.
 #[test]
 #[cfg_attr(
     not(has_shared_data),
@@ -380,6 +381,8 @@ fn quick_rgb_dense_sim2real_on_real_lmo_photographs() {
                 "24",
                 "--refine",
                 "edges",
+                "--visible-box",
+                "gt",
             ])
             .arg("--out")
             .arg(&out))
@@ -388,7 +391,12 @@ fn quick_rgb_dense_sim2real_on_real_lmo_photographs() {
     assert!(o.status.success(), "{}", stderr(&o));
     let md = String::from_utf8_lossy(&o.stdout).into_owned();
     assert!(md.contains("GT visible boxes"), "{md}");
-    assert!(md.contains("`--refine edges`"), "{md}");
+    assert!(
+        md.contains(
+            "`--refine edges`, `--visible-box gt`: each kept to its instance's GT visible box"
+        ),
+        "{md}"
+    );
     let r: Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     assert_eq!(r["model"], "rgb-dense");
@@ -418,6 +426,9 @@ fn quick_rgb_dense_sim2real_on_real_lmo_photographs() {
         assert!(before["ar_mspd"].as_f64().is_some(), "{name}: {before}");
         let kept = rows[name]["refine_accepted"].as_f64().unwrap();
         assert!((0.0..=1.0).contains(&kept), "{name}: {kept}");
+        // Every estimate is of a GT instance here, so each was kept to its box.
+        let boxed = rows[name]["refined_in_box"].as_u64().unwrap();
+        assert!((1..=627).contains(&boxed), "{name}: {boxed}");
     }
     assert!(rows["naive_box"].get("before_refine").is_none());
     // No --fit: no real-only row, and the report says so.
@@ -463,8 +474,14 @@ fn quick_rgb_dense_sim2real_on_real_lmo_photographs() {
         settings["refine_options"]["min_gradient"], 8.0,
         "{settings}"
     );
+    assert_eq!(settings["visible_box"], "gt", "{settings}");
+    let mut older = settings.clone();
     settings["refine_options"]["min_gradient"] = 4.0.into();
     std::fs::write(&path, settings.to_string()).unwrap();
+    refused(&go(), &["other settings", "--force"]);
+    // Nor is one refined without the box (an experiment.json from before --visible-box).
+    older.as_object_mut().unwrap().remove("visible_box");
+    std::fs::write(&path, older.to_string()).unwrap();
     refused(&go(), &["other settings", "--force"]);
 }
 
@@ -540,6 +557,14 @@ fn rgb_sim2real_fits_the_scene_and_takes_replacement_models() {
         (
             vec!["--model", "tnet", "--refine", "views"],
             vec!["--refine edges and views refine the RGB models"],
+        ),
+        (
+            vec!["--model", "tnet", "--visible-box", "gt"],
+            vec!["--visible-box applies to the RGB models"],
+        ),
+        (
+            vec!["--model", "rgb-dense", "--visible-box", "gt"],
+            vec!["--visible-box", "nothing is refined", "--refine views"],
         ),
     ] {
         let mut args = vec!["--test-scenes", "0"];

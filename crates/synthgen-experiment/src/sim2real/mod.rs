@@ -29,6 +29,7 @@ use self::rows::{RowRecord, TrainSpec};
 use crate::options::{Model, Refine, Sim2realOptions, TrainBudget};
 use crate::user_error;
 use crate::Log;
+use synthgen_jobs::rgb_refine::VisibleBoxes;
 
 /// The settings file at the output's root; a re-run must match it to resume.
 pub const SETTINGS_FILE: &str = "experiment.json";
@@ -231,6 +232,7 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
         (args.scene.is_some(), "--scene"),
         (args.models.is_some(), "--models"),
         (args.cycles_frames.is_some(), "--cycles-frames"),
+        (args.visible_box != VisibleBoxes::None, "--visible-box"),
     ] {
         if set {
             return Err(user_error(

@@ -90,6 +90,14 @@ pub struct RgbSettings {
     /// synthgen's defaults) is refused rather than mixing rows refined two ways.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub refine_options: Option<EdgeRefineOptions>,
+    /// With `--refine edges|views`: what of each test instance shows, which the refinement
+    /// keeps to (`--visible-box`; absent: none, as before it existed).
+    #[serde(default, skip_serializing_if = "no_box")]
+    pub visible_box: VisibleBoxes,
+}
+
+fn no_box(b: &VisibleBoxes) -> bool {
+    *b == VisibleBoxes::None
 }
 
 impl RgbSettings {
@@ -152,6 +160,10 @@ pub struct RgbRow {
     /// With `--refine edges`: the share of the estimates whose refined pose was kept.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub refine_accepted: Option<f64>,
+    /// With `--visible-box gt`: the refined estimates kept to a GT visible box (the others
+    /// had no GT instance of their object in their image).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refined_in_box: Option<usize>,
 }
 
 /// The real test frames, loaded once: instances with their GT visible boxes, the GT, the
@@ -244,6 +256,14 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
             ));
         }
     }
+    if args.visible_box != VisibleBoxes::None
+        && !matches!(args.refine, Refine::Edges | Refine::Views)
+    {
+        return Err(user_error(
+            "--visible-box is what the refinement of the RGB models' estimates keeps to, and nothing is refined",
+            "add --refine views (or edges), or drop --visible-box",
+        ));
+    }
     let out = args.out.clone();
     let frames = args.frames.unwrap_or(if args.quick { 48 } else { 1500 });
     let cycles_frames = args
@@ -332,6 +352,7 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
             Refine::Edges => Some(EdgeRefineOptions::default()),
             _ => None,
         },
+        visible_box: args.visible_box,
     };
     let _lock = OutputLock::acquire(&out)?;
     let mut inputs: Vec<(&str, &Path)> = vec![("--test", &settings.test)];
@@ -791,7 +812,7 @@ fn train_row(
         .collect();
     let preds = net.predict(&tested, Some(&test.objects), PREDICT_BATCH)?;
     let mut estimates = prediction_estimates(&preds, tested.iter().copied());
-    let (mut before_refine, mut refine_accepted) = (None, None);
+    let (mut before_refine, mut refine_accepted, mut refined_in_box) = (None, None, None);
     if let Some(opts) = &s.refine_options {
         before_refine = Some(score(&estimates, test)?.0);
         let src =
@@ -802,11 +823,12 @@ fn train_row(
             &estimates,
             opts,
             s.colour_models.as_deref(),
-            VisibleBoxes::None,
+            s.visible_box,
             &NoProgress,
         )?;
         estimates = refined;
         refine_accepted = Some(1.0 - summary.refused as f64 / summary.refined.max(1) as f64);
+        refined_in_box = (s.visible_box != VisibleBoxes::None).then_some(summary.with_box);
     }
     write_results_csv(&dir.join(RESULTS_FILE), &estimates)?;
     let (all, objects_s, scenes_s) = score(&estimates, test)?;
@@ -824,6 +846,7 @@ fn train_row(
         seconds_eval: t1.elapsed().as_secs_f64(),
         before_refine,
         refine_accepted,
+        refined_in_box,
     };
     write_row(out, &record)?;
     Ok(record)
@@ -867,6 +890,7 @@ fn naive_row(s: &RgbSettings, out: &Path, main_set: &Path, test: &TestSet) -> Re
         seconds_eval: t0.elapsed().as_secs_f64(),
         before_refine: None,
         refine_accepted: None,
+        refined_in_box: None,
     };
     write_row(out, &record)?;
     Ok(record)
@@ -1006,11 +1030,15 @@ fn markdown(s: &RgbSettings, rows: &[RgbRow], notes: &[String]) -> String {
     }
     let refined: Vec<&RgbRow> = rows.iter().filter(|r| r.before_refine.is_some()).collect();
     if !refined.is_empty() {
-        md += &format!("\nThe trained rows' estimates were refined on the real RGB images (`--refine {}`); before the refinement, and the share of estimates whose refined pose was kept:\n\n| row | AR_MSPD before | 5cm5° before | median E_re before | kept |\n|---|---:|---:|---:|---:|\n",
+        md += &format!("\nThe trained rows' estimates were refined on the real RGB images (`--refine {}`{}); before the refinement, and the share of estimates whose refined pose was kept:\n\n| row | AR_MSPD before | 5cm5° before | median E_re before | kept |\n|---|---:|---:|---:|---:|\n",
             if s.refine_options.as_ref().is_some_and(|o| o.view_search.is_some()) {
                 "views"
             } else {
                 "edges"
+            },
+            match s.visible_box {
+                VisibleBoxes::None => "",
+                VisibleBoxes::Gt => ", `--visible-box gt`: each kept to its instance's GT visible box",
             }
         );
         for r in refined {
