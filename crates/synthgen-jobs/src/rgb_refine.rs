@@ -19,7 +19,7 @@ use synthgen_fit::edge_refine::{
 };
 use synthgen_formats::bop::image::read_rgb;
 use synthgen_formats::source::{FrameSource, SourceFrame};
-use synthgen_train::bop::load_render_models;
+use synthgen_train::bop::{eval_model_paths, load_render_models};
 use synthgen_train::results::{Estimate, RawPose};
 
 /// The refined region's side over the side of the estimate's projected model box.
@@ -191,32 +191,42 @@ pub fn refine_estimates(
             None => BTreeMap::new(),
         };
         colours_from_folder = replaced.keys().copied().collect();
-        ids.iter()
-            .filter_map(|&id| {
-                let m = match replaced.get(&id) {
-                    Some(path) => synthgen_assets::load_model(
-                        path,
-                        synthgen_assets::Units::Auto,
-                        &synthgen_core::NoProgress,
-                    )
-                    .map(|l| l.model)
-                    .with_context(|| format!("cannot load {}", path.display())),
-                    None => ds
-                        .load_model(id, &synthgen_core::NoProgress)
-                        .map_err(anyhow::Error::from),
-                };
-                match m {
-                    Ok(m) => ColouredSurface::from_model(&m).map(|s| Ok((id, s))),
-                    Err(e) => Some(Err(e)),
-                }
-            })
-            .collect::<Result<_>>()
+        // Without `models_eval/` the models above are the dataset's own: not loaded twice.
+        let own_models_loaded = eval_model_paths(ds).0 == ds.models_info_path();
+        let mut surfaces = BTreeMap::new();
+        for &id in &ids {
+            let loaded = match replaced.get(&id) {
+                Some(path) => synthgen_assets::load_model(
+                    path,
+                    synthgen_assets::Units::Auto,
+                    &synthgen_core::NoProgress,
+                )
+                .map(|l| Some(l.model))
+                .with_context(|| format!("cannot load {}", path.display())),
+                None if own_models_loaded => Ok(None),
+                None => ds
+                    .load_model(id, &synthgen_core::NoProgress)
+                    .map(Some)
+                    .map_err(anyhow::Error::from),
+            }
             .with_context(|| {
                 format!(
                     "cannot load the coloured object models of {}",
                     ds.root().display()
                 )
-            })?
+            })?;
+            let model = match &loaded {
+                Some(m) => m,
+                None => match models.iter().find(|(i, _)| *i == id) {
+                    Some((_, m)) => m,
+                    None => continue,
+                },
+            };
+            if let Some(s) = ColouredSurface::from_model(model) {
+                surfaces.insert(id, s);
+            }
+        }
+        surfaces
     } else {
         BTreeMap::new()
     };

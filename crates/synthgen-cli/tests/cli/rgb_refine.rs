@@ -323,12 +323,12 @@ fn refused_by_the_parser(flag: &str, value: &str, expected: &str) {
 )]
 fn region_weight_sets_what_the_colour_regions_weigh() {
     // The default weighs the colour regions 3 px per nat; 0 leaves the edges alone.
-    the_default_weight_is("--region-weight", "3");
+    the_default_is("--region-weight", "3");
 }
 
 /// The estimates of `refined_scores` 60° off, refined with the view search: `flag` at
-/// `default` refines as the default does, at 0 it ends elsewhere.
-fn the_default_weight_is(flag: &str, default: &str) {
+/// `default` (a weight, an angle) refines as the default does, at 0 it ends elsewhere.
+fn the_default_is(flag: &str, default: &str) {
     let tmp = tempfile::tempdir().unwrap();
     let (data, csv, _) = rendered_and_turned(tmp.path(), 2, 60.0);
     let refine = |weight: Option<&str>, out: &str| {
@@ -360,7 +360,7 @@ fn a_negative_photometric_weight_is_refused() {
 fn photometric_weight_sets_what_the_model_colours_weigh() {
     // The vertex-coloured models' colours weigh 3 px by default; 0 leaves them out (and the
     // view search's candidates in their own order).
-    the_default_weight_is("--photometric-weight", "3");
+    the_default_is("--photometric-weight", "3");
 }
 
 #[test]
@@ -383,7 +383,7 @@ fn a_restart_turn_out_of_range_is_refused() {
 fn restart_deg_sets_how_far_the_winning_end_is_turned() {
     // The winning end is turned 6° out of the image plane and refined again by default;
     // 0 keeps it as the search left it.
-    the_default_weight_is("--restart-deg", "6");
+    the_default_is("--restart-deg", "6");
 }
 
 #[test]
