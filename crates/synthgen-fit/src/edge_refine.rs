@@ -1301,22 +1301,21 @@ mod tests {
         assert!(shifted > at_gt + 3.0, "{shifted} vs {at_gt}");
     }
 
-    /// The GT box (`[x, y, w, h]`) of the pixels where `shows` holds and the cuboid covers.
+    /// The GT box (BOP's `[x, y, w, h]`, as the writer computes `bbox_visib`) of the pixels
+    /// where `shows` holds and the cuboid covers.
     fn box_of(
         tris: &[[DVec3; 3]],
         pose: &Pose,
         k: &Intrinsics,
         shows: impl Fn(u32, u32) -> bool,
     ) -> [f64; 4] {
-        let (mut lo, mut hi) = ([u32::MAX; 2], [0u32; 2]);
-        for y in 0..k.height {
-            for x in 0..k.width {
-                if shows(x, y) && in_hull(tris, pose, k, f64::from(x), f64::from(y)) {
-                    (lo, hi) = ([lo[0].min(x), lo[1].min(y)], [hi[0].max(x), hi[1].max(y)]);
-                }
-            }
-        }
-        [lo[0], lo[1], hi[0] - lo[0], hi[1] - lo[1]].map(f64::from)
+        let mask: Vec<u8> = (0..k.height)
+            .flat_map(|y| (0..k.width).map(move |x| (x, y)))
+            .map(|(x, y)| {
+                u8::from(shows(x, y) && in_hull(tris, pose, k, f64::from(x), f64::from(y)))
+            })
+            .collect();
+        synthgen_core::annotate::mask_bbox(&mask, k.width).map(f64::from)
     }
 
     #[test]
