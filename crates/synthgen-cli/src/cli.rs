@@ -6,6 +6,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use synthgen_curate::mix::SceneRef;
 
 mod budget;
+mod detector;
 mod experiment;
 mod model;
 mod rgb;
@@ -15,6 +16,7 @@ mod sensor;
 mod sim2real;
 mod train;
 pub use budget::TrainBudgetArgs;
+pub use detector::{DetectorCommand, DetectorRunArgs, DetectorTrainArgs};
 pub use experiment::{ExperimentCommand, ExperimentMixArgs};
 pub use model::{ModelAlignArgs, ModelCommand};
 pub use rgb::ExperimentRgbArgs;
@@ -100,6 +102,10 @@ pub enum Command {
     /// Combine the shard folders of a `synthgen render --shard I/N` run into one BOP dataset.
     #[command(after_long_help = MERGE_EXAMPLES)]
     Merge(MergeArgs),
+    /// Find objects' boxes in whole frames, so the RGB models run without GT boxes: train the
+    /// detector, run it into BOP detections.
+    #[command(subcommand)]
+    Detector(DetectorCommand),
     /// Run an experiment end to end: the real/synthetic mixing table (mix, train, evaluate).
     #[command(subcommand)]
     Experiment(ExperimentCommand),

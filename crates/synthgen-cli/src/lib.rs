@@ -73,6 +73,12 @@ pub fn main() -> ExitCode {
         cli::Command::Train(args) => commands::train::run(*args, &printer),
         cli::Command::Eval(args) => commands::eval::run(*args, &printer),
         cli::Command::Merge(args) => commands::merge::run(args, &printer),
+        cli::Command::Detector(cli::DetectorCommand::Train(args)) => {
+            commands::detector::run_train(args, &printer)
+        }
+        cli::Command::Detector(cli::DetectorCommand::Run(args)) => {
+            commands::detector::run_run(args, &printer)
+        }
         cli::Command::Experiment(cli::ExperimentCommand::Mix(args)) => {
             commands::experiment::run_mix(args, &printer)
         }

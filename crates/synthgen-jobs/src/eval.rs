@@ -7,10 +7,11 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use anyhow::{Context, Result};
+use synthgen_detect::detections::read_detections;
 use synthgen_formats::layout::open_source;
 use synthgen_formats::source::FrameSource;
 use synthgen_train::bop::{load_render_models, prepare_bop, BopOptions, BopReport, TargetsFrom};
-use synthgen_train::data::{load_source_instances, DataOptions, Instance};
+use synthgen_train::data::{load_source_instances, CropBoxes, DataOptions, Instance};
 use synthgen_train::eval::{
     eval_objects, evaluate, load_eval_objects, pick_split, prediction_estimates, read_gt,
     score_predictions,
@@ -29,7 +30,7 @@ use synthgen_core::Progress;
 use synthgen_fit::edge_refine::EdgeRefineOptions;
 use synthgen_train::metrics::Rotations;
 
-use crate::rgb_refine::{refine_estimates, VisibleBoxes};
+use crate::rgb_refine::{refine_estimates, BoxSource, VisibleBoxes};
 
 use crate::{user_error, Printer, Stdout};
 
@@ -68,6 +69,10 @@ pub struct EvalRequest {
     pub refine_models: Option<PathBuf>,
     /// With `refine`: what of each instance shows, when the refinement keeps to it.
     pub visible_boxes: VisibleBoxes,
+    /// A BOP detections file: the RGB checkpoint's crops come from its boxes instead of the
+    /// GT boxes (instances without one get no estimate), and `VisibleBoxes::Detected` reads
+    /// them.
+    pub detections: Option<PathBuf>,
 }
 
 /// What an evaluation printed and whether it counts as failed.
@@ -195,13 +200,17 @@ fn refined(
     opts: &EdgeRefineOptions,
     printer: &Printer<'_>,
 ) -> Result<Vec<Estimate>> {
+    let detections = match &args.detections {
+        Some(path) => Some(crop_boxes(path)?),
+        None => None,
+    };
     let (out, summary) = refine_estimates(
         ds,
         split,
         estimates,
         opts,
         args.refine_models.as_deref(),
-        args.visible_boxes,
+        BoxSource::new(args.visible_boxes, detections.as_ref())?,
         printer.progress(),
     )
     .with_context(|| format!("cannot refine the estimates on {}", args.data.display()))?;
@@ -214,11 +223,16 @@ fn refined(
         summary.mean_cost_after_px,
         summary.seconds
     ));
-    if args.visible_boxes == VisibleBoxes::Gt {
-        printer.info(format!(
+    match args.visible_boxes {
+        VisibleBoxes::Gt => printer.info(format!(
             "{} of {} refined estimates kept to their GT visible box (the others: no GT instance of their object in their image)",
             summary.with_box, summary.refined
-        ));
+        )),
+        VisibleBoxes::Detected => printer.info(format!(
+            "{} of {} refined estimates kept to a detection's box (the others: no detection of their object in their image)",
+            summary.with_box, summary.refined
+        )),
+        VisibleBoxes::None => {}
     }
     if let Some(dir) = &args.refine_models {
         printer.info(format!(
@@ -263,6 +277,19 @@ impl CentreAcc {
     }
 }
 
+/// The boxes of a detections file as the crops and the refinement read them.
+fn crop_boxes(path: &Path) -> Result<CropBoxes> {
+    let d = read_detections(path)
+        .with_context(|| format!("cannot read the detections {}", path.display()))?;
+    let mut out = CropBoxes::new();
+    for det in d.iter() {
+        out.entry((det.scene_id, det.image_id, det.category_id))
+            .or_default()
+            .push(det.bop_box());
+    }
+    Ok(out)
+}
+
 fn run_checkpoint(args: &EvalRequest, ckpt: &Path, printer: &Printer<'_>) -> Result<()> {
     let config_path = ckpt.with_file_name(CONFIG_FILE);
     if !config_path.exists() {
@@ -291,17 +318,38 @@ fn run_checkpoint(args: &EvalRequest, ckpt: &Path, printer: &Printer<'_>) -> Res
             "save the results of a full or rgb checkpoint",
         ));
     }
+    if args.detections.is_some() && !cfg.model.is_rgb_only() {
+        return Err(user_error(
+            format!(
+                "--detections gives the RGB models their crops, and this is a {} checkpoint",
+                cfg.model.name()
+            ),
+            "evaluate an rgb or rgb-dense checkpoint with --detections",
+        ));
+    }
     let device = train::device(args.cuda)?;
     let model = load_model(ckpt, &cfg, &device)?;
     let opts = DataOptions {
         min_visib_fract: args.min_visib_fract,
         seed: args.seed,
         split: args.split.clone(),
+        crop_boxes: match &args.detections {
+            Some(path) => Some(std::sync::Arc::new(crop_boxes(path)?)),
+            None => None,
+        },
         ..cfg.data_options()
     };
     let ds = open_dataset(&args.data)?;
     let mut set = load_source_instances(ds.as_ref(), &opts, printer)
         .with_context(|| format!("cannot load {}", args.data.display()))?;
+    if let Some(path) = &args.detections {
+        printer.info(format!(
+            "{} instances cropped from the boxes of {}; {} without a detection of their object get no estimate (scored as misses)",
+            set.instances.len(),
+            path.display(),
+            set.skipped_undetected
+        ));
+    }
     if cfg.model.is_rgb_only() {
         // One head per trained object: others get no estimate (and so count as misses).
         let before = set.instances.len();
@@ -373,10 +421,17 @@ fn run_checkpoint(args: &EvalRequest, ckpt: &Path, printer: &Printer<'_>) -> Res
         set.skipped_few_pixels
     ));
     if cfg.model.is_rgb_only() {
-        printer.info(format!(
-            "{}: each instance's crop is cut around its GT visible box (bbox_visib; no detector)",
-            cfg.model.name()
-        ));
+        printer.info(match &args.detections {
+            Some(path) => format!(
+                "{}: each instance's crop is cut around a detection of its object ({}; no GT box)",
+                cfg.model.name(),
+                path.display()
+            ),
+            None => format!(
+                "{}: each instance's crop is cut around its GT visible box (bbox_visib; no detector)",
+                cfg.model.name()
+            ),
+        });
     }
     if cfg.model == ModelKind::Rnet {
         printer.warning(

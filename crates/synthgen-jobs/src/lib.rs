@@ -29,6 +29,7 @@ mod log;
 pub mod align;
 pub mod annotate;
 pub mod convert;
+pub mod detect;
 pub mod eval;
 pub mod fit;
 pub mod merge;

@@ -20,6 +20,7 @@ use synthgen_fit::edge_refine::{
 use synthgen_formats::bop::image::read_rgb;
 use synthgen_formats::source::{FrameSource, SourceFrame};
 use synthgen_train::bop::{eval_model_paths, load_render_models};
+use synthgen_train::data::CropBoxes;
 use synthgen_train::results::{Estimate, RawPose};
 
 /// The refined region's side over the side of the estimate's projected model box.
@@ -59,6 +60,35 @@ pub enum VisibleBoxes {
     /// projected origin): the box an RGB model's crop comes from with GT boxes. Numbers made
     /// with it are numbers with GT boxes.
     Gt,
+    /// The detections of the estimate's object in its image (a detector's boxes, as
+    /// `eval --detections` crops from), the one nearest the estimate: numbers without GT boxes.
+    Detected,
+}
+
+/// Where [`refine_estimates`] reads each instance's visible box from: [`VisibleBoxes`] with
+/// the detections' boxes.
+#[derive(Debug, Clone, Copy)]
+pub enum BoxSource<'a> {
+    None,
+    Gt,
+    Detected(&'a CropBoxes),
+}
+
+impl<'a> BoxSource<'a> {
+    /// `boxes`, reading `detections` when it is [`VisibleBoxes::Detected`] (refused without).
+    pub fn new(boxes: VisibleBoxes, detections: Option<&'a CropBoxes>) -> Result<BoxSource<'a>> {
+        Ok(match (boxes, detections) {
+            (VisibleBoxes::None, _) => BoxSource::None,
+            (VisibleBoxes::Gt, _) => BoxSource::Gt,
+            (VisibleBoxes::Detected, Some(d)) => BoxSource::Detected(d),
+            (VisibleBoxes::Detected, None) => {
+                return Err(crate::user_error(
+                    "the visible box from detections needs the detections",
+                    "pass --detections FILE (the boxes of `synthgen detector run`)",
+                ))
+            }
+        })
+    }
 }
 
 /// The GT visible boxes (`[x, y, w, h]`) of `frame`'s instances of `obj_id`.
@@ -143,14 +173,14 @@ fn region(points: &[DVec3], pose: &Pose, k: &synthgen_core::Intrinsics) -> Optio
 /// of the dataset's models (a dataset whose models carry no texture, as YCB-Video's own);
 /// objects without a subfolder keep their dataset model's colours. The contour is always the
 /// dataset model's. `boxes`: what of each instance shows, when the refinement should keep to
-/// it ([`VisibleBoxes`]).
+/// it ([`BoxSource`]).
 pub fn refine_estimates(
     ds: &dyn FrameSource,
     split: &str,
     estimates: &[Estimate],
     opts: &EdgeRefineOptions,
     colour_models: Option<&Path>,
-    boxes: VisibleBoxes,
+    boxes: BoxSource<'_>,
     progress: &dyn Progress,
 ) -> Result<(Vec<Estimate>, RefineSummary)> {
     let started = Instant::now();
@@ -254,15 +284,21 @@ pub fn refine_estimates(
             };
             let img = read_rgb(&f.rgb)?;
             let k = f.camera.intrinsics(img.width, img.height);
-            // With GT boxes: the frame's visible boxes of each estimated object.
+            // With boxes: the frame's visible boxes (GT, or detected) of each estimated object.
             let mut frame_boxes: BTreeMap<u32, Vec<[f64; 4]>> = BTreeMap::new();
-            if boxes == VisibleBoxes::Gt {
-                for &i in idx {
-                    let obj = estimates[i].obj_id;
-                    if let std::collections::btree_map::Entry::Vacant(v) = frame_boxes.entry(obj) {
-                        v.insert(gt_boxes(f, obj)?);
-                    }
+            for &i in idx {
+                let obj = estimates[i].obj_id;
+                if frame_boxes.contains_key(&obj) {
+                    continue;
                 }
+                let found = match boxes {
+                    BoxSource::None => continue,
+                    BoxSource::Gt => gt_boxes(f, obj)?,
+                    BoxSource::Detected(d) => {
+                        d.get(&(frame.0, frame.1, obj)).cloned().unwrap_or_default()
+                    }
+                };
+                frame_boxes.insert(obj, found);
             }
             let mut out = Vec::with_capacity(idx.len());
             for &i in idx {

@@ -4,7 +4,7 @@
 //! colour around the box ([`BoxRegion`]) instead of the points, and the GT pose.
 //! Loaded in parallel, kept in memory.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
 use rand::seq::index::sample;
@@ -47,7 +47,16 @@ pub struct DataOptions {
     /// Perturbations of the visible pixels, for training on synthetic frames (none: the
     /// instances as rendered).
     pub augment: Augment,
+    /// Boxes the RGB models' crops come from instead of the GT visible boxes (a detector's);
+    /// an instance without one is left out (counted in `skipped_undetected`).
+    pub crop_boxes: Option<std::sync::Arc<CropBoxes>>,
 }
+
+/// Per (scene, image, object), boxes `[x, y, w, h]` read as `bbox_visib` (last pixel
+/// `x + w`), best first: the `k`-th instance of an object in an image (in GT order, among
+/// those loaded) is cropped from its `k`-th box. Which box goes with which instance does not
+/// matter: the estimates are matched to the GT when scored.
+pub type CropBoxes = BTreeMap<(u32, u32, u32), Vec<[f64; 4]>>;
 
 /// Perturbations of each instance's visible pixels before its points are drawn, toward what
 /// real frames give a model that synthetic ones do not: a segmenter's mask boundary, bleeding
@@ -88,6 +97,7 @@ impl Default for DataOptions {
             seed: 0,
             split: None,
             augment: Augment::default(),
+            crop_boxes: None,
         }
     }
 }
@@ -126,6 +136,8 @@ pub struct InstanceSet {
     pub frames: usize,
     pub skipped_low_visib: usize,
     pub skipped_few_pixels: usize,
+    /// Instances without a box in [`DataOptions::crop_boxes`].
+    pub skipped_undetected: usize,
 }
 
 impl InstanceSet {
@@ -192,6 +204,7 @@ enum Outcome {
     Instance(Box<Instance>),
     LowVisib,
     FewPixels,
+    Undetected,
 }
 
 fn load_frame(frame: &SourceFrame, opts: &DataOptions) -> Result<Vec<Outcome>> {
@@ -238,7 +251,27 @@ fn load_frame(frame: &SourceFrame, opts: &DataOptions) -> Result<Vec<Outcome>> {
     } else {
         None
     };
+    // Per object, the instances met so far: the rank of its crop box.
+    let mut rank: BTreeMap<u32, usize> = BTreeMap::new();
     for gt_id in wanted {
+        let detected = match &opts.crop_boxes {
+            Some(boxes) => {
+                let obj_id = gts[gt_id].obj_id;
+                let r = rank.entry(obj_id).or_insert(0);
+                *r += 1;
+                match boxes
+                    .get(&(scene_id, im_id, obj_id))
+                    .and_then(|v| v.get(*r - 1))
+                {
+                    Some(b) => Some(*b),
+                    None => {
+                        out.push(Outcome::Undetected);
+                        continue;
+                    }
+                }
+            }
+            None => None,
+        };
         // No visible mask (a Linemod object without a folder entry for the frame): no
         // visible pixels; except for the RGB models on a dataset without masks and depth
         // (Linemod-Occluded's BOP test images): they read only the colour inside
@@ -333,8 +366,12 @@ fn load_frame(frame: &SourceFrame, opts: &DataOptions) -> Result<Vec<Outcome>> {
             }
             None => (Vec::new(), Vec::new()),
         };
-        // bbox_visib when known, else the bounding box of the valid pixels.
+        // The detector's box; else bbox_visib when known, else the bounding box of the valid
+        // pixels.
         let bbox = || {
+            if let Some(b) = detected {
+                return b;
+            }
             infos
                 .and_then(|i| i.get(gt_id))
                 .map(|i| i.bbox_visib)
@@ -540,6 +577,7 @@ pub fn load_source_instances(
             Outcome::Instance(i) => set.instances.push(*i),
             Outcome::LowVisib => set.skipped_low_visib += 1,
             Outcome::FewPixels => set.skipped_few_pixels += 1,
+            Outcome::Undetected => set.skipped_undetected += 1,
         }
     }
     Ok(set)

@@ -102,31 +102,45 @@ pub fn dense_augment(
             }
         }
     }
+    blur_and_noise(crop, size, size, &mut rng);
+}
+
+/// With probability 1/3 a 3×3 box blur, then Gaussian-like noise of 0–6 levels (the sum of
+/// three uniforms), of a `w × h` RGB image in place.
+fn blur_and_noise(img: &mut [u8], w: u32, h: u32, rng: &mut ChaCha8Rng) {
+    let (w, h) = (w as usize, h as usize);
     if rng.gen_bool(1.0 / 3.0) {
-        let src = crop.to_vec();
-        for y in 0..s {
-            for x in 0..s {
+        let src = img.to_vec();
+        for y in 0..h {
+            for x in 0..w {
                 for c in 0..3 {
                     let mut sum = 0u32;
                     let mut n = 0u32;
-                    for yy in y.saturating_sub(1)..=(y + 1).min(s - 1) {
-                        for xx in x.saturating_sub(1)..=(x + 1).min(s - 1) {
-                            sum += u32::from(src[(yy * s + xx) * 3 + c]);
+                    for yy in y.saturating_sub(1)..=(y + 1).min(h - 1) {
+                        for xx in x.saturating_sub(1)..=(x + 1).min(w - 1) {
+                            sum += u32::from(src[(yy * w + xx) * 3 + c]);
                             n += 1;
                         }
                     }
-                    crop[(y * s + x) * 3 + c] = ((sum + n / 2) / n) as u8;
+                    img[(y * w + x) * 3 + c] = ((sum + n / 2) / n) as u8;
                 }
             }
         }
     }
     let sigma = rng.gen_range(0.0..=6.0);
     if sigma > 0.5 {
-        for v in crop.iter_mut() {
+        for v in img.iter_mut() {
             let e: f64 = (0..3).map(|_| rng.gen_range(-1.0..=1.0)).sum::<f64>() * sigma;
             *v = (f64::from(*v) + e).round().clamp(0.0, 255.0) as u8;
         }
     }
+}
+
+/// The RGB models' photometric augmentation of a whole `w × h` image (the detector's
+/// training frames): the colour jitter of the crops, then [`dense_augment`]'s blur and noise.
+pub fn photometric_augment(img: &mut [u8], w: u32, h: u32, rng: &mut ChaCha8Rng) {
+    jitter_colours(img, rng);
+    blur_and_noise(img, w, h, rng);
 }
 
 /// One instance's model input: the crop and the box it was cut from.

@@ -83,6 +83,8 @@ pub enum VisibleBoxArg {
     /// Each instance's GT visible box (bbox_visib, else its visible mask's box): what a
     /// checkpoint's crops come from; the numbers are then numbers with GT boxes.
     Gt,
+    /// The --detections box of the estimate's object nearest it (a detector's): no GT box.
+    Detected,
 }
 
 impl From<VisibleBoxArg> for synthgen_jobs::rgb_refine::VisibleBoxes {
@@ -90,6 +92,7 @@ impl From<VisibleBoxArg> for synthgen_jobs::rgb_refine::VisibleBoxes {
         match b {
             VisibleBoxArg::None => Self::None,
             VisibleBoxArg::Gt => Self::Gt,
+            VisibleBoxArg::Detected => Self::Detected,
         }
     }
 }
@@ -357,9 +360,17 @@ pub struct EvalArgs {
     /// as on a bare background however near an occluder's edge it falls, and an outline that
     /// does not reach each side of the box pays for the gap (--box-gap-weight). `gt`: the GT
     /// visible box (BOP's bbox_visib), the box a checkpoint's crops come from; numbers made
-    /// with it are numbers with GT boxes (LM-O: docs/experiments.md). Default: none.
+    /// with it are numbers with GT boxes (LM-O: docs/experiments.md). `detected`: the box of
+    /// --detections nearest the estimate. Default: none.
     #[arg(long, value_enum, default_value_t = VisibleBoxArg::None)]
     pub visible_box: VisibleBoxArg,
+
+    /// A detections file (BOP's format, as `synthgen detector run` writes it): an RGB
+    /// checkpoint's crops come from its boxes instead of the GT boxes (per image and object,
+    /// the best as many as the object has GT instances; an instance without one gets no
+    /// estimate and counts as a miss), and --visible-box detected reads them.
+    #[arg(long, value_name = "FILE")]
+    pub detections: Option<PathBuf>,
 
     /// With --visible-box: what each pixel by which the box reaches beyond the outline costs,
     /// summed over its four sides, pixels of edge cost per pixel of gap. Default: 0.1; 0: the

@@ -58,6 +58,21 @@ pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
             "add --refine views (or edges), or drop --visible-box",
         ));
     }
+    if args.visible_box == VisibleBoxArg::Detected && args.detections.is_none() {
+        return Err(synthgen_jobs::user_error(
+            "--visible-box detected reads the boxes of --detections, and none is given",
+            "add --detections FILE (written by `synthgen detector run`), or use --visible-box gt",
+        ));
+    }
+    if args.detections.is_some()
+        && args.checkpoint.is_none()
+        && args.visible_box != VisibleBoxArg::Detected
+    {
+        return Err(synthgen_jobs::user_error(
+            "--detections gives a checkpoint its crops or the refinement its boxes, and neither reads them here",
+            "add --checkpoint FILE, or --refine views --visible-box detected",
+        ));
+    }
     let mut refine = match args.refine {
         RgbRefineArg::None => None,
         RgbRefineArg::Edges => Some(EdgeRefineOptions::default()),
@@ -100,6 +115,7 @@ pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
         refine,
         refine_models: args.refine_models,
         visible_boxes: args.visible_box.into(),
+        detections: args.detections,
     };
     if request.save_results.is_some() && request.checkpoint.is_none() && request.refine.is_none() {
         return Err(synthgen_jobs::user_error(

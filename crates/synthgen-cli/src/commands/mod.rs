@@ -2,6 +2,7 @@
 
 pub mod annotate;
 pub mod convert;
+pub mod detector;
 pub mod eval;
 pub mod experiment;
 pub mod export;

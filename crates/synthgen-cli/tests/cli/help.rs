@@ -112,6 +112,16 @@ fn experiment_rgb_help() {
 }
 
 #[test]
+fn detector_train_help() {
+    check_snapshot("detector_train_help.txt", &["detector", "train", "--help"]);
+}
+
+#[test]
+fn detector_run_help() {
+    check_snapshot("detector_run_help.txt", &["detector", "run", "--help"]);
+}
+
+#[test]
 fn model_align_help() {
     check_snapshot("model_align_help.txt", &["model", "align", "--help"]);
 }

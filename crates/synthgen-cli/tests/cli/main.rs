@@ -13,6 +13,7 @@ mod careless;
 mod coco;
 mod common;
 mod corpus;
+mod detector;
 mod errors;
 mod experiment;
 mod help;

@@ -8,7 +8,7 @@ use crate::common::{refused, repo_root, run, stderr, synthgen, ycbv_real};
 
 /// Renders `frames` small frames of the sample driller as two classes (ids 8 and 9) into
 /// `dir/name`.
-fn two_class_set(dir: &Path, name: &str, frames: &str, seed: &str) -> PathBuf {
+pub(crate) fn two_class_set(dir: &Path, name: &str, frames: &str, seed: &str) -> PathBuf {
     let out = dir.join(name);
     let mesh = repo_root().join("datasets/meshes/driller.ply");
     let o = run(synthgen()
@@ -65,7 +65,7 @@ fn train_rgb(data: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
         .args(extra))
 }
 
-fn json_file(path: &Path) -> serde_json::Value {
+pub(crate) fn json_file(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 

@@ -42,7 +42,7 @@ use crate::settings::{read_row_file, row_dir, ROW_FILE};
 use crate::user_error;
 use crate::Log;
 use synthgen_fit::edge_refine::EdgeRefineOptions;
-use synthgen_jobs::rgb_refine::{refine_estimates, VisibleBoxes};
+use synthgen_jobs::rgb_refine::{refine_estimates, BoxSource, VisibleBoxes};
 
 /// Instances below this visible fraction are neither trained on nor scored (BOP's rule).
 const MIN_VISIB_FRACT: f64 = 0.1;
@@ -255,6 +255,12 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
                 "drop the flag (the RGB models augment their crops themselves: colour, blur, noise, occluders, box jitter)",
             ));
         }
+    }
+    if args.visible_box == VisibleBoxes::Detected {
+        return Err(user_error(
+            "--visible-box detected: the experiment crops and refines with GT boxes",
+            "use --visible-box gt here; for detections, `synthgen detector run` then `synthgen eval --detections FILE --visible-box detected`",
+        ));
     }
     if args.visible_box != VisibleBoxes::None
         && !matches!(args.refine, Refine::Edges | Refine::Views)
@@ -823,7 +829,7 @@ fn train_row(
             &estimates,
             opts,
             s.colour_models.as_deref(),
-            s.visible_box,
+            BoxSource::new(s.visible_box, None)?,
             &NoProgress,
         )?;
         estimates = refined;
@@ -1039,6 +1045,7 @@ fn markdown(s: &RgbSettings, rows: &[RgbRow], notes: &[String]) -> String {
             match s.visible_box {
                 VisibleBoxes::None => "",
                 VisibleBoxes::Gt => ", `--visible-box gt`: each kept to its instance's GT visible box",
+                VisibleBoxes::Detected => ", `--visible-box detected`: each kept to its detection",
             }
         );
         for r in refined {

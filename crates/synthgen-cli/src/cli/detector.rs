@@ -1,0 +1,155 @@
+//! Arguments of `synthgen detector train` and `synthgen detector run`.
+
+use std::path::PathBuf;
+
+use clap::{Args, Subcommand};
+
+use super::DeviceArg;
+
+#[derive(Debug, Subcommand)]
+pub enum DetectorCommand {
+    /// Train the box detector (a centre heatmap per object over whole frames) on a dataset's
+    /// visible boxes; checkpoints after every epoch.
+    #[command(after_long_help = DETECTOR_TRAIN_EXAMPLES)]
+    Train(DetectorTrainArgs),
+    /// Run a trained detector over a dataset's frames and write the boxes as BOP detections
+    /// (JSON), with the recall per object where the frames have GT.
+    #[command(after_long_help = DETECTOR_RUN_EXAMPLES)]
+    Run(DetectorRunArgs),
+}
+
+pub const DETECTOR_TRAIN_EXAMPLES: &str = "Examples:
+  # A detector of the eight LM-O objects from the synthetic frames the pose model learns from:
+  synthgen detector train --data data/lmo_synth --out runs/det
+
+  # Fewer epochs, a larger input (objects smaller than ~40 px want one):
+  synthgen detector train --data data/lmo_synth --out runs/det320 --epochs 20 --input 320x240
+
+  # Continue a stopped run from its last epoch:
+  synthgen detector train --data data/lmo_synth --out runs/det --resume
+
+Every frame is resampled to --input (160x120: a quarter of a 640x480 frame); the map is a
+quarter of that. Training windows zoom the frame by 1 to 1.4 at a random place, with colour
+jitter, blur and noise. The boxes to find are the instances' visible boxes (scene_gt_info's
+bbox_visib, else the visible masks') with visib_fract >= --min-visib-fract. Writes
+OUT/config.json, OUT/model.safetensors and OUT/state.json after every epoch and a line of
+OUT/metrics.jsonl (loss, and the recall at IoU 0.5 of the held-out frames' boxes).";
+
+pub const DETECTOR_RUN_EXAMPLES: &str = "Examples:
+  # The boxes of the 82 real LM-O photographs, then the RGB model cropped from them:
+  synthgen detector run --checkpoint runs/det --data ../shared/data/lmo --out det_lmo.json
+  synthgen eval --checkpoint runs/dense/model.safetensors --data ../shared/data/lmo \\
+      --detections det_lmo.json --refine views --visible-box detected --bop
+
+The file is BOP's detections format (the BOP 2023 default detections, COCO results): a list
+of {\"scene_id\", \"image_id\", \"category_id\", \"score\", \"bbox\": [x, y, width, height],
+\"time\"}. Per frame and object, the heatmap's local maxima scoring at least --min-score, at
+most --per-class of them. Where the frames have GT, a table of the recall per object: the
+share of visible boxes (visib_fract >= the training's) that the object's best detections,
+as many as it has instances, overlap at IoU >= 0.5.";
+
+#[derive(Debug, Args)]
+pub struct DetectorTrainArgs {
+    /// The training dataset (BOP, Linemod or YCB-Video).
+    #[arg(long, value_name = "DIR")]
+    pub data: PathBuf,
+
+    /// The run folder.
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+
+    /// The split to train on (default: test, else the only split).
+    #[arg(long)]
+    pub split: Option<String>,
+
+    /// The object ids to detect (default: every object of the split).
+    #[arg(long, value_delimiter = ',', num_args = 1.., value_name = "ID")]
+    pub objects: Vec<u32>,
+
+    #[arg(long, default_value_t = 30)]
+    pub epochs: usize,
+
+    /// Frames per step.
+    #[arg(long, default_value_t = 16)]
+    pub batch: usize,
+
+    #[arg(long, default_value_t = 2e-3)]
+    pub lr: f64,
+
+    /// The network's input, WIDTHxHEIGHT, multiples of 8.
+    #[arg(long, default_value = "160x120", value_parser = parse_size)]
+    pub input: [u32; 2],
+
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+
+    /// Share of the frames held out for validation.
+    #[arg(long, default_value_t = 0.1)]
+    pub val_fraction: f64,
+
+    /// Instances less visible than this are not boxes to find.
+    #[arg(long, default_value_t = 0.1)]
+    pub min_visib_fract: f64,
+
+    /// Continue the run in --out from its checkpoint (--epochs may be raised).
+    #[arg(long, conflicts_with = "force")]
+    pub resume: bool,
+
+    /// Replace a run already in --out.
+    #[arg(long)]
+    pub force: bool,
+
+    /// Worker threads (default: all cores).
+    #[arg(long, short = 'j')]
+    pub jobs: Option<usize>,
+
+    #[arg(long, value_enum, default_value = "cpu")]
+    pub device: DeviceArg,
+}
+
+#[derive(Debug, Args)]
+pub struct DetectorRunArgs {
+    /// The detector's run folder (or its model.safetensors, config.json beside it).
+    #[arg(long, value_name = "PATH")]
+    pub checkpoint: PathBuf,
+
+    /// The frames to detect in (BOP, Linemod or YCB-Video).
+    #[arg(long, value_name = "DIR")]
+    pub data: PathBuf,
+
+    /// The detections file to write (JSON).
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+
+    /// The split (default: test, else the only split).
+    #[arg(long)]
+    pub split: Option<String>,
+
+    /// Peaks scoring less are not detections.
+    #[arg(long, default_value_t = 0.05)]
+    pub min_score: f64,
+
+    /// At most this many detections per object and frame.
+    #[arg(long, default_value_t = 10)]
+    pub per_class: usize,
+
+    /// Worker threads (default: all cores).
+    #[arg(long, short = 'j')]
+    pub jobs: Option<usize>,
+
+    #[arg(long, value_enum, default_value = "cpu")]
+    pub device: DeviceArg,
+}
+
+/// "160x120" → [160, 120].
+fn parse_size(s: &str) -> Result<[u32; 2], String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("{s}: expected WIDTHxHEIGHT, e.g. 160x120"))?;
+    let p = |v: &str| {
+        v.trim()
+            .parse::<u32>()
+            .map_err(|_| format!("{s}: expected WIDTHxHEIGHT, e.g. 160x120"))
+    };
+    Ok([p(w)?, p(h)?])
+}
