@@ -566,6 +566,17 @@ fn rgb_sim2real_fits_the_scene_and_takes_replacement_models() {
             vec!["--model", "rgb-dense", "--visible-box", "gt"],
             vec!["--visible-box", "nothing is refined", "--refine views"],
         ),
+        (
+            vec![
+                "--model",
+                "rgb-dense",
+                "--refine",
+                "views",
+                "--visible-box",
+                "detected",
+            ],
+            vec!["--visible-box detected", "GT boxes", "--detections"],
+        ),
     ] {
         let mut args = vec!["--test-scenes", "0"];
         args.extend(extra);
