@@ -7,11 +7,11 @@
 //! `synthgen detect` writes them; `synthgen eval --detections` crops the RGB models' input
 //! from them instead of the GT boxes ([`Detections::box_for`]).
 
-use std::collections::BTreeMap;
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use synthgen_train::data::CropBoxes;
 use synthgen_train::{Error, Result};
 
 /// One detection.
@@ -58,66 +58,26 @@ impl Detection {
     }
 }
 
-/// Detections by image and object, each list best first.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Detections {
-    by_object: BTreeMap<(u32, u32, u32), Vec<Detection>>,
-    pub count: usize,
-}
-
-impl Detections {
-    pub fn new(list: Vec<Detection>) -> Detections {
-        let count = list.len();
-        let mut by_object: BTreeMap<(u32, u32, u32), Vec<Detection>> = BTreeMap::new();
-        for d in list {
-            by_object
-                .entry((d.scene_id, d.image_id, d.category_id))
-                .or_default()
-                .push(d);
-        }
-        for v in by_object.values_mut() {
-            v.sort_by(|a, b| b.score.total_cmp(&a.score));
-        }
-        Detections { by_object, count }
+/// The boxes of `list` as the RGB models' crops and the refinement read them: per (scene,
+/// image, object), best score first, as `bbox_visib` reads ([`Detection::bop_box`]). The
+/// `rank`-th instance of an object in an image is cropped from its `rank`-th box (BOP's
+/// localization task knows how many instances each image shows; which detection goes with
+/// which instance does not matter, the estimates are matched to the GT when scored).
+pub fn crop_boxes(list: &[Detection]) -> CropBoxes {
+    let mut sorted: Vec<&Detection> = list.iter().collect();
+    sorted.sort_by(|a, b| b.score.total_cmp(&a.score));
+    let mut out = CropBoxes::new();
+    for d in sorted {
+        out.entry((d.scene_id, d.image_id, d.category_id))
+            .or_default()
+            .push(d.bop_box());
     }
-
-    /// The `rank`-th best detection (0: the best) of `obj_id` in an image, if there are that
-    /// many: the box the `rank`-th instance of the object in the image is cropped from (BOP's
-    /// localization task knows how many instances each image shows; which detection goes
-    /// with which instance does not matter, the estimates are matched to the GT when scored).
-    pub fn box_for(
-        &self,
-        scene_id: u32,
-        im_id: u32,
-        obj_id: u32,
-        rank: usize,
-    ) -> Option<&Detection> {
-        self.by_object.get(&(scene_id, im_id, obj_id))?.get(rank)
-    }
-
-    /// The detections of `obj_id` in an image, best first.
-    pub fn of(&self, scene_id: u32, im_id: u32, obj_id: u32) -> &[Detection] {
-        self.by_object
-            .get(&(scene_id, im_id, obj_id))
-            .map_or(&[], Vec::as_slice)
-    }
-
-    pub fn iter(&self) -> impl Iterator<Item = &Detection> {
-        self.by_object.values().flatten()
-    }
-}
-
-pub(crate) fn io(op: &'static str, path: &Path, source: std::io::Error) -> Error {
-    Error::Io {
-        op,
-        source,
-        path: path.to_path_buf(),
-    }
+    out
 }
 
 /// Reads a detections file; a malformed one is an error naming it and the entry.
-pub fn read_detections(path: &Path) -> Result<Detections> {
-    let text = std::fs::read_to_string(path).map_err(|e| io("read", path, e))?;
+pub fn read_detections(path: &Path) -> Result<Vec<Detection>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io("read", path, e))?;
     let malformed = |message: String| Error::Malformed {
         what: "detections file",
         message,
@@ -141,15 +101,14 @@ pub fn read_detections(path: &Path) -> Result<Detections> {
         }
         list.push(d);
     }
-    Ok(Detections::new(list))
+    Ok(list)
 }
 
 /// Writes detections as a JSON list (atomically).
 pub fn write_detections(path: &Path, list: &[Detection]) -> Result<()> {
     let text =
         serde_json::to_string_pretty(list).map_err(|e| Error::InvalidOption(e.to_string()))?;
-    synthgen_core::atomic::write_atomic(path, (text + "\n").as_bytes(), false)
-        .map_err(|(_, e)| io("write", path, e))
+    synthgen_train::train::write_atomic(path, (text + "\n").as_bytes())
 }
 
 #[cfg(test)]
@@ -168,19 +127,15 @@ mod tests {
         )
         .unwrap();
         let d = read_detections(&path).unwrap();
-        assert_eq!(d.count, 2);
-        assert_eq!(d.box_for(2, 3, 5, 0).unwrap().score, 0.9);
+        assert_eq!(d.len(), 2);
+        let boxes = crop_boxes(&d);
+        // Best first (score 0.9, then 0.4), and COCO's width is one more than bbox_visib's.
         assert_eq!(
-            d.box_for(2, 3, 5, 1).unwrap().bbox,
-            [10.0, 20.0, 30.0, 40.0]
+            boxes[&(2, 3, 5)],
+            vec![[11.0, 21.0, 30.0, 40.0], [10.0, 20.0, 29.0, 39.0]]
         );
-        assert!(d.box_for(2, 3, 5, 2).is_none());
-        assert!(d.box_for(2, 3, 6, 0).is_none());
-        // COCO's width is one more than bbox_visib's.
-        assert_eq!(
-            d.box_for(2, 3, 5, 1).unwrap().bop_box(),
-            [10.0, 20.0, 29.0, 39.0]
-        );
+        assert!(!boxes.contains_key(&(2, 3, 6)));
+        assert_eq!(d[0].bop_box(), [10.0, 20.0, 29.0, 39.0]);
         let gt = Detection::from_bop_box(2, 3, 5, [10, 20, 29, 39]);
         assert_eq!(gt.bop_box(), [10.0, 20.0, 29.0, 39.0]);
 

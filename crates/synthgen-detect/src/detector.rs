@@ -26,10 +26,13 @@ use synthgen_core::Progress;
 use synthgen_formats::bop::read_rgb;
 use synthgen_formats::source::{FrameSource, SourceFrame};
 
-use synthgen_train::train::{Schedule, CONFIG_FILE, METRICS_FILE, MODEL_FILE, STATE_FILE};
+use synthgen_train::train::{
+    read_json, save_checkpoint, write_atomic, Schedule, TrainState, CONFIG_FILE, METRICS_FILE,
+    MODEL_FILE, STATE_FILE,
+};
 use synthgen_train::{Error, Result};
 
-use crate::detections::{io, Detection};
+use crate::detections::Detection;
 use crate::net::{detector_loss, DetOut, DetectorNet, DET_STRIDE};
 
 /// Everything that defines a detector run; `config.json` beside the checkpoint.
@@ -121,39 +124,9 @@ impl DetectorConfig {
     }
 
     fn lr_at(&self, step: usize, total: usize, epoch: usize) -> f64 {
-        match self.schedule {
-            Schedule::Constant => self.lr,
-            Schedule::Step => {
-                if epoch * 3 >= self.epochs * 2 {
-                    self.lr / 10.0
-                } else {
-                    self.lr
-                }
-            }
-            Schedule::Cosine => {
-                let t = step as f64 / total.max(1) as f64;
-                let min = self.lr / 100.0;
-                min + (self.lr - min) * 0.5 * (1.0 + (std::f64::consts::PI * t).cos())
-            }
-        }
+        self.schedule
+            .lr_at(self.lr, self.epochs, step, total, epoch)
     }
-}
-
-fn io_err(op: &'static str, path: impl AsRef<Path>, e: std::io::Error) -> Error {
-    io(op, path.as_ref(), e)
-}
-
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    synthgen_core::atomic::write_atomic(path, bytes, false).map_err(|(_, e)| io("write", path, e))
-}
-
-fn read_json<T: serde::de::DeserializeOwned>(path: &Path, what: &'static str) -> Result<T> {
-    let text = std::fs::read_to_string(path).map_err(|e| io("read", path, e))?;
-    serde_json::from_str(&text).map_err(|e| Error::Malformed {
-        what,
-        message: e.to_string(),
-        path: path.to_path_buf(),
-    })
 }
 
 /// A decoded peak: class index, score, `[x0, y0, x1, y1]` (pixels).
@@ -214,7 +187,7 @@ pub fn resample(rgb: &[u8], w: u32, h: u32, window: [f64; 4], ow: u32, oh: u32) 
 }
 
 /// The visible boxes of a frame's instances with `visib_fract >= min` whose object is one of
-/// `classes`: `bbox_visib` when the frame has `scene_gt_info`, else the visible mask's box.
+/// `classes` ([`SourceFrame::visible_bbox`]).
 fn frame_boxes(frame: &SourceFrame, classes: &[u32], min: f64) -> Result<Vec<ClassBox>> {
     let mut out = Vec::new();
     for (gt_id, g) in frame.gt.iter().enumerate() {
@@ -225,17 +198,9 @@ fn frame_boxes(frame: &SourceFrame, classes: &[u32], min: f64) -> Result<Vec<Cla
         if info.map_or(1.0, |i| i.visib_fract) < min {
             continue;
         }
-        let b = match (info, frame.masks_visib.get(gt_id).and_then(Option::as_ref)) {
-            (Some(i), _) => i.bbox_visib,
-            (None, Some(m)) => {
-                let plane = m.read()?;
-                synthgen_core::annotate::mask_bbox(&plane.data, plane.width)
-            }
-            (None, None) => continue,
-        };
-        if b[2] < 0 || b[3] < 0 {
+        let Some(b) = frame.visible_bbox(gt_id)? else {
             continue;
-        }
+        };
         let [x, y, w, h] = b.map(f64::from);
         out.push((class, [x, y, x + w + 1.0, y + h + 1.0]));
     }
@@ -620,13 +585,6 @@ pub struct DetectorEpoch {
     pub seconds: f64,
 }
 
-/// `state.json` of a detector run.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct DetectorState {
-    pub epochs_done: usize,
-    pub steps_done: usize,
-}
-
 /// What a finished run reports.
 #[derive(Debug, Clone)]
 pub struct DetectorOutcome {
@@ -659,7 +617,7 @@ pub fn train_detector(
     progress: &dyn Progress,
 ) -> Result<DetectorOutcome> {
     cfg.validate()?;
-    std::fs::create_dir_all(out).map_err(|e| io_err("create directory", out, e))?;
+    std::fs::create_dir_all(out).map_err(|e| Error::io("create directory", out, e))?;
     let frames = load_frames(ds, cfg, progress)?;
     let mut order: Vec<usize> = (0..frames.len()).collect();
     order.shuffle(&mut ChaCha8Rng::seed_from_u64(splitmix64(
@@ -682,7 +640,7 @@ pub fn train_detector(
     }
     let model_path = out.join(MODEL_FILE);
     let (det, state, mut history) = if resume {
-        let state: DetectorState = read_json(&out.join(STATE_FILE), "state.json")?;
+        let state: TrainState = read_json(&out.join(STATE_FILE), "state.json")?;
         let det = Detector::load(&model_path, device)?;
         let text = std::fs::read_to_string(out.join(METRICS_FILE)).unwrap_or_default();
         let history: Vec<DetectorEpoch> = text
@@ -694,7 +652,7 @@ pub fn train_detector(
     } else {
         (
             Detector::new(cfg.clone(), device)?,
-            DetectorState {
+            TrainState {
                 epochs_done: 0,
                 steps_done: 0,
             },
@@ -786,14 +744,14 @@ pub fn train_detector(
             lr,
             seconds: started.elapsed().as_secs_f64(),
         };
-        save(&det, out, epoch + 1, step)?;
+        save_checkpoint(&det.varmap, out, epoch + 1, step)?;
         let path = out.join(METRICS_FILE);
         let mut f = std::fs::OpenOptions::new()
             .append(true)
             .open(&path)
-            .map_err(|e| io_err("open", &path, e))?;
+            .map_err(|e| Error::io("open", &path, e))?;
         let line = serde_json::to_string(&m).map_err(|e| Error::InvalidOption(e.to_string()))?;
-        writeln!(f, "{line}").map_err(|e| io_err("write", &path, e))?;
+        writeln!(f, "{line}").map_err(|e| Error::io("write", &path, e))?;
         progress.info(&format!(
             "epoch {:>3}: train loss {:.4}, val loss {:.4}, val recall@0.5 {:.1}% of {} boxes, lr {:.2e}, {:.1} s",
             m.epoch,
@@ -839,23 +797,6 @@ fn validate(det: &Detector, frames: &[Frame], val: &[usize]) -> Result<(f64, usi
         }
     }
     Ok((if n > 0 { loss / n as f64 } else { f64::NAN }, found, boxes))
-}
-
-fn save(det: &Detector, out: &Path, epochs_done: usize, steps_done: usize) -> Result<()> {
-    let path = out.join(MODEL_FILE);
-    let tmp = synthgen_core::atomic::temp_path(&path);
-    det.varmap.save(&tmp).map_err(|e| Error::Malformed {
-        what: "checkpoint",
-        message: e.to_string(),
-        path: tmp.clone(),
-    })?;
-    std::fs::rename(&tmp, &path).map_err(|e| io_err("rename", &path, e))?;
-    let state = serde_json::to_vec_pretty(&DetectorState {
-        epochs_done,
-        steps_done,
-    })
-    .map_err(|e| Error::InvalidOption(e.to_string()))?;
-    write_atomic(&out.join(STATE_FILE), &state)
 }
 
 /// What [`detect_frames`] found beside the detections.

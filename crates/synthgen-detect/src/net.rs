@@ -19,7 +19,8 @@ use candle_core::{Result, Tensor};
 use candle_nn::VarBuilder;
 
 use synthgen_train::models::dense::{dense, Dense};
-use synthgen_train::models::im2col::{im2col, Window};
+use synthgen_train::models::im2col::Window;
+use synthgen_train::models::rgb_dense::{conv, upsample2};
 
 const ENC: [usize; 3] = [32, 64, 128];
 const MID: usize = 128;
@@ -57,20 +58,6 @@ pub struct DetectorNet {
 pub struct DetOut {
     pub heat: Tensor,
     pub boxes: Tensor,
-}
-
-fn conv(layer: &Dense, x: &Tensor, win: Window) -> Result<Tensor> {
-    let (b, h, w, _) = x.dims4()?;
-    let y = layer.forward_relu(&im2col(x, win)?)?;
-    y.reshape((b, win.out(h), win.out(w), y.dim(1)?))
-}
-
-fn upsample2(x: &Tensor) -> Result<Tensor> {
-    let (b, h, w, c) = x.dims4()?;
-    x.reshape((b, h, 1, w, 1, c))?
-        .broadcast_as((b, h, 2, w, 2, c))?
-        .contiguous()?
-        .reshape((b, 2 * h, 2 * w, c))
 }
 
 impl DetectorNet {

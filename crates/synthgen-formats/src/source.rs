@@ -77,6 +77,27 @@ pub struct SourceFrame {
 }
 
 impl SourceFrame {
+    /// The visible box (`[x, y, w, h]`, BOP's: last pixel `x + w`) of instance `gt_id`:
+    /// `scene_gt_info`'s `bbox_visib`, else (no info, or an empty box there) the bounding box
+    /// of its visible mask; None when neither shows a pixel.
+    pub fn visible_bbox(&self, gt_id: usize) -> Result<Option<[i32; 4]>> {
+        let info = self.gt_info.as_ref().and_then(|i| i.get(gt_id));
+        let b = match info
+            .map(|i| i.bbox_visib)
+            .filter(|b| b[2] >= 0 && b[3] >= 0)
+        {
+            Some(b) => b,
+            None => match self.masks_visib.get(gt_id).and_then(Option::as_ref) {
+                Some(mask) => {
+                    let m = mask.read()?;
+                    synthgen_core::annotate::mask_bbox(&m.data, m.width)
+                }
+                None => return Ok(None),
+            },
+        };
+        Ok((b[2] >= 0 && b[3] >= 0).then_some(b))
+    }
+
     /// Sorted, distinct object ids in the frame.
     pub fn object_set(&self) -> Vec<u32> {
         let mut ids: Vec<u32> = self.gt.iter().map(|g| g.obj_id).collect();

@@ -17,7 +17,7 @@ use synthgen_detect::detector::{
 use synthgen_formats::layout::open_source;
 use synthgen_formats::output::{check_apart, OutputLock};
 use synthgen_train::eval::pick_split;
-use synthgen_train::train::{self, CONFIG_FILE, MODEL_FILE};
+use synthgen_train::train::{self, CONFIG_FILE};
 
 use crate::{user_error, Log};
 
@@ -47,32 +47,17 @@ pub fn train_detector_run(
     req.config.validate_settings()?;
     check_apart(&req.out, &[("dataset", &req.config.data)])?;
     let _lock = OutputLock::acquire(&req.out)?;
-    let checkpoint = req.out.join(MODEL_FILE);
+    crate::train::check_run_folder(&req.out, req.resume, req.force)?;
     let source = open_source(&req.config.data)
         .with_context(|| format!("cannot open the dataset {}", req.config.data.display()))?;
     let cfg = if req.resume {
-        if !checkpoint.exists() {
-            return Err(user_error(
-                format!("nothing to resume: {} does not exist", checkpoint.display()),
-                "start the run without --resume",
-            ));
-        }
-        let path = req.out.join(CONFIG_FILE);
-        let text = std::fs::read_to_string(&path)
-            .with_context(|| format!("cannot read {}", path.display()))?;
-        let saved: DetectorConfig = serde_json::from_str(&text)
-            .with_context(|| format!("malformed detector config.json: {}", path.display()))?;
+        let saved: DetectorConfig =
+            train::read_json(&req.out.join(CONFIG_FILE), "detector config.json")?;
         DetectorConfig {
             epochs: req.config.epochs,
             ..saved
         }
     } else {
-        if checkpoint.exists() && !req.force {
-            return Err(user_error(
-                format!("{} already holds a run", req.out.display()),
-                "continue it with --resume, overwrite it with --force, or choose another --out",
-            ));
-        }
         let split = pick_split(
             source.as_ref(),
             (!req.config.split.is_empty()).then_some(req.config.split.as_str()),

@@ -5,9 +5,10 @@
 
 use std::collections::BTreeMap;
 use std::path::Path;
+use std::sync::Arc;
 
 use anyhow::{Context, Result};
-use synthgen_detect::detections::read_detections;
+use synthgen_detect::detections::{crop_boxes, read_detections};
 use synthgen_formats::layout::open_source;
 use synthgen_formats::source::FrameSource;
 use synthgen_train::bop::{load_render_models, prepare_bop, BopOptions, BopReport, TargetsFrom};
@@ -90,10 +91,16 @@ pub fn evaluate_request(req: &EvalRequest, progress: &dyn Progress) -> Result<Ev
     let stdout = Stdout::default();
     let printer = &Printer::new(progress, &stdout);
     let args = req;
+    // Read once: a checkpoint's crops and its refinement use the same boxes.
+    let detected = match &args.detections {
+        Some(path) => Some(Arc::new(read_crop_boxes(path)?)),
+        None => None,
+    };
+    let detected = detected.as_ref();
     let failed = match (&args.results, &args.checkpoint) {
-        (Some(csv), None) => run_results(args, csv, printer)?,
+        (Some(csv), None) => run_results(args, csv, detected, printer)?,
         (None, Some(ckpt)) => {
-            run_checkpoint(args, ckpt, printer)?;
+            run_checkpoint(args, ckpt, detected, printer)?;
             None
         }
         _ => {
@@ -120,14 +127,27 @@ fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
 }
 
 /// Scores a results CSV; returns why the evaluation counts as failed (unreadable rows), if so.
-fn run_results(args: &EvalRequest, csv: &Path, printer: &Printer<'_>) -> Result<Option<String>> {
+fn run_results(
+    args: &EvalRequest,
+    csv: &Path,
+    detected: Option<&Arc<CropBoxes>>,
+    printer: &Printer<'_>,
+) -> Result<Option<String>> {
     let ds = open_dataset(&args.data)?;
     let split = pick_split(ds.as_ref(), args.split.as_deref())?;
     let gts = read_gt(ds.as_ref(), &split, args.min_visib_fract)?;
     let results = read_results_csv(csv)?;
     let mut estimates = results.estimates;
     if let Some(opts) = &args.refine {
-        estimates = refined(args, ds.as_ref(), &split, &estimates, opts, printer)?;
+        estimates = refined(
+            args,
+            ds.as_ref(),
+            &split,
+            &estimates,
+            opts,
+            detected,
+            printer,
+        )?;
     }
     if let Some(path) = &args.save_results {
         write_results_csv(path, &estimates)?;
@@ -190,27 +210,24 @@ fn run_results(args: &EvalRequest, csv: &Path, printer: &Printer<'_>) -> Result<
     )))
 }
 
-/// `estimates` refined on the RGB images of `split` (`--refine edges|views`), with a line on what
-/// it did.
+/// `estimates` refined on the RGB images of `split` (`--refine edges|views`; `detected`: the
+/// boxes of `--detections`), with a line on what it did.
 fn refined(
     args: &EvalRequest,
     ds: &dyn FrameSource,
     split: &str,
     estimates: &[Estimate],
     opts: &EdgeRefineOptions,
+    detected: Option<&Arc<CropBoxes>>,
     printer: &Printer<'_>,
 ) -> Result<Vec<Estimate>> {
-    let detections = match &args.detections {
-        Some(path) => Some(crop_boxes(path)?),
-        None => None,
-    };
     let (out, summary) = refine_estimates(
         ds,
         split,
         estimates,
         opts,
         args.refine_models.as_deref(),
-        BoxSource::new(args.visible_boxes, detections.as_ref())?,
+        BoxSource::new(args.visible_boxes, detected.map(|d| d.as_ref()))?,
         printer.progress(),
     )
     .with_context(|| format!("cannot refine the estimates on {}", args.data.display()))?;
@@ -278,19 +295,18 @@ impl CentreAcc {
 }
 
 /// The boxes of a detections file as the crops and the refinement read them.
-fn crop_boxes(path: &Path) -> Result<CropBoxes> {
+fn read_crop_boxes(path: &Path) -> Result<CropBoxes> {
     let d = read_detections(path)
         .with_context(|| format!("cannot read the detections {}", path.display()))?;
-    let mut out = CropBoxes::new();
-    for det in d.iter() {
-        out.entry((det.scene_id, det.image_id, det.category_id))
-            .or_default()
-            .push(det.bop_box());
-    }
-    Ok(out)
+    Ok(crop_boxes(&d))
 }
 
-fn run_checkpoint(args: &EvalRequest, ckpt: &Path, printer: &Printer<'_>) -> Result<()> {
+fn run_checkpoint(
+    args: &EvalRequest,
+    ckpt: &Path,
+    detected: Option<&Arc<CropBoxes>>,
+    printer: &Printer<'_>,
+) -> Result<()> {
     let config_path = ckpt.with_file_name(CONFIG_FILE);
     if !config_path.exists() {
         return Err(user_error(
@@ -333,10 +349,7 @@ fn run_checkpoint(args: &EvalRequest, ckpt: &Path, printer: &Printer<'_>) -> Res
         min_visib_fract: args.min_visib_fract,
         seed: args.seed,
         split: args.split.clone(),
-        crop_boxes: match &args.detections {
-            Some(path) => Some(std::sync::Arc::new(crop_boxes(path)?)),
-            None => None,
-        },
+        crop_boxes: detected.cloned(),
         ..cfg.data_options()
     };
     let ds = open_dataset(&args.data)?;
@@ -398,7 +411,15 @@ fn run_checkpoint(args: &EvalRequest, ckpt: &Path, printer: &Printer<'_>) -> Res
             ));
         }
         let estimates = prediction_estimates(&preds, &set.instances);
-        let estimates = refined(args, ds.as_ref(), &set.split, &estimates, opts, printer)?;
+        let estimates = refined(
+            args,
+            ds.as_ref(),
+            &set.split,
+            &estimates,
+            opts,
+            detected,
+            printer,
+        )?;
         for (p, e) in preds.iter_mut().zip(&estimates) {
             p.centre_m = Some(e.pose.translation_m.as_vec3().to_array());
             p.rotation = Some((e.pose.rotation, p.rotation.map_or(1.0, |r| r.1)));

@@ -10,7 +10,6 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use synthgen_core::annotate::mask_bbox;
 use synthgen_core::glam::DVec3;
 use synthgen_core::{Pose, Progress};
 use synthgen_fit::appearance::{Appearance, ColouredSurface};
@@ -91,29 +90,15 @@ impl<'a> BoxSource<'a> {
     }
 }
 
-/// The GT visible boxes (`[x, y, w, h]`) of `frame`'s instances of `obj_id`.
+/// The GT visible boxes (`[x, y, w, h]`) of `frame`'s instances of `obj_id`
+/// ([`SourceFrame::visible_bbox`]).
 fn gt_boxes(frame: &SourceFrame, obj_id: u32) -> Result<Vec<[f64; 4]>> {
     let mut out = Vec::new();
     for (gt_id, g) in frame.gt.iter().enumerate() {
-        if g.obj_id != obj_id {
-            continue;
-        }
-        let info = frame.gt_info.as_ref().and_then(|i| i.get(gt_id));
-        let b = match info
-            .map(|i| i.bbox_visib)
-            .filter(|b| b[2] >= 0 && b[3] >= 0)
-        {
-            Some(b) => b,
-            None => match frame.masks_visib.get(gt_id).and_then(Option::as_ref) {
-                Some(mask) => {
-                    let m = mask.read()?;
-                    mask_bbox(&m.data, m.width)
-                }
-                None => continue,
-            },
-        };
-        if b[2] >= 0 && b[3] >= 0 {
-            out.push(b.map(f64::from));
+        if g.obj_id == obj_id {
+            if let Some(b) = frame.visible_bbox(gt_id)? {
+                out.push(b.map(f64::from));
+            }
         }
     }
     Ok(out)

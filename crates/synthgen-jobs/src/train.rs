@@ -3,7 +3,7 @@
 //! data is read, the instances loaded, `synthgen_train::train::train` with the epochs on the
 //! caller's `Progress`, and the summary.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
@@ -40,6 +40,25 @@ pub struct TrainRequest {
     pub cuda: bool,
 }
 
+/// The guards of a run folder: `--resume` needs its checkpoint; a new run into a folder that
+/// holds one needs `--force`.
+pub(crate) fn check_run_folder(out: &Path, resume: bool, force: bool) -> Result<()> {
+    let checkpoint = out.join(MODEL_FILE);
+    if resume && !checkpoint.exists() {
+        return Err(user_error(
+            format!("nothing to resume: {} does not exist", checkpoint.display()),
+            "start the run without --resume",
+        ));
+    }
+    if !resume && checkpoint.exists() && !force {
+        return Err(user_error(
+            format!("{} already holds a run", out.display()),
+            "continue it with --resume, overwrite it with --force, or choose another --out",
+        ));
+    }
+    Ok(())
+}
+
 /// Trains `req`; the epochs, the summary and a hint go to `progress`.
 pub fn train_run(req: &TrainRequest, progress: &dyn Progress) -> Result<TrainOutcome> {
     let printer = &Log::new(progress);
@@ -62,14 +81,8 @@ pub fn train_run(req: &TrainRequest, progress: &dyn Progress) -> Result<TrainOut
     crate::use_threads(args.jobs);
     check_apart(&args.out, &[("dataset", &args.config.data)])?;
     let _lock = OutputLock::acquire(&args.out)?;
-    let checkpoint = args.out.join(MODEL_FILE);
+    check_run_folder(&args.out, args.resume, args.force)?;
     let cfg = if args.resume {
-        if !checkpoint.exists() {
-            return Err(user_error(
-                format!("nothing to resume: {} does not exist", checkpoint.display()),
-                "start the run without --resume",
-            ));
-        }
         let saved = read_config(&args.out.join(CONFIG_FILE))?;
         TrainConfig {
             epochs: req.config.epochs,
@@ -77,12 +90,6 @@ pub fn train_run(req: &TrainRequest, progress: &dyn Progress) -> Result<TrainOut
             ..saved
         }
     } else {
-        if checkpoint.exists() && !args.force {
-            return Err(user_error(
-                format!("{} already holds a run", args.out.display()),
-                "continue it with --resume, overwrite it with --force, or choose another --out",
-            ));
-        }
         req.config.clone()
     };
     // Before any data is read: a bad --lr must not cost a dataset load.
@@ -225,7 +232,7 @@ pub fn train_run(req: &TrainRequest, progress: &dyn Progress) -> Result<TrainOut
     ));
     printer.hint(format!(
         "synthgen eval --checkpoint {} --data DIR",
-        checkpoint.display()
+        args.out.join(MODEL_FILE).display()
     ));
     Ok(outcome)
 }

@@ -41,6 +41,35 @@ pub enum Schedule {
     Constant,
 }
 
+impl Schedule {
+    /// The learning rate at `step` of `total_steps` (in `epoch`, 0-based, of `epochs`) for a
+    /// run whose rate is `lr`.
+    pub fn lr_at(
+        self,
+        lr: f64,
+        epochs: usize,
+        step: usize,
+        total_steps: usize,
+        epoch: usize,
+    ) -> f64 {
+        match self {
+            Schedule::Constant => lr,
+            Schedule::Step => {
+                if 3 * epoch >= 2 * epochs {
+                    lr / 10.0
+                } else {
+                    lr
+                }
+            }
+            Schedule::Cosine => {
+                let t = step as f64 / total_steps.max(1) as f64;
+                let min = lr / 100.0;
+                min + (lr - min) * 0.5 * (1.0 + (std::f64::consts::PI * t).cos())
+            }
+        }
+    }
+}
+
 /// Everything that defines a run; written to `config.json` beside the checkpoint.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TrainConfig {
@@ -156,21 +185,8 @@ impl TrainConfig {
     }
 
     pub fn lr_at(&self, step: usize, total_steps: usize, epoch: usize) -> f64 {
-        match self.schedule {
-            Schedule::Constant => self.lr,
-            Schedule::Step => {
-                if 3 * epoch >= 2 * self.epochs {
-                    self.lr / 10.0
-                } else {
-                    self.lr
-                }
-            }
-            Schedule::Cosine => {
-                let t = step as f64 / total_steps.max(1) as f64;
-                let min = self.lr / 100.0;
-                min + (self.lr - min) * 0.5 * (1.0 + (std::f64::consts::PI * t).cos())
-            }
-        }
+        self.schedule
+            .lr_at(self.lr, self.epochs, step, total_steps, epoch)
     }
 }
 
@@ -335,12 +351,14 @@ pub fn centre_error_m(pred: [f32; 3], inst: &Instance) -> f64 {
     (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
 }
 
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+/// `bytes` written to `path` atomically.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     synthgen_core::atomic::write_atomic(path, bytes, false)
         .map_err(|(_, e)| Error::io("write", path, e))
 }
 
-fn read_json<T: serde::de::DeserializeOwned>(path: &Path, what: &'static str) -> Result<T> {
+/// `path` read as JSON (`what` names it in the error).
+pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path, what: &'static str) -> Result<T> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io("read", path, e))?;
     serde_json::from_str(&text).map_err(|e| Error::Malformed {
         what,
@@ -525,7 +543,7 @@ pub fn train(
             lr,
             seconds: started.elapsed().as_secs_f64(),
         };
-        save_checkpoint(&model, out, epoch + 1, step)?;
+        save_checkpoint(&model.varmap, out, epoch + 1, step)?;
         let path = out.join(METRICS_FILE);
         let mut f = std::fs::OpenOptions::new()
             .append(true)
@@ -630,15 +648,16 @@ fn diverged(out: &Path, value: f64, epoch: usize, step: usize, kept: usize) -> E
     }
 }
 
-fn save_checkpoint(
-    model: &PoseModel,
+/// `varmap` as `out`/model.safetensors (through a temporary file), then `out`/state.json.
+pub fn save_checkpoint(
+    varmap: &candle_nn::VarMap,
     out: &Path,
     epochs_done: usize,
     steps_done: usize,
 ) -> Result<()> {
     let path = out.join(MODEL_FILE);
     let tmp = synthgen_core::atomic::temp_path(&path);
-    model.varmap.save(&tmp).map_err(|e| Error::Malformed {
+    varmap.save(&tmp).map_err(|e| Error::Malformed {
         what: "checkpoint",
         message: e.to_string(),
         path: tmp.clone(),

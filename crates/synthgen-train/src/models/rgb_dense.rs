@@ -81,15 +81,15 @@ pub struct DenseOut {
     pub translation: Tensor,
 }
 
-/// A 3×3 convolution of an NHWC map, ReLU.
-fn conv(layer: &Dense, x: &Tensor, win: Window) -> Result<Tensor> {
+/// A convolution of an NHWC map (`im2col` + the fused layer), ReLU.
+pub fn conv(layer: &Dense, x: &Tensor, win: Window) -> Result<Tensor> {
     let (b, h, w, _) = x.dims4()?;
     let y = layer.forward_relu(&im2col(x, win)?)?;
     y.reshape((b, win.out(h), win.out(w), y.dim(1)?))
 }
 
 /// Nearest-neighbour ×2 upsampling of an NHWC map.
-fn upsample2(x: &Tensor) -> Result<Tensor> {
+pub fn upsample2(x: &Tensor) -> Result<Tensor> {
     let (b, h, w, c) = x.dims4()?;
     x.reshape((b, h, 1, w, 1, c))?
         .broadcast_as((b, h, 2, w, 2, c))?
