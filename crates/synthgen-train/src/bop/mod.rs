@@ -545,7 +545,8 @@ pub fn evaluate_bop(
 impl BopReport {
     /// The BOP table in markdown: AR and each error's average recall, overall and per object.
     pub fn to_markdown(&self) -> String {
-        let pct = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{:.1}", 100.0 * v));
+        // Fractions (0–1), as bop_toolkit and `--json` report them.
+        let frac = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{v:.3}"));
         let mut md = String::from(
             "| object | AR | AR_VSD | AR_MSSD | AR_MSPD |\n|---|---:|---:|---:|---:|\n",
         );
@@ -558,18 +559,18 @@ impl BopReport {
             let ar = v.zip(p).map(|(v, p)| (v + m + p) / 3.0);
             md += &format!(
                 "| {obj} | {} | {} | {} | {} |\n",
-                pct(ar),
-                pct(v),
-                pct(Some(m)),
-                pct(p)
+                frac(ar),
+                frac(v),
+                frac(Some(m)),
+                frac(p)
             );
         }
         md += &format!(
             "| all | {} | {} | {} | {} |\n",
-            pct(self.ar),
-            pct(self.vsd.as_ref().map(|v| v.mean_recall)),
-            pct(Some(self.mssd.mean_recall)),
-            pct(Some(self.mspd.mean_recall))
+            frac(self.ar),
+            frac(self.vsd.as_ref().map(|v| v.mean_recall)),
+            frac(Some(self.mssd.mean_recall)),
+            frac(Some(self.mspd.mean_recall))
         );
         md
     }
