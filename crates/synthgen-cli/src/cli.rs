@@ -93,7 +93,12 @@ pub enum Command {
     /// Check a BOP, Linemod or YCB-Video dataset: files, image sizes, poses, masks, depth, ids.
     #[command(after_long_help = VALIDATE_EXAMPLES)]
     Validate(ValidateArgs),
-    /// Train a pose model (TNet, RNet, Full) on a BOP dataset; checkpoints, metrics and a curve.
+    /// Train a pose model: TNet, RNet, Full (RGB-D); rgb, rgb-dense (RGB only).
+    ///
+    /// On a BOP or Linemod dataset; checkpoints, metrics and a curve. The RGB models read the
+    /// colour crop of each object's box: the GT visible box, or a detector's (`synthgen
+    /// detector train|run`, then `synthgen eval --detections`). `synthgen experiment sim2real`
+    /// renders, trains on synthetic frames only and scores on real frames in one command.
     #[command(after_long_help = train::TRAIN_EXAMPLES)]
     Train(Box<TrainArgs>),
     /// Score pose estimates (a BOP results CSV or a checkpoint) against a dataset's GT.
@@ -106,7 +111,14 @@ pub enum Command {
     /// detector, run it into BOP detections.
     #[command(subcommand)]
     Detector(DetectorCommand),
-    /// Run an experiment end to end: the real/synthetic mixing table (mix, train, evaluate).
+    /// Run an experiment end to end: the mixing table, synthetic to real, the RGB model's table.
+    ///
+    /// `mix`: the real/synthetic mixing table (mix, train, evaluate per composition).
+    /// `sim2real`: fit, render, train on synthetic frames only and score on real frames (TNet
+    /// on RGB-D frames; `synthgen experiment sim2real --model rgb-dense` on RGB-only
+    /// photographs, with GT boxes). `rgb`: the RGB model's centre + Tz against direct XYZ.
+    /// Without GT boxes, the RGB models take a detector's (`synthgen detector train|run`, then
+    /// `synthgen eval --detections`).
     #[command(subcommand)]
     Experiment(ExperimentCommand),
     /// Fit a depth-sensor model to real frames, or compare two datasets' depth readings.

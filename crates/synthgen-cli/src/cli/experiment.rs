@@ -15,11 +15,12 @@ pub enum ExperimentCommand {
     #[command(after_long_help = EXPERIMENT_MIX_EXAMPLES)]
     Mix(ExperimentMixArgs),
     /// Synthetic to real, measured on real frames: fit the scene and the sensor to real frames,
-    /// render, train on synthetic only, and test on real frames, against baselines.
+    /// render, train on synthetic only, and test on real frames, against baselines (TNet;
+    /// --model rgb|rgb-dense: the RGB models on RGB-only photographs, GT boxes).
     #[command(after_long_help = super::sim2real::SIM2REAL_EXAMPLES)]
     Sim2real(super::sim2real::ExperimentSim2realArgs),
-    /// Seed 001's Table 1: the RGB model with centre + Tz against direct XYZ, trained on the
-    /// same set and scored with 5cm5°, E_te and E_re per object on held-out frames.
+    /// The RGB model's table: centre + Tz against direct XYZ, trained on the same set and
+    /// scored with 5cm5°, E_te and E_re per object on held-out frames.
     #[command(after_long_help = super::rgb::RGB_EXAMPLES)]
     Rgb(super::rgb::ExperimentRgbArgs),
 }

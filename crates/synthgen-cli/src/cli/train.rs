@@ -23,8 +23,8 @@ pub enum TrainModelArg {
     Rnet,
     /// Both heads, per-pixel ADD loss (min over the object's symmetries).
     Full,
-    /// A whole pose from the colour crop of a box, no depth (seed 001): Tz and the centre
-    /// inside the box, or XYZ directly (--translation), and a quaternion.
+    /// A whole pose from the colour crop of a box, no depth: Tz and the centre inside the
+    /// box, or XYZ directly (--translation), and a quaternion.
     Rgb,
     /// Per pixel of a box's colour crop the visibility and the 3D object coordinates, then
     /// the pose by PnP + RANSAC; no depth (trains on frames with depth: the targets).
@@ -109,8 +109,20 @@ pub const TRAIN_EXAMPLES: &str = "Examples:
   synthgen train --data data/drill --model full --init runs/tnet/model.safetensors --out runs/full
 
   # The RGB model (no depth): a pose from the crop of each object's box (the GT
-  # bbox_visib, jittered while training; no detector), centre + Tz or direct XYZ:
+  # bbox_visib, jittered while training), centre + Tz or direct XYZ:
   synthgen train --data data/lm --model rgb --translation centre-tz --epochs 20 --out runs/rgb
+
+  # The dense RGB model (per pixel the object's 3D coordinates, then PnP), and a box
+  # detector so that it runs without GT boxes on the real LM-O photographs:
+  synthgen train --data data/lmo_synth --model rgb-dense --epochs 20 --lr 2e-3 --out runs/dense
+  synthgen detector train --data data/lmo_clutter --out runs/det
+  synthgen detector run --checkpoint runs/det --data ../shared/data/lmo --out det.json
+  synthgen eval --checkpoint runs/dense/model.safetensors --data ../shared/data/lmo \\
+      --detections det.json --bop
+
+  # Render, train on synthetic frames only and score on real frames, in one command:
+  synthgen experiment sim2real --model rgb-dense --scene scenes/linemod_rgb.toml \\
+      --test ../shared/data/lmo --out runs/s2r_lmo
 
 Output (in --out):
   model.safetensors   the weights after the last finished epoch
@@ -243,10 +255,16 @@ row-major and t in millimetres, space-separated. Accuracy is over all GT instanc
 (an instance without an estimate counts as wrong); the highest-scoring estimate
 per (image, object) counts; ADD-S is used for objects with symmetries in
 models_info.json. An rnet checkpoint predicts rotation only: its poses take the
-GT translation (E_te = 0). An rgb checkpoint reads no depth: it sees the crop of
-each instance's GT visible box (no detector). See docs/metrics.md.
+GT translation (E_te = 0). An rgb or rgb-dense checkpoint reads no depth: it sees
+the crop of each instance's GT visible box, or with --detections of a detector's box
+(`synthgen detector run`; an instance without one counts as a miss). See
+docs/metrics.md.
 
-The RGB model's Table 1 (seed 001: centre + Tz against direct XYZ, 5cm5°):
+  # The dense RGB model from a detector's boxes, refined on the RGB images:
+  synthgen eval --checkpoint runs/dense/model.safetensors --data ../shared/data/lmo \\
+      --detections det.json --refine views --visible-box detected --bop
+
+The RGB model's centre + Tz against direct XYZ (5cm5°, per object):
   synthgen experiment rgb --train data/synth --test data/test --out runs/rgb
 
 A Linemod --data is read with the scene and image ids that `synthgen convert --to bop`

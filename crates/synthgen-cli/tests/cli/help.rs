@@ -133,3 +133,30 @@ fn sensor_compare_rgb_help() {
         &["sensor", "compare-rgb", "--help"],
     );
 }
+
+#[test]
+fn experiment_help() {
+    check_snapshot("experiment_help.txt", &["experiment", "--help"]);
+}
+
+/// `train --help` and `experiment --help` lead to the RGB-only dense model, the detector and
+/// `experiment sim2real` (issue 50: they named none of them).
+#[test]
+fn train_and_experiment_help_name_rgb_dense_the_detector_and_sim2real() {
+    for cmd in ["train", "experiment"] {
+        let out = run(synthgen().args([cmd, "--help"]));
+        assert!(out.status.success());
+        let text = String::from_utf8_lossy(&out.stdout);
+        let text = text.split_whitespace().collect::<Vec<_>>().join(" ");
+        for words in [
+            "rgb-dense",
+            "synthgen detector train|run",
+            "experiment sim2real",
+        ] {
+            assert!(
+                text.contains(words),
+                "`{cmd} --help` lacks {words:?}: {text}"
+            );
+        }
+    }
+}
