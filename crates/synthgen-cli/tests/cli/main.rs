@@ -21,6 +21,9 @@ mod inspect;
 mod linemod;
 mod mix;
 mod model_align;
+// The README's commands run in a temporary clone whose ../shared/data links the real one.
+#[cfg(unix)]
+mod readme;
 mod real_rotations;
 mod render;
 mod replay;
