@@ -73,6 +73,14 @@ pub enum Error {
     #[error("cannot load gltf ({reason}): {path}")]
     Gltf { reason: String, path: PathBuf },
 
+    /// An output folder that is, or holds, a file the command reads.
+    #[error("the output {relation} the input {}: a command never writes over its inputs; choose another output folder: {path}", .input.display())]
+    OutputOverInput {
+        relation: &'static str,
+        input: PathBuf,
+        path: PathBuf,
+    },
+
     #[error("unknown units {value:?} (expected mm, m or auto)")]
     UnknownUnits { value: String },
 }

@@ -20,6 +20,7 @@
 
 mod error;
 mod gltf;
+mod moved_obj;
 mod obj;
 mod ply;
 mod texture;
@@ -32,7 +33,7 @@ use std::path::Path;
 use synthgen_core::{Model, Progress};
 
 pub use error::Error;
-pub use obj::write_moved_obj;
+pub use moved_obj::{obj_inputs, write_moved_obj};
 pub use texture::{load_images_in_dir, load_images_in_dir_strict, TextureCache};
 pub use units::{Units, AUTO_MM_THRESHOLD};
 pub use write::{write_obj, write_ply};

@@ -24,6 +24,7 @@ pub(crate) fn load_obj(
         ..Default::default()
     };
     let failed_mtl: RefCell<Vec<(PathBuf, String)>> = RefCell::new(Vec::new());
+    let mtl_problems: RefCell<Vec<String>> = RefCell::new(Vec::new());
     let obj_err = |reason: String| Error::Obj {
         reason,
         path: path.to_path_buf(),
@@ -31,7 +32,22 @@ pub(crate) fn load_obj(
     let (models, materials) = crate::guard_parser("tobj", || {
         tobj::load_obj_buf(&mut std::io::Cursor::new(&bytes), &options, |mtl| {
             let mtl_path = dir.join(mtl);
-            tobj::load_mtl(&mtl_path).inspect_err(|e| {
+            let text = match std::fs::read(&mtl_path) {
+                Ok(b) => String::from_utf8_lossy(&b).into_owned(),
+                Err(e) => {
+                    failed_mtl
+                        .borrow_mut()
+                        .push((mtl_path.clone(), e.to_string()));
+                    return Err(tobj::LoadError::OpenFileFailed);
+                }
+            };
+            let (text, problems) = sanitize_mtl(&text);
+            mtl_problems.borrow_mut().extend(
+                problems
+                    .into_iter()
+                    .map(|p| format!("{p}: {}", mtl_path.display())),
+            );
+            tobj::load_mtl_buf(&mut std::io::Cursor::new(text.as_bytes())).inspect_err(|e| {
                 failed_mtl
                     .borrow_mut()
                     .push((mtl_path.clone(), e.to_string()));
@@ -40,6 +56,9 @@ pub(crate) fn load_obj(
     })
     .map_err(obj_err)?
     .map_err(|e| obj_err(e.to_string()))?;
+    for p in mtl_problems.into_inner() {
+        progress.warn(&p);
+    }
     for (mtl_path, reason) in failed_mtl.into_inner() {
         progress.warn(&format!(
             "material library unreadable ({reason}), using default materials: {}",
@@ -142,9 +161,83 @@ fn convert_material(
     }
 }
 
+/// An MTL file's text as tobj may read it, and what was wrong with it (one message per
+/// line, "MTL line N: ..."). tobj panics on a colour with fewer than three numbers and
+/// gives up on the whole file at one bad number; real files carry such lines, so a bad line
+/// is dropped (its value stays the default) and said, the rest of the file kept:
+/// - `Ka`/`Kd`/`Ks`/`Ke`: three numbers, or one (a grey, as the MTL spec allows); others,
+///   and non-finite values, drop the line; values outside 0..1 are clamped.
+/// - `Ns`, `Ni`, `d`: one finite number; `illum`: an integer 0..255; a texture key: a name.
+pub(crate) fn sanitize_mtl(text: &str) -> (String, Vec<String>) {
+    let mut out = String::with_capacity(text.len());
+    let mut problems = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        let key = words.next().unwrap_or("");
+        let args: Vec<&str> = words.collect();
+        let mut problem = |what: String| problems.push(format!("MTL line {}: {what}", i + 1));
+        match key {
+            "Ka" | "Kd" | "Ks" | "Ke" => {
+                let nums: Option<Vec<f32>> = args.iter().take(3).map(|a| a.parse().ok()).collect();
+                let nums = match nums {
+                    Some(n) if n.len() == 3 => n,
+                    Some(n) if n.len() == 1 && args.len() == 1 => vec![n[0]; 3],
+                    _ => {
+                        problem(format!(
+                            "`{}` needs three numbers (or one); ignored, the default is used",
+                            line.trim()
+                        ));
+                        continue;
+                    }
+                };
+                if nums.iter().any(|v| !v.is_finite()) {
+                    problem(format!(
+                        "`{}` is not a colour (not finite); ignored, the default is used",
+                        line.trim()
+                    ));
+                    continue;
+                }
+                if nums.iter().any(|v| !(0.0..=1.0).contains(v)) {
+                    problem(format!("`{}` lies outside 0..1; clamped", line.trim()));
+                }
+                let c: Vec<String> = nums.iter().map(|v| v.clamp(0.0, 1.0).to_string()).collect();
+                out.push_str(&format!("{key} {}\n", c.join(" ")));
+                continue;
+            }
+            "Ns" | "Ni" | "d"
+                if !args
+                    .first()
+                    .and_then(|a| a.parse::<f32>().ok())
+                    .is_some_and(f32::is_finite) =>
+            {
+                problem(format!(
+                    "`{}` needs one finite number; ignored, the default is used",
+                    line.trim()
+                ));
+                continue;
+            }
+            "illum" if args.first().and_then(|a| a.parse::<u8>().ok()).is_none() => {
+                problem(format!(
+                    "`{}` needs an integer 0..255; ignored",
+                    line.trim()
+                ));
+                continue;
+            }
+            k if (k.starts_with("map_") || k == "bump") && args.is_empty() => {
+                problem(format!("`{k}` names no file; ignored"));
+                continue;
+            }
+            _ => {}
+        }
+        out.push_str(line);
+        out.push('\n');
+    }
+    (out, problems)
+}
+
 /// The file name in a `map_Kd` value, which may start with options (`-bm 0.5 -clamp on x.png`)
 /// and use Windows separators.
-fn texture_file_name(value: &str) -> Option<String> {
+pub(crate) fn texture_file_name(value: &str) -> Option<String> {
     let value = value.trim();
     let name = if value.starts_with('-') {
         value.split_ascii_whitespace().last()?
@@ -152,117 +245,6 @@ fn texture_file_name(value: &str) -> Option<String> {
         value
     };
     (!name.is_empty()).then(|| name.replace('\\', "/"))
-}
-
-/// Writes the OBJ file `src` moved by `m` (`p' = m · p` in the file's own units) into `out_dir`
-/// under its own name, with its material files and the textures they name copied beside it:
-/// `v` positions and `vn` normals are transformed, every other line (UVs, faces, groups,
-/// materials, per-vertex colours after the position) is kept as it is. Returns the files
-/// written. Texture names are read as [`load_model`](crate::load_model) reads them (options,
-/// backslashes and trailing spaces allowed); a missing texture is an error naming it.
-pub fn write_moved_obj(
-    src: &Path,
-    out_dir: &Path,
-    m: synthgen_core::glam::DMat4,
-) -> Result<Vec<std::path::PathBuf>, Error> {
-    let io = |path: &Path, e: std::io::Error| Error::Write {
-        path: path.to_path_buf(),
-        source: e,
-    };
-    let read = |path: &Path, e: std::io::Error| Error::Read {
-        path: path.to_path_buf(),
-        source: e,
-    };
-    let text = std::fs::read_to_string(src).map_err(|e| read(src, e))?;
-    let dir = src.parent().unwrap_or(Path::new("."));
-    std::fs::create_dir_all(out_dir).map_err(|e| io(out_dir, e))?;
-    let normal_m = synthgen_core::glam::DMat3::from_mat4(m)
-        .inverse()
-        .transpose();
-    let mut out = String::with_capacity(text.len());
-    let mut mtllibs = Vec::new();
-    for (n, line) in text.lines().enumerate() {
-        let t = line.trim_start();
-        let mut parts = t.split_ascii_whitespace();
-        match parts.next() {
-            Some(kind @ ("v" | "vn")) => {
-                let nums: Vec<&str> = parts.collect();
-                let xyz: Option<Vec<f64>> =
-                    nums.iter().take(3).map(|s| s.parse::<f64>().ok()).collect();
-                let xyz = xyz.filter(|v| v.len() == 3 && v.iter().all(|x| x.is_finite()));
-                if xyz.is_none() && kind == "vn" {
-                    // Scans ship NaN normals (YCB's tuna can and mug); readers replace them.
-                    out.push_str(line);
-                    out.push('\n');
-                    continue;
-                }
-                let Some(xyz) = xyz else {
-                    return Err(Error::Obj {
-                        reason: format!("line {}: `{kind}` needs three finite numbers", n + 1),
-                        path: src.to_path_buf(),
-                    });
-                };
-                let p = synthgen_core::glam::DVec3::new(xyz[0], xyz[1], xyz[2]);
-                let q = if kind == "v" {
-                    m.transform_point3(p)
-                } else {
-                    (normal_m * p).normalize_or_zero()
-                };
-                out.push_str(&format!("{kind} {:.9} {:.9} {:.9}", q.x, q.y, q.z));
-                for rest in &nums[3..] {
-                    out.push(' ');
-                    out.push_str(rest);
-                }
-                out.push('\n');
-            }
-            Some("mtllib") => {
-                mtllibs.extend(
-                    t["mtllib".len()..]
-                        .split_ascii_whitespace()
-                        .map(str::to_string),
-                );
-                out.push_str(line);
-                out.push('\n');
-            }
-            _ => {
-                out.push_str(line);
-                out.push('\n');
-            }
-        }
-    }
-    let name = src.file_name().unwrap_or_default();
-    let obj_out = out_dir.join(name);
-    std::fs::write(&obj_out, out).map_err(|e| io(&obj_out, e))?;
-    let mut written = vec![obj_out];
-    for lib in mtllibs {
-        let mtl = dir.join(&lib);
-        let mtl_text = std::fs::read_to_string(&mtl).map_err(|e| read(&mtl, e))?;
-        let dst = out_dir.join(&lib);
-        std::fs::write(&dst, &mtl_text).map_err(|e| io(&dst, e))?;
-        written.push(dst);
-        for l in mtl_text.lines() {
-            let l = l.trim_start();
-            let Some((key, value)) = l.split_once(char::is_whitespace) else {
-                continue;
-            };
-            if !key.starts_with("map_") && key != "bump" && key != "disp" && key != "norm" {
-                continue;
-            }
-            let Some(tex) = texture_file_name(value) else {
-                continue;
-            };
-            let (from, to) = (dir.join(&tex), out_dir.join(&tex));
-            if written.contains(&to) {
-                continue;
-            }
-            if let Some(p) = to.parent() {
-                std::fs::create_dir_all(p).map_err(|e| io(p, e))?;
-            }
-            std::fs::copy(&from, &to).map_err(|e| read(&from, e))?;
-            written.push(to);
-        }
-    }
-    Ok(written)
 }
 
 #[cfg(test)]
@@ -283,45 +265,58 @@ mod tests {
         assert_eq!(texture_file_name("  "), None);
     }
 
-    /// Positions and normals move, everything else is kept; the MTL and the texture it names
-    /// (with a trailing space, as YCB ships it) are copied; NaN normals are left for readers.
+    /// Regression (issue 50): `Kd 0.5 0.5` and a bare `Ka` made tobj panic and the error blamed
+    /// the OBJ; `Kd nan -1 5` was used as it stood.
     #[test]
-    fn a_moved_obj_keeps_its_uvs_faces_and_textures() {
-        use synthgen_core::glam::{DMat3, DMat4, DVec3};
+    fn malformed_mtl_lines_are_dropped_and_said_the_rest_kept() {
+        let (text, problems) = sanitize_mtl(
+            "newmtl m\nKa\nKd 0.5 0.5\nKs 0.2\nKe nan -1 5\nKd 2 -1 0.5\nNs x\nillum 2\nmap_Kd\nmap_Kd t.png\n",
+        );
+        assert_eq!(
+            text,
+            "newmtl m\nKs 0.2 0.2 0.2\nKd 1 0 0.5\nillum 2\nmap_Kd t.png\n"
+        );
+        let joined = problems.join("\n");
+        for want in [
+            "line 2: `Ka`",
+            "line 3: `Kd 0.5 0.5`",
+            "line 5: `Ke nan -1 5`",
+            "line 6: `Kd 2 -1 0.5` lies outside 0..1; clamped",
+            "line 7: `Ns x`",
+            "line 9: `map_Kd`",
+        ] {
+            assert!(joined.contains(want), "{want} not in {joined}");
+        }
+        assert_eq!(problems.len(), 6);
+    }
+
+    #[test]
+    fn an_obj_with_a_malformed_mtl_loads_and_the_warning_names_the_mtl() {
         let dir = tempfile::tempdir().unwrap();
         let d = dir.path();
+        std::fs::write(d.join("a.mtl"), "newmtl m\nKd 0.5 0.5\nKs 1 1 1\n").unwrap();
         std::fs::write(
             d.join("a.obj"),
-            "# scan\nmtllib a.mtl\nv 1 0 0 0.5 0.5 0.5\nv 0 1 0\nv 0 0 1\nvt 0.1 0.2\nvn 1 0 0\nvn nan nan nan\nusemtl m\nf 1/1/1 2/1/1 3/1/2\n",
+            "mtllib a.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl m\nf 1 2 3\n",
         )
         .unwrap();
-        std::fs::write(d.join("a.mtl"), "newmtl m\nmap_Kd tex.png \n").unwrap();
-        std::fs::write(d.join("tex.png"), b"png").unwrap();
-        let m = DMat4::from_rotation_translation(
-            synthgen_core::glam::DQuat::from_mat3(&DMat3::from_rotation_z(
-                std::f64::consts::FRAC_PI_2,
-            )),
-            DVec3::new(0.0, 0.0, 2.0),
+        struct Warnings(std::sync::Mutex<Vec<String>>);
+        impl Progress for Warnings {
+            fn warn(&self, m: &str) {
+                self.0.lock().unwrap().push(m.to_string());
+            }
+        }
+        let w = Warnings(std::sync::Mutex::new(Vec::new()));
+        let mut cache = TextureCache::new();
+        let model = load_obj(&d.join("a.obj"), &mut cache, &w).unwrap();
+        let mat = &model.primitives[0].material;
+        assert_eq!(mat.base_color, Material::default().base_color);
+        assert!(mat.specular > 0.0 || mat.shininess > 0.0);
+        let warnings = w.0.into_inner().unwrap();
+        assert_eq!(warnings.len(), 1, "{warnings:?}");
+        assert!(
+            warnings[0].contains("MTL line 2: `Kd 0.5 0.5`") && warnings[0].ends_with("a.mtl"),
+            "{warnings:?}"
         );
-        let out = d.join("out");
-        let written = write_moved_obj(&d.join("a.obj"), &out, m).unwrap();
-        assert_eq!(written.len(), 3);
-        let text = std::fs::read_to_string(out.join("a.obj")).unwrap();
-        let lines: Vec<&str> = text.lines().collect();
-        assert_eq!(lines[0], "# scan");
-        assert_eq!(lines[1], "mtllib a.mtl");
-        assert_eq!(
-            lines[2],
-            "v 0.000000000 1.000000000 2.000000000 0.5 0.5 0.5"
-        );
-        assert_eq!(lines[5], "vt 0.1 0.2");
-        assert_eq!(lines[6], "vn 0.000000000 1.000000000 0.000000000");
-        assert_eq!(lines[7], "vn nan nan nan");
-        assert_eq!(lines[9], "f 1/1/1 2/1/1 3/1/2");
-        assert_eq!(std::fs::read(out.join("tex.png")).unwrap(), b"png");
-        // A missing texture is an error naming it.
-        std::fs::remove_file(d.join("tex.png")).unwrap();
-        let e = write_moved_obj(&d.join("a.obj"), &d.join("out2"), m).unwrap_err();
-        assert!(e.to_string().contains("tex.png"), "{e}");
     }
 }

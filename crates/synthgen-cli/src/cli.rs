@@ -669,7 +669,7 @@ pub struct RenderArgs {
         long,
         value_name = "REAL_DIR",
         conflicts_with_all = [
-            "objects", "obj_ids", "units", "frames", "first_frame", "shard", "resume",
+            "objects", "obj_ids", "units", "frames", "first_frame", "shard",
             "camera", "camera_k", "image_size", "distance_m", "elevation_deg", "orientation",
             "background", "background_dir", "chunk_size",
         ]
@@ -817,8 +817,9 @@ pub struct RenderArgs {
     #[arg(long, value_name = "I/N")]
     pub shard: Option<Shard>,
 
-    /// Finish an interrupted run in --out: frames already written are kept, the rest are
-    /// rendered. Pass the same options as the interrupted run. BOP only.
+    /// Finish an interrupted run in --out (a render or a --replay): frames already written
+    /// are kept, the rest are rendered. Pass the same options as the interrupted run. BOP
+    /// only.
     #[arg(long)]
     pub resume: bool,
 }

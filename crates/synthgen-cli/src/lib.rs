@@ -14,6 +14,7 @@ use synthgen_core::Progress;
 pub mod cli;
 pub mod commands;
 pub mod config;
+pub mod guard;
 pub mod printer;
 
 pub use printer::Printer;
@@ -58,52 +59,7 @@ pub fn main() -> ExitCode {
         printer::stderr_line(format!("error: --rotation-tolerance: {e}"));
         return ExitStatus::Failure.into();
     }
-    let result = match cli.command {
-        cli::Command::Render(args) => commands::render::run(*args, &printer),
-        cli::Command::Mix(args) => commands::mix::run(args, &printer),
-        cli::Command::Stats(args) => commands::stats::run(args, &printer),
-        cli::Command::Preview(args) => commands::preview::run(args, &printer),
-        cli::Command::View(args) => commands::view::run(args, &printer),
-        cli::Command::Annotate(args) => commands::annotate::run(args, &printer),
-        cli::Command::Export(cli::ExportCommand::Coco(args)) => {
-            commands::export::run_coco(args, &printer)
-        }
-        cli::Command::Convert(args) => commands::convert::run(args, &printer),
-        cli::Command::Validate(args) => commands::validate::run(args, &printer),
-        cli::Command::Train(args) => commands::train::run(*args, &printer),
-        cli::Command::Eval(args) => commands::eval::run(*args, &printer),
-        cli::Command::Merge(args) => commands::merge::run(args, &printer),
-        cli::Command::Detector(cli::DetectorCommand::Train(args)) => {
-            commands::detector::run_train(args, &printer)
-        }
-        cli::Command::Detector(cli::DetectorCommand::Run(args)) => {
-            commands::detector::run_run(args, &printer)
-        }
-        cli::Command::Experiment(cli::ExperimentCommand::Mix(args)) => {
-            commands::experiment::run_mix(args, &printer)
-        }
-        cli::Command::Experiment(cli::ExperimentCommand::Sim2real(args)) => {
-            commands::experiment::run_sim2real(args, &printer)
-        }
-        cli::Command::Experiment(cli::ExperimentCommand::Rgb(args)) => {
-            commands::experiment::run_rgb(args, &printer)
-        }
-        cli::Command::Sensor(cli::SensorCommand::Fit(args)) => {
-            commands::sensor::run_fit(args, &printer)
-        }
-        cli::Command::Sensor(cli::SensorCommand::Compare(args)) => {
-            commands::sensor::run_compare(args, &printer)
-        }
-        cli::Command::Sensor(cli::SensorCommand::CompareRgb(args)) => {
-            commands::sensor::run_compare_rgb(args, &printer)
-        }
-        cli::Command::Model(cli::ModelCommand::Align(args)) => {
-            commands::model::run_align(args, &printer)
-        }
-        cli::Command::Scene(cli::SceneCommand::Fit(args)) => {
-            commands::scene::run_fit(args, &printer)
-        }
-    };
+    let result = guard::check(&cli.command).and_then(|()| dispatch(cli.command, &printer));
     match result {
         Ok(status) => status.into(),
         Err(err) => {
@@ -116,6 +72,56 @@ pub fn main() -> ExitCode {
                 printer::stderr_line(format!("hint: {hint}"));
             }
             commands::exit_status_for(&err).into()
+        }
+    }
+}
+
+/// Runs one command (its paths already checked by [`guard::check`]).
+fn dispatch(command: cli::Command, printer: &Printer) -> anyhow::Result<ExitStatus> {
+    match command {
+        cli::Command::Render(args) => commands::render::run(*args, printer),
+        cli::Command::Mix(args) => commands::mix::run(args, printer),
+        cli::Command::Stats(args) => commands::stats::run(args, printer),
+        cli::Command::Preview(args) => commands::preview::run(args, printer),
+        cli::Command::View(args) => commands::view::run(args, printer),
+        cli::Command::Annotate(args) => commands::annotate::run(args, printer),
+        cli::Command::Export(cli::ExportCommand::Coco(args)) => {
+            commands::export::run_coco(args, printer)
+        }
+        cli::Command::Convert(args) => commands::convert::run(args, printer),
+        cli::Command::Validate(args) => commands::validate::run(args, printer),
+        cli::Command::Train(args) => commands::train::run(*args, printer),
+        cli::Command::Eval(args) => commands::eval::run(*args, printer),
+        cli::Command::Merge(args) => commands::merge::run(args, printer),
+        cli::Command::Detector(cli::DetectorCommand::Train(args)) => {
+            commands::detector::run_train(args, printer)
+        }
+        cli::Command::Detector(cli::DetectorCommand::Run(args)) => {
+            commands::detector::run_run(args, printer)
+        }
+        cli::Command::Experiment(cli::ExperimentCommand::Mix(args)) => {
+            commands::experiment::run_mix(args, printer)
+        }
+        cli::Command::Experiment(cli::ExperimentCommand::Sim2real(args)) => {
+            commands::experiment::run_sim2real(args, printer)
+        }
+        cli::Command::Experiment(cli::ExperimentCommand::Rgb(args)) => {
+            commands::experiment::run_rgb(args, printer)
+        }
+        cli::Command::Sensor(cli::SensorCommand::Fit(args)) => {
+            commands::sensor::run_fit(args, printer)
+        }
+        cli::Command::Sensor(cli::SensorCommand::Compare(args)) => {
+            commands::sensor::run_compare(args, printer)
+        }
+        cli::Command::Sensor(cli::SensorCommand::CompareRgb(args)) => {
+            commands::sensor::run_compare_rgb(args, printer)
+        }
+        cli::Command::Model(cli::ModelCommand::Align(args)) => {
+            commands::model::run_align(args, printer)
+        }
+        cli::Command::Scene(cli::SceneCommand::Fit(args)) => {
+            commands::scene::run_fit(args, printer)
         }
     }
 }

@@ -60,6 +60,63 @@ pub fn write_atomic(path: &Path, bytes: &[u8], fsync: bool) -> Result<(), (Step,
     Ok(())
 }
 
+/// A folder written whole or not at all: its files go into a hidden temporary sibling
+/// ([`StagedDir::path`]), which [`StagedDir::commit`] renames onto the target (an earlier
+/// folder there is replaced only then). Dropped without a commit (an error, a panic), the
+/// temporary folder is removed, so a failed run leaves the target as it was.
+#[derive(Debug)]
+pub struct StagedDir {
+    staging: PathBuf,
+    target: PathBuf,
+    committed: bool,
+}
+
+impl StagedDir {
+    /// Creates the temporary sibling of `target` (its parent is created if needed).
+    pub fn new(target: &Path) -> std::io::Result<StagedDir> {
+        if let Some(parent) = target.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent)?;
+        }
+        let staging = temp_path(target);
+        std::fs::create_dir(&staging)?;
+        Ok(StagedDir {
+            staging,
+            target: target.to_path_buf(),
+            committed: false,
+        })
+    }
+
+    /// Where to write the folder's files.
+    pub fn path(&self) -> &Path {
+        &self.staging
+    }
+
+    /// Puts the written folder in place of the target, replacing what was there.
+    pub fn commit(mut self) -> std::io::Result<()> {
+        if self.target.exists() {
+            let old = temp_path(&self.target);
+            std::fs::rename(&self.target, &old)?;
+            if let Err(e) = std::fs::rename(&self.staging, &self.target) {
+                let _ = std::fs::rename(&old, &self.target);
+                return Err(e);
+            }
+            let _ = std::fs::remove_dir_all(&old);
+        } else {
+            std::fs::rename(&self.staging, &self.target)?;
+        }
+        self.committed = true;
+        Ok(())
+    }
+}
+
+impl Drop for StagedDir {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_dir_all(&self.staging);
+        }
+    }
+}
+
 #[cfg(test)]
 #[allow(clippy::unwrap_used, clippy::expect_used)]
 mod tests {
@@ -83,6 +140,27 @@ mod tests {
         assert_eq!(e.0, Step::Rename);
         let left: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
         assert_eq!(left.len(), 1);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_staged_folder_replaces_the_target_on_commit_and_vanishes_otherwise() {
+        let dir = std::env::temp_dir().join(format!("synthgen-staged-{}", std::process::id()));
+        let target = dir.join("out");
+        std::fs::create_dir_all(&target).unwrap();
+        std::fs::write(target.join("old.txt"), "old").unwrap();
+        {
+            let s = StagedDir::new(&target).unwrap();
+            std::fs::write(s.path().join("new.txt"), "new").unwrap();
+            // dropped: nothing changes
+        }
+        assert!(target.join("old.txt").is_file() && !target.join("new.txt").exists());
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+        let s = StagedDir::new(&target).unwrap();
+        std::fs::write(s.path().join("new.txt"), "new").unwrap();
+        s.commit().unwrap();
+        assert!(!target.join("old.txt").exists() && target.join("new.txt").is_file());
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -23,6 +23,7 @@ mod error;
 mod frame_scene;
 pub mod jacobi;
 pub mod mesh;
+pub mod paths;
 pub mod pnp;
 pub mod pose;
 pub mod pose_render;

@@ -570,6 +570,21 @@ impl SceneSpec {
     }
 
     /// Checks ranges and values; errors name the field.
+    /// Settings the spec holds that change nothing, as messages for the user: sensor
+    /// sections beside a model that does not use them ([`SensorSpec::unused_sections`]),
+    /// `materials.metallic` with Phong shading.
+    pub fn unused_settings(&self) -> Vec<String> {
+        let mut out = self.sensor.unused_sections();
+        let m = &self.materials;
+        if m.shading == Shading::Phong && m.metallic != MaterialSpec::default().metallic {
+            out.push(format!(
+                "materials.metallic {:?} is set but materials.shading is \"phong\", which has no metals: it has no effect (shading = \"ggx\" uses it)",
+                m.metallic
+            ));
+        }
+        out
+    }
+
     pub fn validate(&self) -> Result<(), Error> {
         self.camera.intrinsics()?;
         let ranges: [(&str, Range); 11] = [

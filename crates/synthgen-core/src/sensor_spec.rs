@@ -443,14 +443,26 @@ impl SensorSpec {
             DepthModel::Tof => "tof",
             DepthModel::StructuredLight => "structured_light",
         };
-        set.into_iter()
+        let mut out: Vec<String> = set
+            .into_iter()
             .filter(|&(_, model, differs)| differs && model != self.depth)
             .map(|(name, _, _)| {
                 format!(
                     "sensor.{name} is set but sensor.depth is \"{depth}\": it has no effect (set depth = \"{name}\" to use it)"
                 )
             })
-            .collect()
+            .collect();
+        let rgb_set = RgbNoiseSpec {
+            enabled: false,
+            ..self.rgb.clone()
+        } != RgbNoiseSpec::default();
+        if !self.rgb.enabled && rgb_set {
+            out.push(
+                "sensor.rgb is set but sensor.rgb.enabled is false: its effects are not applied (set enabled = true to use them)"
+                    .into(),
+            );
+        }
+        out
     }
 
     /// Checks every parameter; errors name the field.
@@ -505,6 +517,13 @@ impl SensorSpec {
         check_value("sensor.rgb.motion_blur_px", r.motion_blur_px[1], 0.0, 40.0)?;
         check_range("sensor.rgb.jpeg_quality", r.jpeg_quality, 0.0)?;
         check_value("sensor.rgb.jpeg_quality", r.jpeg_quality[1], 0.0, 100.0)?;
+        // A quality is 1..100 (JPEG's scale, not a fraction); [0, 0] is no compression.
+        if r.jpeg_quality[1] > 0.0 && r.jpeg_quality[0] < 1.0 {
+            return Err(Error::InvalidSpec(format!(
+                "sensor.rgb.jpeg_quality is a JPEG quality from 1 to 100 (not a fraction), or [0, 0] for none; got [{}, {}]",
+                r.jpeg_quality[0], r.jpeg_quality[1]
+            )));
+        }
         Ok(())
     }
 

@@ -7,10 +7,12 @@
 //! `synthgen detect` writes them; `synthgen eval --detections` crops the RGB models' input
 //! from them instead of the GT boxes ([`Detections::box_for`]).
 
-use std::path::Path;
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use synthgen_formats::identity::{FramesKey, ObjectIdentity};
 use synthgen_train::data::CropBoxes;
 use synthgen_train::{Error, Result};
 
@@ -111,6 +113,157 @@ pub fn write_detections(path: &Path, list: &[Detection]) -> Result<()> {
     synthgen_train::train::write_atomic(path, (text + "\n").as_bytes())
 }
 
+/// Where a detections file came from, written beside it by `synthgen detector run`
+/// ([`provenance_path`]): the frames it is of and what its ids stand for, so that joining it
+/// to another dataset whose ids coincide is refused. Files of other detectors have none.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Provenance {
+    /// "synthgen detector run" and the version.
+    pub written_by: String,
+    pub dataset: PathBuf,
+    pub split: String,
+    pub frames: FramesKey,
+    /// The detector's classes (its `category_id`s) and what each is.
+    pub objects: Vec<ObjectIdentity>,
+    pub detector: PathBuf,
+}
+
+/// The provenance file of detections file `path`: `det.json` → `det.provenance.json`.
+pub fn provenance_path(path: &Path) -> PathBuf {
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    path.with_file_name(format!("{stem}.provenance.json"))
+}
+
+/// Writes `prov` beside the detections file `path` (atomically).
+pub fn write_provenance(path: &Path, prov: &Provenance) -> Result<()> {
+    let text =
+        serde_json::to_string_pretty(prov).map_err(|e| Error::InvalidOption(e.to_string()))?;
+    synthgen_train::train::write_atomic(&provenance_path(path), (text + "\n").as_bytes())
+}
+
+/// The provenance beside the detections file `path`, None when it has none.
+pub fn read_provenance(path: &Path) -> Result<Option<Provenance>> {
+    let p = provenance_path(path);
+    if !p.is_file() {
+        return Ok(None);
+    }
+    synthgen_train::train::read_json(&p, "detections provenance").map(Some)
+}
+
+/// What joining a detections file to a dataset's frames kept and left out.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct JoinReport {
+    pub entries: usize,
+    pub kept: usize,
+    /// Entries of an image the split does not have.
+    pub other_frames: usize,
+    /// Entries of an object id the dataset has no instance of in that split.
+    pub unknown_objects: usize,
+    /// Entries whose box misses the image or is larger than twice it.
+    pub off_image: usize,
+    /// A few of the skipped entries, "entry N: why".
+    pub examples: Vec<String>,
+}
+
+impl JoinReport {
+    pub fn skipped(&self) -> usize {
+        self.other_frames + self.unknown_objects + self.off_image
+    }
+
+    /// "12 of 40 entries skipped: 10 of images not in the split, 2 boxes off the image (entry 3: ...)".
+    pub fn describe(&self) -> String {
+        let mut parts = Vec::new();
+        for (n, what) in [
+            (self.other_frames, "of images the split does not have"),
+            (
+                self.unknown_objects,
+                "of objects the split has no instance of",
+            ),
+            (
+                self.off_image,
+                "with a box off the image or larger than twice it",
+            ),
+        ] {
+            if n > 0 {
+                parts.push(format!("{n} {what}"));
+            }
+        }
+        format!(
+            "{} of {} detections skipped: {}{}",
+            self.skipped(),
+            self.entries,
+            parts.join(", "),
+            if self.examples.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", self.examples.join("; "))
+            }
+        )
+    }
+}
+
+/// The detections of `list` that belong to the frames `frames` ((scene, image) → the object
+/// ids with GT there, or None where the frame's objects are not known) of images
+/// `image_size` big: per entry, its image must be one of the frames, its object one the
+/// frame shows (when known), its box must overlap the image and be at most twice its size
+/// (a box 1e308 wide is not a detection). The others are counted, a few named.
+pub fn join_detections(
+    list: &[Detection],
+    frames: &BTreeMap<(u32, u32), Option<BTreeSet<u32>>>,
+    image_size: [u32; 2],
+) -> (Vec<Detection>, JoinReport) {
+    let (w, h) = (f64::from(image_size[0]), f64::from(image_size[1]));
+    let mut report = JoinReport {
+        entries: list.len(),
+        ..JoinReport::default()
+    };
+    let mut kept = Vec::with_capacity(list.len());
+    for (i, d) in list.iter().enumerate() {
+        let [x, y, bw, bh] = d.bbox;
+        let why = match frames.get(&(d.scene_id, d.image_id)) {
+            None => {
+                report.other_frames += 1;
+                format!(
+                    "entry {i}: scene {} image {} is not in the split",
+                    d.scene_id, d.image_id
+                )
+            }
+            Some(Some(objs)) if !objs.contains(&d.category_id) => {
+                report.unknown_objects += 1;
+                format!(
+                    "entry {i}: object {} is not in scene {} image {}",
+                    d.category_id, d.scene_id, d.image_id
+                )
+            }
+            _ if x + bw <= 0.0
+                || y + bh <= 0.0
+                || x >= w
+                || y >= h
+                || bw > 2.0 * w
+                || bh > 2.0 * h =>
+            {
+                report.off_image += 1;
+                format!(
+                    "entry {i}: the box {:?} does not fit the {}x{} image",
+                    d.bbox, image_size[0], image_size[1]
+                )
+            }
+            _ => {
+                kept.push(d.clone());
+                continue;
+            }
+        };
+        if report.examples.len() < 3 {
+            report.examples.push(why);
+        }
+    }
+    report.kept = kept.len();
+    (kept, report)
+}
+
 #[cfg(test)]
 #[allow(clippy::unwrap_used, clippy::expect_used)]
 mod tests {
@@ -154,5 +307,54 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("JSON list"));
+    }
+
+    #[test]
+    fn joining_keeps_what_fits_the_frames_and_counts_the_rest() {
+        let d = |scene, im, obj, bbox| Detection {
+            scene_id: scene,
+            image_id: im,
+            category_id: obj,
+            score: 0.5,
+            bbox,
+            time: -1.0,
+        };
+        let list = vec![
+            d(2, 3, 5, [10.0, 20.0, 30.0, 40.0]),
+            d(2, 4, 5, [10.0, 20.0, 30.0, 40.0]), // no such image
+            d(2, 3, 9, [10.0, 20.0, 30.0, 40.0]), // no object 9 there
+            d(2, 3, 5, [700.0, 20.0, 30.0, 40.0]), // right of the image
+            d(2, 3, 5, [0.0, 0.0, 1e308, 40.0]),  // absurdly wide
+            d(7, 0, 1, [0.0, 0.0, 5.0, 5.0]),     // objects unknown: kept
+        ];
+        let mut frames = BTreeMap::new();
+        frames.insert((2, 3), Some(BTreeSet::from([5])));
+        frames.insert((7, 0), None);
+        let (kept, r) = join_detections(&list, &frames, [640, 480]);
+        assert_eq!(kept.len(), 2);
+        assert_eq!(
+            (
+                r.entries,
+                r.kept,
+                r.other_frames,
+                r.unknown_objects,
+                r.off_image
+            ),
+            (6, 2, 1, 1, 2)
+        );
+        let text = r.describe();
+        assert!(text.starts_with("4 of 6 detections skipped"), "{text}");
+        assert!(
+            text.contains("entry 1: scene 2 image 4 is not in the split"),
+            "{text}"
+        );
+    }
+
+    #[test]
+    fn the_provenance_sits_beside_its_file() {
+        assert_eq!(
+            provenance_path(Path::new("runs/det_lmo.json")),
+            PathBuf::from("runs/det_lmo.provenance.json")
+        );
     }
 }

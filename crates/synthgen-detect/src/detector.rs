@@ -14,8 +14,8 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use candle_core::{DType, Device, Tensor};
-use candle_nn::{AdamW, Optimizer, ParamsAdamW, VarBuilder, VarMap};
+use candle_core::{Device, Tensor};
+use candle_nn::{AdamW, Optimizer, ParamsAdamW, VarMap};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -23,17 +23,24 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use synthgen_core::rng::splitmix64;
 use synthgen_core::Progress;
-use synthgen_formats::bop::read_rgb;
+use synthgen_formats::bop::read_rgb_sized;
+use synthgen_formats::identity::{frames_key, FramesKey, ObjectIdentity};
 use synthgen_formats::source::{FrameSource, SourceFrame};
 
 use synthgen_train::train::{
-    read_json, save_checkpoint, write_atomic, Schedule, TrainState, CONFIG_FILE, METRICS_FILE,
-    MODEL_FILE, STATE_FILE,
+    read_json, read_run_config, save_checkpoint, write_atomic, RunKind, Schedule, TrainState,
+    CONFIG_FILE, METRICS_FILE, MODEL_FILE, STATE_FILE,
 };
 use synthgen_train::{Error, Result};
 
 use crate::detections::Detection;
 use crate::net::{detector_loss, DetOut, DetectorNet, DET_STRIDE};
+
+/// The largest side of the network's input (`--input`), pixels.
+pub const MAX_INPUT_SIDE: u32 = 2048;
+/// The most epochs and frames per step a run may ask for.
+pub const MAX_EPOCHS: usize = 10_000;
+pub const MAX_BATCH: usize = 1024;
 
 /// Everything that defines a detector run; `config.json` beside the checkpoint.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -58,6 +65,10 @@ pub struct DetectorConfig {
     pub zoom_max: f64,
     pub data: PathBuf,
     pub split: String,
+    /// What each class is (its model's name and size in the training data), so that a run
+    /// on a dataset whose ids are other objects is refused (empty in configs written before).
+    #[serde(default)]
+    pub objects: Vec<ObjectIdentity>,
 }
 
 impl DetectorConfig {
@@ -77,6 +88,7 @@ impl DetectorConfig {
             zoom_max: 1.4,
             data,
             split,
+            objects: Vec::new(),
         }
     }
 
@@ -100,13 +112,20 @@ impl DetectorConfig {
             ));
         }
         let [w, h] = self.input;
-        if w < 16 || h < 16 || w % 8 != 0 || h % 8 != 0 {
+        if !(16..=MAX_INPUT_SIDE).contains(&w)
+            || !(16..=MAX_INPUT_SIDE).contains(&h)
+            || w % 8 != 0
+            || h % 8 != 0
+        {
             return bad(format!(
-                "--input {w}x{h}: both sides must be multiples of 8, at least 16"
+                "--input {w}x{h}: both sides must be multiples of 8, from 16 to {MAX_INPUT_SIDE}"
             ));
         }
-        if self.epochs == 0 || self.batch == 0 {
-            return bad("--epochs and --batch must be at least 1".into());
+        if !(1..=MAX_EPOCHS).contains(&self.epochs) || !(1..=MAX_BATCH).contains(&self.batch) {
+            return bad(format!(
+                "--epochs {} must be in 1..={MAX_EPOCHS} and --batch {} in 1..={MAX_BATCH}",
+                self.epochs, self.batch
+            ));
         }
         if !(self.lr > 0.0 && self.lr.is_finite()) {
             return bad(format!("--lr {} must be positive", self.lr));
@@ -213,12 +232,13 @@ fn load_frames(
     progress: &dyn Progress,
 ) -> Result<Vec<Frame>> {
     let frames = ds.frames(std::slice::from_ref(&cfg.split))?;
+    let cam = ds.camera();
     progress.start("reading frames", frames.len() as u64);
     let [iw, ih] = cfg.input;
     let out: Result<Vec<Frame>> = frames
         .par_iter()
         .map(|f| {
-            let img = read_rgb(&f.rgb)?;
+            let img = read_rgb_sized(&f.rgb, [cam.width, cam.height])?;
             let (w, h) = (2 * iw, 2 * ih);
             let rgb = resample(
                 &img.rgb,
@@ -379,7 +399,13 @@ impl Detector {
     pub fn new(cfg: DetectorConfig, device: &Device) -> Result<Detector> {
         cfg.validate()?;
         let varmap = VarMap::new();
-        let vb = VarBuilder::from_varmap(&varmap, DType::F32, device);
+        // Seeded: the same --seed gives the same initial weights (candle's own init draws
+        // from the unseeded thread RNG).
+        let vb = synthgen_train::init::seeded_var_builder(
+            &varmap,
+            splitmix64(cfg.seed ^ 0xde7e),
+            device,
+        );
         let net = DetectorNet::new(cfg.classes.len(), vb)?;
         Ok(Detector {
             cfg,
@@ -401,7 +427,7 @@ impl Detector {
                 path.to_path_buf(),
             )
         };
-        let cfg: DetectorConfig = read_json(&dir.join(CONFIG_FILE), "detector config.json")?;
+        let cfg: DetectorConfig = read_run_config(&dir.join(CONFIG_FILE), RunKind::Detector)?;
         let mut d = Detector::new(cfg, device)?;
         d.varmap.load(&model).map_err(|e| Error::Malformed {
             what: "checkpoint",
@@ -577,7 +603,8 @@ pub fn recall_at_half(gt: &[ClassBox], found: &[Peak]) -> usize {
 pub struct DetectorEpoch {
     pub epoch: usize,
     pub train_loss: f64,
-    pub val_loss: f64,
+    /// None without validation frames (`null` in `metrics.jsonl`).
+    pub val_loss: Option<f64>,
     /// Share of the validation frames' visible boxes found at IoU ≥ 0.5 ([`recall_at_half`]).
     pub val_recall_50: f64,
     pub val_boxes: usize,
@@ -618,6 +645,32 @@ pub fn train_detector(
 ) -> Result<DetectorOutcome> {
     cfg.validate()?;
     std::fs::create_dir_all(out).map_err(|e| Error::io("create directory", out, e))?;
+    // A resumed run's checks before the frames are read: a bad --epochs costs no load.
+    let model_path = out.join(MODEL_FILE);
+    let (det, state, mut history) = if resume {
+        let state: TrainState = read_json(&out.join(STATE_FILE), "state.json")?;
+        if cfg.epochs <= state.epochs_done {
+            return Err(Error::InvalidOption(format!(
+                "the run in {} has trained {} epochs already: --epochs {} leaves nothing to train (raise --epochs above {})",
+                out.display(),
+                state.epochs_done,
+                cfg.epochs,
+                state.epochs_done
+            )));
+        }
+        let det = Detector::load(&model_path, device)?;
+        let history = read_history(&out.join(METRICS_FILE), state.epochs_done)?;
+        (det, state, history)
+    } else {
+        (
+            Detector::new(cfg.clone(), device)?,
+            TrainState {
+                epochs_done: 0,
+                steps_done: 0,
+            },
+            Vec::new(),
+        )
+    };
     let frames = load_frames(ds, cfg, progress)?;
     let mut order: Vec<usize> = (0..frames.len()).collect();
     order.shuffle(&mut ChaCha8Rng::seed_from_u64(splitmix64(
@@ -638,27 +691,6 @@ pub fn train_detector(
             path: cfg.data.clone(),
         });
     }
-    let model_path = out.join(MODEL_FILE);
-    let (det, state, mut history) = if resume {
-        let state: TrainState = read_json(&out.join(STATE_FILE), "state.json")?;
-        let det = Detector::load(&model_path, device)?;
-        let text = std::fs::read_to_string(out.join(METRICS_FILE)).unwrap_or_default();
-        let history: Vec<DetectorEpoch> = text
-            .lines()
-            .filter_map(|l| serde_json::from_str(l).ok())
-            .take(state.epochs_done)
-            .collect();
-        (det, state, history)
-    } else {
-        (
-            Detector::new(cfg.clone(), device)?,
-            TrainState {
-                epochs_done: 0,
-                steps_done: 0,
-            },
-            Vec::new(),
-        )
-    };
     let json = serde_json::to_vec_pretty(cfg).map_err(|e| Error::InvalidOption(e.to_string()))?;
     write_atomic(&out.join(CONFIG_FILE), &json)?;
     let mut lines = String::new();
@@ -753,10 +785,11 @@ pub fn train_detector(
         let line = serde_json::to_string(&m).map_err(|e| Error::InvalidOption(e.to_string()))?;
         writeln!(f, "{line}").map_err(|e| Error::io("write", &path, e))?;
         progress.info(&format!(
-            "epoch {:>3}: train loss {:.4}, val loss {:.4}, val recall@0.5 {:.1}% of {} boxes, lr {:.2e}, {:.1} s",
+            "epoch {:>3}: train loss {:.4}, val loss {}, val recall@0.5 {:.1}% of {} boxes, lr {:.2e}, {:.1} s",
             m.epoch,
             m.train_loss,
-            m.val_loss,
+            m.val_loss
+                .map_or_else(|| "- (no validation frames)".to_string(), |v| format!("{v:.4}")),
             100.0 * m.val_recall_50,
             m.val_boxes,
             m.lr,
@@ -772,8 +805,34 @@ pub fn train_detector(
     })
 }
 
-/// The validation frames' loss and (found, GT) boxes at IoU 0.5.
-fn validate(det: &Detector, frames: &[Frame], val: &[usize]) -> Result<(f64, usize, usize)> {
+/// The epochs of a run's `metrics.jsonl` (the first `epochs_done` lines; a missing file is
+/// none); a line that does not read is an error naming it, not a line silently dropped.
+fn read_history(path: &Path, epochs_done: usize) -> Result<Vec<DetectorEpoch>> {
+    let text = match std::fs::read_to_string(path) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
+        Err(e) => return Err(Error::io("read", path, e)),
+    };
+    text.lines()
+        .filter(|l| !l.trim().is_empty())
+        .take(epochs_done)
+        .enumerate()
+        .map(|(i, l)| {
+            serde_json::from_str(l).map_err(|e| Error::Malformed {
+                what: "metrics.jsonl",
+                message: format!("line {}: {e}", i + 1),
+                path: path.to_path_buf(),
+            })
+        })
+        .collect()
+}
+
+/// The validation frames' loss (None without any) and (found, GT) boxes at IoU 0.5.
+fn validate(
+    det: &Detector,
+    frames: &[Frame],
+    val: &[usize],
+) -> Result<(Option<f64>, usize, usize)> {
     let cfg = &det.cfg;
     let (mut loss, mut n, mut found, mut boxes) = (0.0, 0usize, 0usize, 0usize);
     for chunk in val.chunks(cfg.batch) {
@@ -796,7 +855,7 @@ fn validate(det: &Detector, frames: &[Frame], val: &[usize]) -> Result<(f64, usi
             boxes += s.boxes.len();
         }
     }
-    Ok((if n > 0 { loss / n as f64 } else { f64::NAN }, found, boxes))
+    Ok(((n > 0).then(|| loss / n as f64), found, boxes))
 }
 
 /// What [`detect_frames`] found beside the detections.
@@ -807,6 +866,8 @@ pub struct DetectSummary {
     /// many were found at IoU ≥ 0.5 ([`recall_at_half`]), per object id; empty without GT.
     pub recall: std::collections::BTreeMap<u32, (usize, usize)>,
     pub seconds: f64,
+    /// The frames detected in (a detections file's provenance).
+    pub frames_key: FramesKey,
 }
 
 /// Runs `det` on every frame of `split`: each class's peaks scoring at least `min_score`, at
@@ -821,6 +882,7 @@ pub fn detect_frames(
 ) -> Result<(Vec<Detection>, DetectSummary)> {
     let started = Instant::now();
     let frames = ds.frames(&[split.to_string()])?;
+    let cam = ds.camera();
     progress.start("detecting", frames.len() as u64);
     // Per frame: its detections and, per object, (GT boxes, found).
     type FrameOut = (Vec<Detection>, Vec<(u32, usize, usize)>);
@@ -828,7 +890,7 @@ pub fn detect_frames(
         .par_iter()
         .map(|f| {
             let t0 = Instant::now();
-            let img = read_rgb(&f.rgb)?;
+            let img = read_rgb_sized(&f.rgb, [cam.width, cam.height])?;
             let found = det.detect_image(&img.rgb, img.width, img.height, min_score, per_class)?;
             let time = t0.elapsed().as_secs_f64();
             let dets: Vec<Detection> = found
@@ -865,6 +927,7 @@ pub fn detect_frames(
     let mut all = Vec::new();
     let mut summary = DetectSummary {
         frames: frames.len(),
+        frames_key: frames_key(&frames, [cam.width, cam.height]),
         ..Default::default()
     };
     for (d, r) in per_frame? {
@@ -974,5 +1037,32 @@ mod tests {
         let mut c = cfg();
         c.model = "rgb".into();
         assert!(c.validate().is_err());
+    }
+
+    /// Regression (issue 50): a run without validation frames wrote `"val_loss": null`,
+    /// which `--resume` could not read back and silently dropped.
+    #[test]
+    fn epochs_without_validation_read_back_and_bad_lines_are_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join(METRICS_FILE);
+        let e = DetectorEpoch {
+            epoch: 1,
+            train_loss: 2.5,
+            val_loss: None,
+            val_recall_50: 0.0,
+            val_boxes: 0,
+            lr: 1e-3,
+            seconds: 0.1,
+        };
+        let line = serde_json::to_string(&e).unwrap();
+        assert!(line.contains("\"val_loss\":null"), "{line}");
+        std::fs::write(&path, format!("{line}\n{line}\n")).unwrap();
+        assert_eq!(read_history(&path, 2).unwrap(), vec![e.clone(), e]);
+        std::fs::write(&path, format!("{line}\nnot json\n")).unwrap();
+        let err = read_history(&path, 2).unwrap_err().to_string();
+        assert!(
+            err.contains("line 2") && err.contains("metrics.jsonl"),
+            "{err}"
+        );
     }
 }

@@ -68,13 +68,43 @@ pub struct RgbComparison {
     pub frames: usize,
     /// Real frames without one (not compared).
     pub frames_without_twin: usize,
+    /// Real frames whose namesake in the other dataset shows something else (another
+    /// camera, other objects or poses): not compared.
+    pub frames_not_twins: usize,
+    /// A few of them, with why.
+    pub not_twins: Vec<String>,
     pub all: MeanScore,
     pub objects: BTreeMap<u32, MeanScore>,
     pub instances: Vec<InstanceScore>,
 }
 
+/// Why `twin` is not a replay of `real` (its camera or its objects' GT poses differ), None
+/// when it is one: the same intrinsics (within 0.01 px), the same objects in the same
+/// order, each within 1 mm and 1e-3 of the rotation's entries.
+pub fn not_a_twin(real: &SourceFrame, twin: &SourceFrame) -> Option<String> {
+    let close = |a: &[f64], b: &[f64], tol: f64| a.iter().zip(b).all(|(x, y)| (x - y).abs() <= tol);
+    if !close(&real.camera.cam_k, &twin.camera.cam_k, 0.01) {
+        return Some("another camera (cam_K)".into());
+    }
+    let objs = |f: &SourceFrame| f.gt.iter().map(|g| g.obj_id).collect::<Vec<_>>();
+    if objs(real) != objs(twin) {
+        return Some(format!(
+            "other objects ({:?} and {:?})",
+            objs(real),
+            objs(twin)
+        ));
+    }
+    for (a, b) in real.gt.iter().zip(&twin.gt) {
+        if !close(&a.cam_t_m2c, &b.cam_t_m2c, 1.0) || !close(&a.cam_r_m2c, &b.cam_r_m2c, 1e-3) {
+            return Some(format!("object {} at another pose", a.obj_id));
+        }
+    }
+    None
+}
+
 /// Compares the colour images of `real` with those of `synth` (frames matched by scene and
-/// image id), inside `real`'s visible masks.
+/// image id, and refused as twins where the camera or the GT poses differ), inside `real`'s
+/// visible masks.
 pub fn compare_rgb(
     real: &dyn FrameSource,
     synth: &dyn FrameSource,
@@ -87,6 +117,7 @@ pub fn compare_rgb(
         .collect();
     let mut frames = 0;
     let mut without = 0;
+    let (mut not_twins, mut not_twin_count) = (Vec::new(), 0usize);
     let mut instances = Vec::new();
     for f in real.frames(&[])? {
         if !opts.scenes.is_empty() && !opts.scenes.contains(&f.location.scene_id) {
@@ -96,6 +127,17 @@ pub fn compare_rgb(
             without += 1;
             continue;
         };
+        // Ids alone do not make a twin: a replay has the real frame's camera and GT poses.
+        if let Some(why) = not_a_twin(&f, twin) {
+            if not_twins.len() < 3 {
+                not_twins.push(format!(
+                    "scene {} image {}: {why}",
+                    f.location.scene_id, f.location.im_id
+                ));
+            }
+            not_twin_count += 1;
+            continue;
+        }
         frames += 1;
         let (a, b) = (read_rgb(&f.rgb)?, read_rgb(&twin.rgb)?);
         if (a.width, a.height) != (b.width, b.height) {
@@ -149,6 +191,8 @@ pub fn compare_rgb(
     Ok(RgbComparison {
         frames,
         frames_without_twin: without,
+        frames_not_twins: not_twin_count,
+        not_twins,
         all,
         objects,
         instances,

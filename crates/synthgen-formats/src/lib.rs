@@ -41,6 +41,7 @@ pub mod convert;
 pub mod draw;
 mod error;
 pub mod fingerprint;
+pub mod identity;
 pub mod io;
 pub mod layout;
 pub mod linemod;

@@ -3,7 +3,7 @@
 //! ([`check_apart`]).
 
 use std::fs::{File, OpenOptions, TryLockError};
-use std::path::{Component, Path, PathBuf};
+use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
 use crate::io::create_dir_all;
@@ -50,35 +50,7 @@ impl OutputLock {
     }
 }
 
-/// `path` made absolute without needing it to exist: the deepest existing ancestor is
-/// canonicalized (resolving links), the rest appended with `.`/`..` folded.
-pub fn resolve(path: &Path) -> PathBuf {
-    let abs = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
-    let mut existing = abs.as_path();
-    let mut rest: Vec<Component> = Vec::new();
-    loop {
-        if let Ok(c) = existing.canonicalize() {
-            let mut out = c;
-            for comp in rest.iter().rev() {
-                match comp {
-                    Component::ParentDir => {
-                        out.pop();
-                    }
-                    Component::CurDir => {}
-                    c => out.push(c.as_os_str()),
-                }
-            }
-            return out;
-        }
-        match (existing.parent(), existing.components().next_back()) {
-            (Some(parent), Some(last)) => {
-                rest.push(last);
-                existing = parent;
-            }
-            _ => return abs,
-        }
-    }
-}
+pub use synthgen_core::paths::resolve;
 
 /// Whether `dir` holds nothing but its lock file (or does not exist).
 /// The run plan an unfinished render leaves in its output (synthgen-pipeline's resume record).
@@ -153,28 +125,18 @@ pub fn is_empty(dir: &Path) -> bool {
     }
 }
 
-/// Refuses an output folder that is one of the inputs, lies inside one, or contains one
-/// (which `--force` could wipe). `inputs` are (role, path), e.g. ("input", IN).
+/// Refuses an output (a folder or a file) that is one of the inputs, lies inside one, or
+/// contains one (which `--force` could wipe). `inputs` are (role, path), e.g. ("input", IN).
 pub fn check_apart(output: &Path, inputs: &[(&str, &Path)]) -> Result<()> {
-    let out = resolve(output);
-    for (role, input) in inputs {
-        let inp = resolve(input);
-        let relation = if out == inp {
-            "is"
-        } else if out.starts_with(&inp) {
-            "lies inside"
-        } else if inp.starts_with(&out) {
-            "contains"
-        } else {
-            continue;
-        };
-        return Err(Error::InvalidRequest(format!(
-            "the output folder {} {relation} the {role} {}: a command never writes into its inputs; choose another output folder",
+    match synthgen_core::paths::first_overlap(output, inputs) {
+        None => Ok(()),
+        Some((relation, role, input)) => Err(Error::InvalidRequest(format!(
+            "the output {} {} the {role} {}: a command never writes into its inputs; choose another output",
             output.display(),
+            relation.verb(),
             input.display()
-        )));
+        ))),
     }
-    Ok(())
 }
 
 #[cfg(test)]

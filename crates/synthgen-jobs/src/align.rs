@@ -8,7 +8,9 @@ use serde_json::json;
 use std::path::{Path, PathBuf};
 use synthgen_assets::{load_model, Units};
 
+use synthgen_core::atomic::StagedDir;
 use synthgen_formats::layout::open_source;
+use synthgen_formats::output::check_apart;
 use synthgen_physics::align::{align, AlignOptions, Alignment};
 
 use crate::models::{files_with_extensions, model_name};
@@ -59,12 +61,28 @@ fn run_align(args: &AlignRequest, printer: &Printer<'_>) -> Result<bool> {
             "e.g. --max-median-mm 2",
         ));
     }
+    if !(MIN_SAMPLES..=MAX_SAMPLES).contains(&args.samples) {
+        return Err(user_error(
+            format!(
+                "--samples {} is outside {MIN_SAMPLES}..={MAX_SAMPLES} (surface points per mesh)",
+                args.samples
+            ),
+            "the default 4000 aligns the YCB scans to 0.05 mm; a few 10,000 is plenty",
+        ));
+    }
     let opts = AlignOptions {
         rotation_search: args.rotation_search,
-        samples: args.samples.max(100),
+        samples: args.samples,
         ..AlignOptions::default()
     };
     if let (Some(scans), Some(data)) = (&args.scans, &args.to_dataset) {
+        check_apart(
+            &args.out,
+            &[
+                ("scans folder", scans.as_path()),
+                ("dataset", data.as_path()),
+            ],
+        )?;
         return align_dataset(args, scans, data, &opts, printer);
     }
     let (Some(scan), Some(to)) = (&args.scan, &args.to) else {
@@ -73,6 +91,7 @@ fn run_align(args: &AlignRequest, printer: &Printer<'_>) -> Result<bool> {
             "see synthgen model align --help",
         ));
     };
+    check_scan_apart(&args.out, scan, to)?;
     check_out(&args.out, args.force)?;
     let done = align_one(args, scan, to, &args.out, &opts, printer)?;
     if args.json {
@@ -118,6 +137,37 @@ impl Done {
             self.iterations
         )
     }
+}
+
+/// The surface points per mesh `--samples` may ask for: fewer cannot align, more only costs
+/// memory (each is a few dozen bytes in several arrays).
+pub const MIN_SAMPLES: usize = 100;
+pub const MAX_SAMPLES: usize = 2_000_000;
+
+/// `out` may not be, hold or lie inside the scan, its material libraries and textures (as its
+/// files name them), or the model: `--force` replaces `out`.
+fn check_scan_apart(out: &Path, scan: &Path, to: &Path) -> Result<()> {
+    // An unreadable scan is reported by the load that follows, with its own message.
+    let mut inputs = synthgen_assets::obj_inputs(scan).unwrap_or_else(|_| vec![scan.to_path_buf()]);
+    inputs.push(to.to_path_buf());
+    let named: Vec<(&str, &Path)> = inputs
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            (
+                if i == 0 {
+                    "scan"
+                } else if p == to {
+                    "model"
+                } else {
+                    "scan's file"
+                },
+                p.as_path(),
+            )
+        })
+        .collect();
+    check_apart(out, &named)?;
+    Ok(())
 }
 
 /// `out` must be new, empty, or an earlier alignment's folder with --force.
@@ -200,19 +250,19 @@ fn align_one(
             scan_path.display()
         ));
     }
-    if out.exists() {
-        for e in std::fs::read_dir(out)? {
-            let p = e?.path();
-            if p.is_file() {
-                std::fs::remove_file(&p)
-                    .with_context(|| format!("cannot remove {}", p.display()))?;
-            }
-        }
-    }
-    let written = synthgen_assets::write_moved_obj(scan_path, out, m)?;
-    let report_path = out.join(REPORT_FILE);
-    std::fs::write(&report_path, serde_json::to_string_pretty(&report)? + "\n")
-        .with_context(|| format!("cannot write {}", report_path.display()))?;
+    // Written whole into a temporary sibling, then put in place of `out` (an earlier
+    // alignment there is replaced only then): a failed or interrupted run leaves `out` as it was.
+    let staged = StagedDir::new(out)
+        .with_context(|| format!("cannot create a folder beside {}", out.display()))?;
+    let written = synthgen_assets::write_moved_obj(scan_path, staged.path(), m)?;
+    let report_path = staged.path().join(REPORT_FILE);
+    synthgen_formats::io::atomic_write(
+        &report_path,
+        (serde_json::to_string_pretty(&report)? + "\n").as_bytes(),
+    )?;
+    staged
+        .commit()
+        .with_context(|| format!("cannot put the alignment in place: {}", out.display()))?;
     let t = a.translation_m * 1e3;
     Ok(Done {
         report,
@@ -283,6 +333,7 @@ fn align_dataset(
         if out.exists() && !out.join(REPORT_FILE).is_file() {
             check_out(&out, args.force)?;
         }
+        check_scan_apart(&out, scan, &model)?;
         match align_one(args, scan, &model, &out, opts, printer) {
             Ok(d) => {
                 rows.push(format!(

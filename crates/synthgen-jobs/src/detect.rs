@@ -4,20 +4,24 @@
 //! into a BOP detections file, with the recall per object where the frames have GT.
 
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
+use synthgen_core::paths::resolve;
 use synthgen_core::Progress;
-use synthgen_detect::detections::write_detections;
+use synthgen_detect::detections::{
+    provenance_path, write_detections, write_provenance, Provenance,
+};
 use synthgen_detect::detector::{
     dataset_classes, detect_frames, train_detector, DetectSummary, Detector, DetectorConfig,
     DetectorOutcome,
 };
+use synthgen_formats::identity::{dataset_objects, describe_mismatches, mismatched_objects};
 use synthgen_formats::layout::open_source;
 use synthgen_formats::output::{check_apart, OutputLock};
 use synthgen_train::eval::pick_split;
-use synthgen_train::train::{self, CONFIG_FILE};
+use synthgen_train::train::{self, RunKind, CONFIG_FILE};
 
 use crate::{user_error, Log};
 
@@ -25,8 +29,9 @@ use crate::{user_error, Log};
 #[derive(Debug, Clone)]
 pub struct DetectorTrainRequest {
     /// The run's configuration (`data`, and `split` empty for the dataset's only split); its
-    /// `classes` empty for every object of the dataset; with `resume` only `epochs` counts,
-    /// the rest is the run's own `config.json`.
+    /// `classes` empty for every object of the dataset. With `resume` only `epochs` counts:
+    /// the rest is the run's own `config.json`, and a `data` given (not empty) must be the
+    /// run's dataset.
     pub config: DetectorConfig,
     pub out: PathBuf,
     pub resume: bool,
@@ -45,32 +50,58 @@ pub fn train_detector_run(
     crate::use_threads(req.jobs);
     // Before any data is read: a bad --input must not cost a dataset load.
     req.config.validate_settings()?;
-    check_apart(&req.out, &[("dataset", &req.config.data)])?;
+    if !req.resume || !req.config.data.as_os_str().is_empty() {
+        check_apart(&req.out, &[("dataset", &req.config.data)])?;
+    }
     let _lock = OutputLock::acquire(&req.out)?;
     crate::train::check_run_folder(&req.out, req.resume, req.force)?;
-    let source = open_source(&req.config.data)
-        .with_context(|| format!("cannot open the dataset {}", req.config.data.display()))?;
     let cfg = if req.resume {
         let saved: DetectorConfig =
-            train::read_json(&req.out.join(CONFIG_FILE), "detector config.json")?;
+            train::read_run_config(&req.out.join(CONFIG_FILE), RunKind::Detector)?;
+        let given = &req.config.data;
+        if !given.as_os_str().is_empty() && resolve(given) != resolve(&saved.data) {
+            return Err(user_error(
+                format!(
+                    "--resume continues the run in {} on its own dataset {}, and --data is {}",
+                    req.out.display(),
+                    saved.data.display(),
+                    given.display()
+                ),
+                "drop --data to resume, or train on the other dataset into a new --out",
+            ));
+        }
+        check_apart(&req.out, &[("dataset", &saved.data)])?;
         DetectorConfig {
             epochs: req.config.epochs,
             ..saved
         }
     } else {
+        req.config.clone()
+    };
+    let source = open_source(&cfg.data)
+        .with_context(|| format!("cannot open the dataset {}", cfg.data.display()))?;
+    let cfg = if req.resume {
+        cfg
+    } else {
         let split = pick_split(
             source.as_ref(),
-            (!req.config.split.is_empty()).then_some(req.config.split.as_str()),
+            (!cfg.split.is_empty()).then_some(cfg.split.as_str()),
         )?;
-        let classes = if req.config.classes.is_empty() {
+        let classes = if cfg.classes.is_empty() {
             dataset_classes(source.as_ref(), &split)?
         } else {
-            req.config.classes.clone()
+            cfg.classes.clone()
         };
+        let known = dataset_objects(source.as_ref());
+        let objects = classes
+            .iter()
+            .filter_map(|c| known.get(c).cloned())
+            .collect();
         DetectorConfig {
             split,
             classes,
-            ..req.config.clone()
+            objects,
+            ..cfg
         }
     };
     cfg.validate()?;
@@ -122,7 +153,8 @@ pub struct DetectRequest {
     pub split: Option<String>,
     /// The run folder (or its `model.safetensors`).
     pub checkpoint: PathBuf,
-    /// The detections file to write.
+    /// The detections file to write; a folder (an existing one, or a path ending in `/`)
+    /// gets [`DETECTIONS_FILE`] in it.
     pub out: PathBuf,
     pub min_score: f64,
     pub per_class: usize,
@@ -130,24 +162,79 @@ pub struct DetectRequest {
     pub cuda: bool,
 }
 
-/// Runs `req`; returns the summary and the recall table (markdown, empty without GT).
-pub fn detect_run(req: &DetectRequest, progress: &dyn Progress) -> Result<(DetectSummary, String)> {
+/// The file name `detector run --out DIR/` writes in DIR.
+pub const DETECTIONS_FILE: &str = "detections.json";
+
+/// `--out` as the file to write: a folder gets [`DETECTIONS_FILE`] in it.
+pub fn detections_path(out: &Path) -> PathBuf {
+    let names_folder = out.is_dir()
+        || out
+            .as_os_str()
+            .to_string_lossy()
+            .ends_with(std::path::MAIN_SEPARATOR);
+    if names_folder {
+        out.join(DETECTIONS_FILE)
+    } else {
+        out.to_path_buf()
+    }
+}
+
+/// Runs `req`; returns the summary, the recall table (markdown, empty without GT) and the
+/// file written.
+pub fn detect_run(
+    req: &DetectRequest,
+    progress: &dyn Progress,
+) -> Result<(DetectSummary, String, PathBuf)> {
     let log = Log::new(progress);
     crate::use_threads(req.jobs);
-    if !(0.0..=1.0).contains(&req.min_score) || req.per_class == 0 {
+    if !(0.0..=1.0).contains(&req.min_score) || req.per_class == 0 || req.per_class > MAX_PER_CLASS
+    {
         return Err(user_error(
             format!(
-                "--min-score {} must be in 0..1 and --per-class {} at least 1",
+                "--min-score {} must be in 0..1 and --per-class {} in 1..={MAX_PER_CLASS}",
                 req.min_score, req.per_class
             ),
             "e.g. --min-score 0.05 --per-class 10",
         ));
     }
+    let out = detections_path(&req.out);
+    let run_folder = if req.checkpoint.is_dir() {
+        req.checkpoint.clone()
+    } else {
+        req.checkpoint
+            .parent()
+            .map_or_else(|| PathBuf::from("."), Path::to_path_buf)
+    };
+    check_apart(
+        &out,
+        &[
+            ("detector", run_folder.as_path()),
+            ("dataset", req.data.as_path()),
+        ],
+    )?;
     let device = train::device(req.cuda)?;
     let det = Detector::load(&req.checkpoint, &device)
         .with_context(|| format!("cannot load the detector {}", req.checkpoint.display()))?;
     let source = open_source(&req.data)
         .with_context(|| format!("cannot open the dataset {}", req.data.display()))?;
+    let wrong = mismatched_objects(&det.cfg.objects, source.as_ref());
+    if !wrong.is_empty() {
+        return Err(user_error(
+            format!(
+                "the detector was trained on other objects than {} has under the same ids: {}",
+                req.data.display(),
+                describe_mismatches(&wrong)
+            ),
+            "run a detector trained on this dataset's objects (detector train --data a set rendered from its models)",
+        ));
+    }
+    if det.cfg.objects.is_empty() {
+        log.warning(format!(
+            "{} names no objects (written by an older synthgen): its ids are taken to be {}'s",
+            run_folder.join(CONFIG_FILE).display(),
+            req.data.display()
+        ));
+    }
     let split = pick_split(source.as_ref(), req.split.as_deref())?;
     let (found, summary) = detect_frames(
         &det,
@@ -157,18 +244,36 @@ pub fn detect_run(req: &DetectRequest, progress: &dyn Progress) -> Result<(Detec
         req.per_class,
         progress,
     )?;
-    write_detections(&req.out, &found)?;
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    write_detections(&out, &found)?;
+    write_provenance(
+        &out,
+        &Provenance {
+            written_by: format!("synthgen detector run {}", synthgen_core::VERSION),
+            dataset: resolve(&req.data),
+            split: split.clone(),
+            frames: summary.frames_key.clone(),
+            objects: det.cfg.objects.clone(),
+            detector: resolve(&run_folder),
+        },
+    )?;
     log.info(format!(
-        "wrote {} detections of {} frames of {}/{} to {} in {:.1} s",
+        "wrote {} detections of {} frames of {}/{} to {} (and {}) in {:.1} s",
         found.len(),
         summary.frames,
         req.data.display(),
         split,
-        req.out.display(),
+        out.display(),
+        provenance_path(&out).display(),
         summary.seconds
     ));
-    Ok((summary.clone(), recall_table(&summary.recall)))
+    Ok((summary.clone(), recall_table(&summary.recall), out))
 }
+
+/// The most detections per object and frame `--per-class` may ask for.
+pub const MAX_PER_CLASS: usize = 100;
 
 /// The recall per object as a markdown table (empty without GT boxes).
 pub fn recall_table(recall: &BTreeMap<u32, (usize, usize)>) -> String {

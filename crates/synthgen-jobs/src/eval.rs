@@ -8,7 +8,10 @@ use std::path::Path;
 use std::sync::Arc;
 
 use anyhow::{Context, Result};
-use synthgen_detect::detections::{crop_boxes, read_detections};
+use synthgen_detect::detections::{
+    crop_boxes, join_detections, provenance_path, read_detections, read_provenance,
+};
+use synthgen_formats::identity::{describe_mismatches, frames_key, mismatched_objects};
 use synthgen_formats::layout::open_source;
 use synthgen_formats::source::FrameSource;
 use synthgen_train::bop::{load_render_models, prepare_bop, BopOptions, BopReport, TargetsFrom};
@@ -91,16 +94,10 @@ pub fn evaluate_request(req: &EvalRequest, progress: &dyn Progress) -> Result<Ev
     let stdout = Stdout::default();
     let printer = &Printer::new(progress, &stdout);
     let args = req;
-    // Read once: a checkpoint's crops and its refinement use the same boxes.
-    let detected = match &args.detections {
-        Some(path) => Some(Arc::new(read_crop_boxes(path)?)),
-        None => None,
-    };
-    let detected = detected.as_ref();
     let failed = match (&args.results, &args.checkpoint) {
-        (Some(csv), None) => run_results(args, csv, detected, printer)?,
+        (Some(csv), None) => run_results(args, csv, printer)?,
         (None, Some(ckpt)) => {
-            run_checkpoint(args, ckpt, detected, printer)?;
+            run_checkpoint(args, ckpt, printer)?;
             None
         }
         _ => {
@@ -123,18 +120,16 @@ fn open_dataset(dir: &Path) -> Result<Box<dyn FrameSource>> {
 
 fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
     let text = serde_json::to_string_pretty(value)?;
-    std::fs::write(path, text + "\n").with_context(|| format!("cannot write {}", path.display()))
+    synthgen_formats::io::atomic_write(path, (text + "\n").as_bytes())?;
+    Ok(())
 }
 
 /// Scores a results CSV; returns why the evaluation counts as failed (unreadable rows), if so.
-fn run_results(
-    args: &EvalRequest,
-    csv: &Path,
-    detected: Option<&Arc<CropBoxes>>,
-    printer: &Printer<'_>,
-) -> Result<Option<String>> {
+fn run_results(args: &EvalRequest, csv: &Path, printer: &Printer<'_>) -> Result<Option<String>> {
     let ds = open_dataset(&args.data)?;
     let split = pick_split(ds.as_ref(), args.split.as_deref())?;
+    let detected = detections_for(args, ds.as_ref(), &split, printer)?;
+    let detected = detected.as_ref();
     let gts = read_gt(ds.as_ref(), &split, args.min_visib_fract)?;
     let results = read_results_csv(csv)?;
     let mut estimates = results.estimates;
@@ -294,19 +289,105 @@ impl CentreAcc {
     }
 }
 
-/// The boxes of a detections file as the crops and the refinement read them.
-fn read_crop_boxes(path: &Path) -> Result<CropBoxes> {
-    let d = read_detections(path)
+/// The boxes of `--detections` that belong to `split` of `ds`, as the crops and the
+/// refinement read them (read once: a checkpoint's crops and its refinement share them).
+/// A file written by `detector run` must be of these frames and objects (its provenance);
+/// entries of other images, of objects not in the image, or with boxes that do not fit the
+/// image are counted and skipped; a file none of whose entries is of this split is refused.
+fn detections_for(
+    args: &EvalRequest,
+    ds: &dyn FrameSource,
+    split: &str,
+    printer: &Printer<'_>,
+) -> Result<Option<Arc<CropBoxes>>> {
+    let Some(path) = &args.detections else {
+        return Ok(None);
+    };
+    let list = read_detections(path)
         .with_context(|| format!("cannot read the detections {}", path.display()))?;
-    Ok(crop_boxes(&d))
+    let frames = ds.frames(&[split.to_string()])?;
+    let cam = ds.camera();
+    match read_provenance(path)? {
+        Some(prov) => {
+            let here = frames_key(&frames, [cam.width, cam.height]);
+            if prov.frames != here {
+                return Err(user_error(
+                    format!(
+                        "the detections in {} are of other frames: {}/{} ({} frames, {}x{}), and {}/{split} has {} frames ({}x{}){}",
+                        path.display(),
+                        prov.dataset.display(),
+                        prov.split,
+                        prov.frames.frames,
+                        prov.frames.image_size[0],
+                        prov.frames.image_size[1],
+                        args.data.display(),
+                        here.frames,
+                        here.image_size[0],
+                        here.image_size[1],
+                        if prov.frames.frames == here.frames {
+                            ": the same ids, other images"
+                        } else {
+                            ""
+                        }
+                    ),
+                    format!(
+                        "run the detector on this dataset: synthgen detector run --checkpoint {} --data {} --out FILE",
+                        prov.detector.display(),
+                        args.data.display()
+                    ),
+                ));
+            }
+            let wrong = mismatched_objects(&prov.objects, ds);
+            if !wrong.is_empty() {
+                return Err(user_error(
+                    format!(
+                        "the detections in {} name other objects than {} under the same ids: {}",
+                        path.display(),
+                        args.data.display(),
+                        describe_mismatches(&wrong)
+                    ),
+                    "use detections of a detector trained on this dataset's objects",
+                ));
+            }
+        }
+        None => printer.info(format!(
+            "{} has no provenance beside it ({}, which `synthgen detector run` writes): its entries are joined to the frames by scene, image and object ids alone",
+            path.display(),
+            provenance_path(path).display()
+        )),
+    }
+    let shown: BTreeMap<(u32, u32), Option<std::collections::BTreeSet<u32>>> = frames
+        .iter()
+        .map(|f| {
+            (
+                (f.location.scene_id, f.location.im_id),
+                Some(f.object_set().into_iter().collect()),
+            )
+        })
+        .collect();
+    let (kept, report) = join_detections(&list, &shown, [cam.width, cam.height]);
+    if list.is_empty() {
+        printer.warning(format!(
+            "{} holds no detections: every instance is a miss",
+            path.display()
+        ));
+    } else if report.kept == 0 && report.other_frames == report.entries {
+        return Err(user_error(
+            format!(
+                "none of the {} detections in {} is of an image of {}/{split}: they are of another dataset or split",
+                report.entries,
+                path.display(),
+                args.data.display()
+            ),
+            "give the detections `synthgen detector run` wrote for this dataset (and --split)",
+        ));
+    } else if report.skipped() > 0 {
+        printer.warning(format!("{}: {}", path.display(), report.describe()));
+    }
+    Ok(Some(Arc::new(crop_boxes(&kept))))
 }
 
-fn run_checkpoint(
-    args: &EvalRequest,
-    ckpt: &Path,
-    detected: Option<&Arc<CropBoxes>>,
-    printer: &Printer<'_>,
-) -> Result<()> {
+fn run_checkpoint(args: &EvalRequest, ckpt: &Path, printer: &Printer<'_>) -> Result<()> {
     let config_path = ckpt.with_file_name(CONFIG_FILE);
     if !config_path.exists() {
         return Err(user_error(
@@ -345,14 +426,17 @@ fn run_checkpoint(
     }
     let device = train::device(args.cuda)?;
     let model = load_model(ckpt, &cfg, &device)?;
+    let ds = open_dataset(&args.data)?;
+    let split = pick_split(ds.as_ref(), args.split.as_deref())?;
+    let detected = detections_for(args, ds.as_ref(), &split, printer)?;
+    let detected = detected.as_ref();
     let opts = DataOptions {
         min_visib_fract: args.min_visib_fract,
         seed: args.seed,
-        split: args.split.clone(),
+        split: Some(split),
         crop_boxes: detected.cloned(),
         ..cfg.data_options()
     };
-    let ds = open_dataset(&args.data)?;
     let mut set = load_source_instances(ds.as_ref(), &opts, printer)
         .with_context(|| format!("cannot load {}", args.data.display()))?;
     if let Some(path) = &args.detections {
@@ -376,13 +460,15 @@ fn run_checkpoint(
             ));
         }
     }
-    if set.instances.is_empty() {
+    // With detections, instances without one are misses; none detected is a score of 0,
+    // not an error.
+    if set.instances.is_empty() && (args.detections.is_none() || set.skipped_undetected == 0) {
         return Err(user_error(
             format!("no usable object instances in {}", args.data.display()),
             if cfg.model.is_rgb_only() {
-                "check that the dataset has rgb/ and mask_visib/ images of the model's objects"
+                "the RGB models need the colour images (rgb/) and each instance's visible box (scene_gt_info.json's bbox_visib, or mask_visib/) of the model's objects"
             } else {
-                "check that the dataset has depth/ and mask_visib/ images"
+                "the depth models need the depth images (depth/) and the visible masks (mask_visib/, or YCB-Video's -label.png)"
             },
         ));
     }
@@ -399,7 +485,11 @@ fn run_checkpoint(
         (Some(objects), gts)
     };
     let refs: Vec<_> = set.instances.iter().collect();
-    let mut preds = model.predict(&refs, objects.as_ref(), 64)?;
+    let mut preds = if refs.is_empty() {
+        Vec::new()
+    } else {
+        model.predict(&refs, objects.as_ref(), 64)?
+    };
     if let Some(opts) = &args.refine {
         if !cfg.model.is_rgb_only() {
             return Err(user_error(

@@ -45,17 +45,7 @@ pub fn frame_obj_ids(frames: &[synthgen_formats::source::SourceFrame]) -> Vec<u3
     ids
 }
 
-/// How the dataset names object `id`'s model: YCB-Video's class folder
-/// (`models/<class>/textured_simple.obj`), else the file stem (`obj_000005`).
-pub fn model_name(source: &dyn FrameSource, id: u32) -> String {
-    let file = source.model_file(id);
-    let stem = file.file_stem().map(|s| s.to_string_lossy().into_owned());
-    match (stem.as_deref(), file.parent().and_then(|p| p.file_name())) {
-        (Some("textured_simple" | "textured"), Some(class)) => class.to_string_lossy().into_owned(),
-        (Some(stem), _) => stem.to_string(),
-        _ => format!("obj_{id:06}"),
-    }
-}
+pub use synthgen_formats::identity::model_name;
 
 /// The files of `folder` whose extension is one of `extensions` (any case), sorted.
 pub fn files_with_extensions(
@@ -118,4 +108,51 @@ pub fn replacement_meshes(
         meshes.push(Some(mesh.clone()));
     }
     Ok((meshes, kept))
+}
+
+/// Refuses a replacement mesh (`--replay-models`, `--models`) that does not lie where the
+/// dataset's model of object `id` lies: its bounding box must match `models_info`'s (min and
+/// size) within 5 % of the diameter (3 mm at least). A raw scan in its own origin, or turned,
+/// would put every label beside its object; `model align` moves it first. Objects without
+/// `models_info` are not checked.
+pub fn check_replacement(
+    source: &dyn FrameSource,
+    id: u32,
+    mesh: &std::path::Path,
+    replacement: &Model,
+    flag: &str,
+) -> Result<()> {
+    let Some(info) = source.models_info().and_then(|m| m.get(&id)) else {
+        return Ok(());
+    };
+    let Some(bb) = replacement.aabb() else {
+        return Ok(());
+    };
+    let lo = bb.min.as_dvec3() * 1000.0;
+    let hi = bb.max.as_dvec3() * 1000.0;
+    let want_lo = [info.min_x, info.min_y, info.min_z];
+    let want_hi = [
+        info.min_x + info.size_x,
+        info.min_y + info.size_y,
+        info.min_z + info.size_z,
+    ];
+    let tol = (0.05 * info.diameter).max(3.0);
+    let off = (0..3)
+        .map(|i| (lo[i] - want_lo[i]).abs().max((hi[i] - want_hi[i]).abs()))
+        .fold(0.0_f64, f64::max);
+    if off > tol {
+        return Err(crate::user_error(
+            format!(
+                "{flag}: {} does not lie where object {id}'s model lies: its bounding box is ({:.0}, {:.0}, {:.0})..({:.0}, {:.0}, {:.0}) mm, the model's ({:.0}, {:.0}, {:.0})..({:.0}, {:.0}, {:.0}) mm ({off:.0} mm apart, over {tol:.0}): rendered at the GT poses it would sit beside the object",
+                mesh.display(),
+                lo.x, lo.y, lo.z, hi.x, hi.y, hi.z,
+                want_lo[0], want_lo[1], want_lo[2], want_hi[0], want_hi[1], want_hi[2],
+            ),
+            format!(
+                "move the scans onto the models first: synthgen model align --scans DIR --to-dataset {} --out ALIGNED, then {flag} ALIGNED",
+                source.root().display()
+            ),
+        ));
+    }
+    Ok(())
 }

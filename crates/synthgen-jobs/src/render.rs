@@ -244,7 +244,7 @@ pub fn render(req: &RenderRequest, progress: &dyn Progress) -> Result<RenderOutc
     let frame_range = req.frame_range()?;
     let asked = frame_range.end - frame_range.start;
     let spec = req.spec()?;
-    for w in spec.sensor.unused_sections() {
+    for w in spec.unused_settings() {
         printer.warning(w);
     }
     if spec.ground.visible && spec.camera_pose.elevation_deg[0] < 0.0 {

@@ -127,10 +127,16 @@ pub fn replay(req: &ReplayRequest, progress: &dyn Progress) -> Result<ReplayOutc
         })
         .collect();
 
-    if !is_empty(&args.out) && !args.force {
+    if args.resume && args.sink.format != Format::Bop {
+        return Err(user_error(
+            "--resume works with --format bop only",
+            "replay into BOP and convert the dataset with `synthgen convert --to linemod` or `--to ycbv`",
+        ));
+    }
+    if !is_empty(&args.out) && !args.force && !args.resume {
         return Err(user_error(
             format!("output folder is not empty: {}", args.out.display()),
-            "choose another --out, or pass --force to replace it",
+            "continue an interrupted replay with --resume, replace it with --force, or choose another --out",
         ));
     }
     if args.force {
@@ -149,8 +155,43 @@ pub fn replay(req: &ReplayRequest, progress: &dyn Progress) -> Result<ReplayOutc
     if args.force {
         synthgen_formats::output::replace_output(&args.out, printer)?;
     }
+    let splits: BTreeSet<String> = frames
+        .iter()
+        .map(|f| {
+            args.split
+                .clone()
+                .unwrap_or_else(|| f.location.split.clone())
+        })
+        .collect();
+    let mut dataset = args.sink.manifest_json();
+    if let Some(o) = dataset.as_object_mut() {
+        o.insert(
+            "split".into(),
+            splits.into_iter().collect::<Vec<_>>().into(),
+        );
+        o.insert("chunk_size".into(), CHUNK.into());
+    }
+    // What makes this replay: the run plan says so from the start, so that an interrupted
+    // run is recognised by --force (replaced) and --resume (continued, only as the same run).
+    let mut manifest = Manifest::new(args.command_line.clone(), args.seed);
+    manifest.backend = args.backend.name().into();
+    manifest.scene_spec = serde_json::json!({
+        "sensor": serde_json::to_value(&sensor_spec).context("cannot serialize the sensor")?,
+    });
+    manifest.extra = serde_json::json!({
+        "replay": {
+            "source": synthgen_core::paths::resolve(&real),
+            "scenes": args.scenes,
+            "models": args.models.as_deref().map(synthgen_core::paths::resolve),
+            "lit": args.lit,
+        },
+        "objects": obj_ids,
+        "visib_delta_m": args.visib_delta_m,
+        "dataset": dataset,
+    });
+    begin_run(&args.out, args.resume, &manifest)?;
 
-    let (jobs, mut sinks) = plan(
+    let (mut jobs, mut sinks) = plan(
         args,
         frames,
         cam.intrinsics(),
@@ -159,6 +200,19 @@ pub fn replay(req: &ReplayRequest, progress: &dyn Progress) -> Result<ReplayOutc
     // One models/ folder, whatever the number of splits.
     if let Some(first) = sinks.first() {
         first.write_models(&models, &obj_ids, &symmetries)?;
+    }
+    if args.resume {
+        let mut done = Vec::with_capacity(sinks.len());
+        for sink in &sinks {
+            done.push(sink.resume()?);
+        }
+        let before = jobs.len();
+        jobs.retain(|j| !done[j.sink].is_done(j.index));
+        printer.info(format!(
+            "--resume: {} of {before} frames were written before; replaying the other {}",
+            before - jobs.len(),
+            jobs.len()
+        ));
     }
     let backend = args.backend.clone();
     let renderer = synthgen_pipeline::renderer_for(&backend, models, Vec::new(), printer)?;
@@ -242,34 +296,31 @@ pub fn replay(req: &ReplayRequest, progress: &dyn Progress) -> Result<ReplayOutc
         ));
     }
 
-    let mut manifest = Manifest::new(args.command_line.clone(), args.seed);
-    manifest.backend = backend.name().into();
-    manifest.scene_spec = serde_json::json!({
-        "sensor": serde_json::to_value(&sensor_spec).context("cannot serialize the sensor")?,
-    });
     manifest.frames = written;
-    let mut dataset = args.sink.manifest_json();
-    if let Some(o) = dataset.as_object_mut() {
-        let splits: BTreeSet<&str> = jobs.iter().map(|j| j.split.as_str()).collect();
-        o.insert(
-            "split".into(),
-            splits.into_iter().collect::<Vec<_>>().into(),
+    if let Some(extra) = manifest.extra.as_object_mut() {
+        if let Some(r) = extra.get_mut("replay").and_then(|r| r.as_object_mut()) {
+            r.insert("frames".into(), written.into());
+            r.insert("skipped_without_gt".into(), skipped.len().into());
+        }
+        extra.insert(
+            "failed_frames".into(),
+            failures
+                .iter()
+                .map(|f| f.0.clone())
+                .collect::<Vec<_>>()
+                .into(),
         );
-        o.insert("chunk_size".into(), CHUNK.into());
     }
-    manifest.extra = serde_json::json!({
-        "replay": {
-            "source": real,
-            "frames": rendered,
-            "scenes": args.scenes,
-            "skipped_without_gt": skipped.len(),
-        },
-        "objects": obj_ids,
-        "visib_delta_m": args.visib_delta_m,
-        "dataset": dataset,
-        "failed_frames": failures.iter().map(|f| f.0.clone()).collect::<Vec<_>>(),
-    });
     write_manifest(&args.out, &manifest)?;
+    std::fs::remove_file(args.out.join(synthgen_formats::output::RUN_PLAN_FILE))
+        .or_else(|e| {
+            if e.kind() == std::io::ErrorKind::NotFound {
+                Ok(())
+            } else {
+                Err(e)
+            }
+        })
+        .context("cannot remove the run plan")?;
 
     let elapsed = started.elapsed().as_secs_f64();
     printer.info(format!(
@@ -324,6 +375,7 @@ fn replace_models(
         let Some(mesh) = mesh else { continue };
         let l = synthgen_assets::load_model(&mesh, synthgen_assets::Units::Auto, printer)
             .with_context(|| format!("cannot load the replacement model of object {id}"))?;
+        crate::models::check_replacement(source, *id, &mesh, &l.model, "--replay-models")?;
         *model = l.model;
     }
     if !kept.is_empty() {
@@ -333,6 +385,62 @@ fn replace_models(
             dir.display()
         ));
     }
+    Ok(())
+}
+
+/// The parts of a replay's manifest two runs must share to write the same dataset.
+fn run_identity(m: &Manifest) -> serde_json::Value {
+    // Not the counts a finished run adds (frames, skipped_without_gt).
+    let replay = ["source", "scenes", "models", "lit"]
+        .map(|k| m.extra.get("replay").and_then(|r| r.get(k)).cloned());
+    serde_json::json!({
+        "synthgen_version": m.synthgen_version,
+        "seed": m.seed,
+        "backend": m.backend,
+        "scene_spec": m.scene_spec,
+        "replay": replay,
+        "objects": m.extra.get("objects"),
+        "visib_delta_m": m.extra.get("visib_delta_m"),
+        "dataset": m.extra.get("dataset"),
+    })
+}
+
+/// Writes the run plan (`manifest` before any frame); with `resume`, first checks that `out`
+/// holds an earlier run of the same replay (its run plan, or its manifest once finished).
+fn begin_run(out: &Path, resume: bool, manifest: &Manifest) -> Result<()> {
+    let plan_path = out.join(synthgen_formats::output::RUN_PLAN_FILE);
+    if resume {
+        let earlier = [
+            plan_path.clone(),
+            out.join(synthgen_formats::manifest::MANIFEST_FILE),
+        ]
+        .into_iter()
+        .find(|p| p.is_file());
+        if let Some(p) = earlier {
+            let text = std::fs::read_to_string(&p)
+                .with_context(|| format!("cannot read {}", p.display()))?;
+            let m: Manifest = serde_json::from_str(&text)
+                .with_context(|| format!("cannot read {}", p.display()))?;
+            let (a, b) = (run_identity(&m), run_identity(manifest));
+            if a != b {
+                return Err(user_error(
+                    format!(
+                        "--resume: {} holds another run (its {} differs from this command's)",
+                        out.display(),
+                        p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default()
+                    ),
+                    "pass exactly the options of the interrupted replay (its command line is in that file), or use --force or another --out",
+                ));
+            }
+        } else if !is_empty(out) {
+            return Err(user_error(
+                format!("--resume: {} holds no interrupted replay", out.display()),
+                "choose the folder an interrupted `render --replay` wrote, or another --out",
+            ));
+        }
+    }
+    let text = serde_json::to_string_pretty(manifest)? + "\n";
+    synthgen_formats::io::atomic_write(&plan_path, text.as_bytes())?;
     Ok(())
 }
 
@@ -432,11 +540,20 @@ fn plan(
     let mut sink_of: BTreeMap<String, usize> = BTreeMap::new();
     let mut taken: BTreeMap<(String, u32, u32), String> = BTreeMap::new();
     let mut jobs = Vec::with_capacity(frames.len());
-    for frame in frames {
-        let split = args
-            .split
+    let split_of = |f: &SourceFrame| {
+        args.split
             .clone()
-            .unwrap_or_else(|| frame.location.split.clone());
+            .unwrap_or_else(|| f.location.split.clone())
+    };
+    // Each BOP split's frame indices, so that its writer keeps journals and can resume.
+    let mut ranges: BTreeMap<String, std::ops::Range<u64>> = BTreeMap::new();
+    for f in &frames {
+        let i = u64::from(f.location.scene_id) * CHUNK + u64::from(f.location.im_id);
+        let r = ranges.entry(split_of(f)).or_insert(i..i + 1);
+        *r = r.start.min(i)..r.end.max(i + 1);
+    }
+    for frame in frames {
+        let split = split_of(&frame);
         let sink = match (sink_of.get(&split), args.sink.format) {
             (Some(&s), _) => s,
             (None, Format::Linemod | Format::Ycbv) if !sinks.is_empty() => {
@@ -447,7 +564,7 @@ fn plan(
                 let layout = Layout {
                     split: split.clone(),
                     chunk_size: CHUNK as u32,
-                    frames: None,
+                    frames: ranges.get(&split).cloned(),
                 };
                 sinks.push(Sink::create_with(
                     &args.out,

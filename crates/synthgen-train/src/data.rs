@@ -13,7 +13,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use synthgen_core::rng::splitmix64;
 use synthgen_core::{GtInfo, Pose, Progress};
-use synthgen_formats::bop::{read_depth_m, read_rgb};
+use synthgen_formats::bop::{read_depth_m, read_rgb_sized};
 use synthgen_formats::layout::open_source;
 use synthgen_formats::source::{FrameSource, SourceFrame};
 
@@ -207,7 +207,7 @@ enum Outcome {
     Undetected,
 }
 
-fn load_frame(frame: &SourceFrame, opts: &DataOptions) -> Result<Vec<Outcome>> {
+fn load_frame(frame: &SourceFrame, size: [u32; 2], opts: &DataOptions) -> Result<Vec<Outcome>> {
     let gts = &frame.gt;
     if gts.is_empty() {
         return Ok(Vec::new());
@@ -247,7 +247,7 @@ fn load_frame(frame: &SourceFrame, opts: &DataOptions) -> Result<Vec<Outcome>> {
     // Without depth_points the depth is read for the dense targets only, never for the pixels.
     let pixel_depth = depth.as_ref().filter(|_| opts.depth_points);
     let rgb = if opts.crop_size > 0 || opts.rgb_box > 0 {
-        Some(read_rgb(&frame.rgb)?)
+        Some(read_rgb_sized(&frame.rgb, size)?)
     } else {
         None
     };
@@ -557,11 +557,12 @@ pub fn load_source_instances(
     }
     let split = pick_split(source, opts.split.as_deref())?;
     let jobs = source.frames(std::slice::from_ref(&split))?;
+    let cam = source.camera();
     progress.start("loading", jobs.len() as u64);
     let per_frame: Vec<Vec<Outcome>> = jobs
         .par_iter()
         .map(|frame| {
-            let r = load_frame(frame, opts);
+            let r = load_frame(frame, [cam.width, cam.height], opts);
             progress.advance(1);
             r
         })

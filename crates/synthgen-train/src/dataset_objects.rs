@@ -11,24 +11,41 @@ use synthgen_formats::bop::ModelInfo;
 use synthgen_formats::source::FrameSource;
 
 use crate::error::{Error, Result};
-use crate::metrics::{subsample_vertices, EvalObject};
+use crate::metrics::EvalObject;
 
-/// Model points used for ADD / ADD-S (evenly strided vertices).
-pub const EVAL_MODEL_POINTS: usize = 1000;
-
-/// Loads the evaluation model (points, diameter, symmetric) of each object id.
+/// Loads the evaluation model (points, diameter, symmetric) of each object id from the
+/// models bop_toolkit scores with: BOP's `models_eval/` when the dataset has it, else its
+/// models; every vertex (ADD and ADD-S as bop_toolkit computes them, to the digit).
 pub fn load_eval_objects(
     ds: &dyn FrameSource,
     obj_ids: impl IntoIterator<Item = u32>,
 ) -> Result<BTreeMap<u32, EvalObject>> {
+    let (info_path, model_path) = crate::bop::eval_model_paths(ds);
+    if info_path == ds.models_info_path() {
+        return load_each_object(
+            ds.models_info(),
+            &ds.models_info_path(),
+            &|id| ds.model_file(id),
+            ds.model_units(),
+            obj_ids,
+            eval_object,
+        );
+    }
+    let infos = synthgen_formats::bop::reader::read_models_info(&info_path)?;
+    // BOP's models_eval, like its models, are in millimetres.
     load_each_object(
-        ds.models_info(),
-        &ds.models_info_path(),
-        &|id| ds.model_file(id),
-        ds.model_units(),
+        Some(&infos),
+        &info_path,
+        &*model_path,
+        Units::Mm,
         obj_ids,
         eval_object,
     )
+}
+
+/// Whether the metrics of `ds` read other models than its own (`models_eval/`).
+pub fn has_eval_models(ds: &dyn FrameSource) -> bool {
+    crate::bop::eval_model_paths(ds).0 != ds.models_info_path()
 }
 
 /// Loads each distinct object of `obj_ids` once (its models_info entry and its model file,
@@ -62,10 +79,10 @@ pub fn load_each_object<T>(
     Ok(out)
 }
 
-/// The evaluation model of an object: strided vertices, diameter, symmetric or not.
+/// The evaluation model of an object: every vertex, diameter, symmetric or not.
 pub fn eval_object(model: &Model, info: &ModelInfo) -> EvalObject {
     EvalObject {
-        points_m: subsample_vertices(model, EVAL_MODEL_POINTS),
+        points_m: model.positions().map(|p| p.as_dvec3()).collect(),
         diameter_m: info.diameter / 1000.0,
         symmetric: !info.symmetries.is_empty(),
     }

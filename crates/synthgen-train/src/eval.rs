@@ -10,7 +10,7 @@ use synthgen_formats::source::{FrameLocation, FrameSource};
 
 pub use crate::data::pick_split;
 use crate::data::Instance;
-pub use crate::dataset_objects::{load_eval_objects, EVAL_MODEL_POINTS};
+pub use crate::dataset_objects::load_eval_objects;
 use crate::error::{Error, Result};
 use crate::metrics::{EvalObject, PoseErrors, Rotations};
 use crate::pose_model::{Objects, Prediction};

@@ -82,14 +82,25 @@ pub fn load_dataset_objects(
     obj_ids: impl IntoIterator<Item = u32>,
     loss_points: usize,
 ) -> Result<Objects> {
-    load_objects(
+    let ids: Vec<u32> = obj_ids.into_iter().collect();
+    let mut objects = load_objects(
         ds.models_info(),
         &ds.models_info_path(),
         &|id| ds.model_file(id),
         ds.model_units(),
-        obj_ids,
+        ids.iter().copied(),
         loss_points,
-    )
+    )?;
+    // The metrics score with what bop_toolkit scores with: `models_eval/` where it exists.
+    if crate::dataset_objects::has_eval_models(ds) {
+        let eval = crate::dataset_objects::load_eval_objects(ds, ids)?;
+        for (id, o) in objects.iter_mut() {
+            if let Some(e) = eval.get(id) {
+                o.eval = e.clone();
+            }
+        }
+    }
+    Ok(objects)
 }
 
 enum Net {

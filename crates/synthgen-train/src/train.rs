@@ -367,8 +367,65 @@ pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path, what: &'static str
     })
 }
 
+/// A pose model's `config.json`; a detector's is refused by name (not as serde's "unknown
+/// variant").
 pub fn read_config(path: &Path) -> Result<TrainConfig> {
-    read_json(path, "config.json")
+    read_run_config(path, RunKind::Pose)
+}
+
+/// What a run folder holds: a pose model (`synthgen train`) or a detector (`synthgen detector
+/// train`); its `config.json` says which in `"model"`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RunKind {
+    Pose,
+    Detector,
+}
+
+impl RunKind {
+    /// The kind `config.json`'s `"model"` names ("detector", else a pose model).
+    pub fn of_model(model: &str) -> RunKind {
+        if model == "detector" {
+            RunKind::Detector
+        } else {
+            RunKind::Pose
+        }
+    }
+
+    fn describe(self) -> &'static str {
+        match self {
+            RunKind::Pose => "a pose model's run (synthgen train)",
+            RunKind::Detector => "a detector's run (synthgen detector train)",
+        }
+    }
+}
+
+/// The `config.json` at `path` read as `T`, the config of a `want` run: one of the other kind
+/// is an error that says what the folder holds and what takes it.
+pub fn read_run_config<T: serde::de::DeserializeOwned>(path: &Path, want: RunKind) -> Result<T> {
+    let value: serde_json::Value = read_json(path, "config.json")?;
+    let model = value.get("model").and_then(|m| m.as_str()).unwrap_or("");
+    let found = RunKind::of_model(model);
+    if found != want {
+        return Err(Error::Malformed {
+            what: "config.json",
+            message: format!(
+                "this folder holds {} (model \"{model}\"), and {} is needed here{}",
+                found.describe(),
+                want.describe(),
+                match found {
+                    RunKind::Detector =>
+                        "; a detector's run feeds `synthgen detector run --checkpoint`",
+                    RunKind::Pose => "; a pose model's run feeds `synthgen eval --checkpoint`",
+                }
+            ),
+            path: path.to_path_buf(),
+        });
+    }
+    serde_json::from_value(value).map_err(|e| Error::Malformed {
+        what: "config.json",
+        message: e.to_string(),
+        path: path.to_path_buf(),
+    })
 }
 
 /// The metrics lines of a run folder, at most `keep` of them.

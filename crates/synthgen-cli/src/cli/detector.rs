@@ -50,9 +50,10 @@ as many as it has instances, overlap at IoU >= 0.5.";
 
 #[derive(Debug, Args)]
 pub struct DetectorTrainArgs {
-    /// The training dataset (BOP, Linemod or YCB-Video).
-    #[arg(long, value_name = "DIR")]
-    pub data: PathBuf,
+    /// The training dataset (BOP, Linemod or YCB-Video); with --resume, the run's own (it
+    /// may be left out).
+    #[arg(long, value_name = "DIR", required_unless_present = "resume")]
+    pub data: Option<PathBuf>,
 
     /// The run folder.
     #[arg(long, value_name = "DIR")]
@@ -91,8 +92,9 @@ pub struct DetectorTrainArgs {
     #[arg(long, default_value_t = 0.1)]
     pub min_visib_fract: f64,
 
-    /// Continue the run in --out from its checkpoint (--epochs may be raised).
-    #[arg(long, conflicts_with = "force")]
+    /// Continue the run in --out from its checkpoint, as it was configured: only --epochs
+    /// may be given (raised); the settings that make the run cannot change.
+    #[arg(long, conflicts_with_all = ["force", "split", "objects", "batch", "lr", "input", "seed", "val_fraction", "min_visib_fract"])]
     pub resume: bool,
 
     /// Replace a run already in --out.
@@ -117,7 +119,8 @@ pub struct DetectorRunArgs {
     #[arg(long, value_name = "DIR")]
     pub data: PathBuf,
 
-    /// The detections file to write (JSON).
+    /// The detections file to write (JSON; a folder gets detections.json), with its
+    /// provenance beside it (NAME.provenance.json: the frames and objects it is of).
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
 
@@ -129,8 +132,8 @@ pub struct DetectorRunArgs {
     #[arg(long, default_value_t = 0.05)]
     pub min_score: f64,
 
-    /// At most this many detections per object and frame.
-    #[arg(long, default_value_t = 10)]
+    /// At most this many detections per object and frame (1 to 100).
+    #[arg(long, default_value_t = 10, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=100))]
     pub per_class: usize,
 
     /// Worker threads (default: all cores).

@@ -18,7 +18,7 @@ pub fn run_train(args: DetectorTrainArgs, printer: &Printer) -> Result<ExitStatu
         val_fraction: args.val_fraction,
         min_visib_fract: args.min_visib_fract,
         ..DetectorConfig::new(
-            args.data.clone(),
+            args.data.clone().unwrap_or_default(),
             args.split.clone().unwrap_or_default(),
             args.objects.clone(),
         )
@@ -46,7 +46,7 @@ pub fn run_run(args: DetectorRunArgs, printer: &Printer) -> Result<ExitStatus> {
         jobs: args.jobs,
         cuda: args.device == DeviceArg::Cuda,
     };
-    let (_, table) = detect_run(&request, printer)?;
+    let (_, table, _) = detect_run(&request, printer)?;
     printer.data(&table)?;
     Ok(ExitStatus::Success)
 }

@@ -254,6 +254,26 @@ pub fn run_compare_rgb(args: SensorCompareRgbArgs, printer: &Printer) -> Result<
         min_pixels: args.min_pixels,
     };
     let c = synthgen_fit::rgb_compare::compare_rgb(real.as_ref(), synth.as_ref(), &opts)?;
+    if c.frames_not_twins > 0 {
+        let msg = format!(
+            "{} frames of {} share their scene and image ids with {}'s but show something else ({}): not its replay{}",
+            c.frames_not_twins,
+            args.synth.display(),
+            args.real.display(),
+            c.not_twins.join("; "),
+            if c.frames == 0 { "" } else { "; those frames are not compared" }
+        );
+        if c.frames == 0 {
+            return Err(user_error(
+                msg,
+                format!(
+                    "compare a replay of the real frames: `synthgen render --replay {} --out DIR`",
+                    args.real.display()
+                ),
+            ));
+        }
+        printer.warning(msg);
+    }
     if c.frames == 0 {
         return Err(user_error(
             format!(

@@ -78,7 +78,13 @@ fn the_detector_trains_resumes_runs_and_feeds_eval() {
         &train_detector(&data, &det, &["--epochs", "1"]),
         &["already holds a run", "--resume"],
     );
-    let o = train_detector(&data, &det, &["--epochs", "2", "--resume"]);
+    let resume = |extra: &[&str]| {
+        run(synthgen()
+            .args(["detector", "train", "--resume", "--out"])
+            .arg(&det)
+            .args(extra))
+    };
+    let o = resume(&["--epochs", "2"]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(
         stderr(&o).contains("resumed after epoch 1"),
@@ -169,6 +175,193 @@ fn the_detector_trains_resumes_runs_and_feeds_eval() {
     assert!(log.contains(&format!("{n9} without a detection")), "{log}");
     assert_eq!(no_nine["9"]["n_est"].as_u64().unwrap_or(0), 0, "{no_nine}");
     assert_eq!(no_nine["8"], with_gt["8"]);
+
+    // Regression (issue 50): an empty detections list is a score, every instance a miss,
+    // not "check rgb/ and mask_visib/".
+    std::fs::write(&gt_dets, "[]").unwrap();
+    let (none, log) = eval(&["--detections".as_ref(), gt_dets.as_os_str()], "none.json");
+    assert!(log.contains("holds no detections"), "{log}");
+    assert_eq!(none["all"]["n_est"].as_u64().unwrap_or(0), 0, "{none}");
+    assert_eq!(none["all"]["n_gt"], with_gt["all"]["n_gt"]);
+    // Boxes off the image or absurdly wide are skipped and counted, not NaN poses.
+    let mut bad = gt_detections(&data, 0);
+    let list = bad.as_array_mut().unwrap();
+    list[0]["bbox"] = serde_json::json!([0.0, 0.0, 1e308, 40.0]);
+    list[1]["bbox"] = serde_json::json!([5000.0, 10.0, 20.0, 20.0]);
+    std::fs::write(&gt_dets, bad.to_string()).unwrap();
+    let (skipped, log) = eval(&["--detections".as_ref(), gt_dets.as_os_str()], "bad.json");
+    assert!(
+        log.contains("2 of") && log.contains("with a box off the image"),
+        "{log}"
+    );
+    assert!(!skipped.to_string().contains("NaN") && !skipped.to_string().contains("null,"));
+    // Detections of another dataset whose ids coincide (same frames, other renders) are
+    // refused by their provenance; those of no frame here are refused too.
+    let other = two_class_set(dir.path(), "other", "8", "4");
+    let other_dets = dir.path().join("other_det.json");
+    let o = run(synthgen()
+        .args(["detector", "run", "--checkpoint"])
+        .arg(&det)
+        .arg("--data")
+        .arg(&other)
+        .arg("--out")
+        .arg(&other_dets));
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(dir.path().join("other_det.provenance.json").is_file());
+    let o = run(synthgen()
+        .args(["eval", "--checkpoint"])
+        .arg(dense.join("model.safetensors"))
+        .arg("--data")
+        .arg(&data)
+        .arg("--detections")
+        .arg(&other_dets));
+    refused(&o, &["are of other frames", "the same ids, other images"]);
+    std::fs::write(
+        &gt_dets,
+        r#"[{"scene_id": 7, "image_id": 0, "category_id": 8, "score": 1, "bbox": [1, 2, 30, 40]}]"#,
+    )
+    .unwrap();
+    let o = run(synthgen()
+        .args(["eval", "--checkpoint"])
+        .arg(dense.join("model.safetensors"))
+        .arg("--data")
+        .arg(&data)
+        .arg("--detections")
+        .arg(&gt_dets));
+    refused(&o, &["none of the 1 detections", "another dataset"]);
+    // A detector's run folder given to eval, a pose model's to detector run: named as such.
+    let o = run(synthgen()
+        .args(["eval", "--checkpoint"])
+        .arg(det.join("model.safetensors"))
+        .arg("--data")
+        .arg(&data));
+    refused(&o, &["a detector's run", "detector run --checkpoint"]);
+    let o = run(synthgen()
+        .args(["detector", "run", "--checkpoint"])
+        .arg(&dense)
+        .arg("--data")
+        .arg(&data)
+        .arg("--out")
+        .arg(dir.path().join("x.json")));
+    refused(&o, &["a pose model's run", "eval --checkpoint"]);
+}
+
+/// A cube of side `mm` millimetres as an OBJ: another object than the driller.
+fn cube(dir: &Path, mm: f64) -> std::path::PathBuf {
+    let h = mm / 2.0;
+    let mut s = String::new();
+    for z in [-h, h] {
+        for y in [-h, h] {
+            for x in [-h, h] {
+                s += &format!("v {x} {y} {z}\n");
+            }
+        }
+    }
+    s += "f 1 3 4 2\nf 5 6 8 7\nf 1 2 6 5\nf 3 7 8 4\nf 1 5 7 3\nf 2 4 8 6\n";
+    let p = dir.join("cube.obj");
+    std::fs::write(&p, s).unwrap();
+    p
+}
+
+/// Regression (issue 50): the detector's weights were unseeded; `--resume` trained on another
+/// `--data` while config.json named the first, ignored --lr and the like, and `--epochs`
+/// below the epochs done rewrote the config; `detector run --out` could be the detector's own
+/// checkpoint or a dataset's scene_gt.json; a detector of other objects ran under the same ids.
+#[test]
+fn the_detector_is_seeded_resumes_as_configured_and_writes_over_no_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = two_class_set(dir.path(), "set", "6", "3");
+    let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+    for out in [&a, &b] {
+        let o = train_detector(&data, out, &["--epochs", "1", "--seed", "5"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let bytes = |p: &Path| std::fs::read(p).unwrap();
+    assert!(
+        bytes(&a.join("model.safetensors")) == bytes(&b.join("model.safetensors")),
+        "the same command and --seed gave two different models"
+    );
+    let config = bytes(&a.join("config.json"));
+    let resume = |extra: &[&str]| {
+        run(synthgen()
+            .args(["detector", "train", "--resume", "--out"])
+            .arg(&a)
+            .args(extra))
+    };
+    let other = two_class_set(dir.path(), "other", "4", "9");
+    let o = resume(&["--epochs", "2", "--data", other.to_str().unwrap()]);
+    refused(&o, &["--resume continues the run", "its own dataset"]);
+    let o = resume(&["--epochs", "2", "--lr", "0.1"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--lr"), "{}", stderr(&o));
+    let o = resume(&["--epochs", "1"]);
+    refused(&o, &["trained 1 epochs already", "raise --epochs above 1"]);
+    assert_eq!(
+        bytes(&a.join("config.json")),
+        config,
+        "config.json rewritten"
+    );
+    // Resuming with the run's own --data spelled differently is fine.
+    let o = resume(&["--epochs", "2", "--data", &format!("{}/", data.display())]);
+    assert!(o.status.success(), "{}", stderr(&o));
+
+    // detector run never writes over its inputs.
+    let model = bytes(&a.join("model.safetensors"));
+    let scene_gt = data.join("train_pbr/000000/scene_gt.json");
+    let gt = bytes(&scene_gt);
+    for out in [a.join("model.safetensors"), scene_gt.clone(), a.clone()] {
+        let o = run(synthgen()
+            .args(["detector", "run", "--checkpoint"])
+            .arg(&a)
+            .arg("--data")
+            .arg(&data)
+            .arg("--out")
+            .arg(&out));
+        refused(&o, &["a command never writes into its inputs"]);
+    }
+    assert!(bytes(&a.join("model.safetensors")) == model && bytes(&scene_gt) == gt);
+    // --out naming a folder gets detections.json in it (was: os error 20).
+    let folder = dir.path().join("dets");
+    std::fs::create_dir_all(&folder).unwrap();
+    let o = run(synthgen()
+        .args(["detector", "run", "--checkpoint"])
+        .arg(&a)
+        .arg("--data")
+        .arg(&data)
+        .arg("--out")
+        .arg(format!("{}/", folder.display())));
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(folder.join("detections.json").is_file());
+    let prov = json_file(&folder.join("detections.provenance.json"));
+    assert_eq!(prov["objects"].as_array().unwrap().len(), 2, "{prov}");
+
+    // A dataset whose object 8 is a cube, not the driller: refused.
+    let cube_set = dir.path().join("cubes");
+    let o = run(synthgen()
+        .args(["render", "-q", "--objects"])
+        .arg(cube(dir.path(), 60.0))
+        .args([
+            "--obj-ids",
+            "8",
+            "--frames",
+            "2",
+            "--image-size",
+            "320,240",
+            "--out",
+        ])
+        .arg(&cube_set));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = run(synthgen()
+        .args(["detector", "run", "--checkpoint"])
+        .arg(&a)
+        .arg("--data")
+        .arg(&cube_set)
+        .arg("--out")
+        .arg(dir.path().join("c.json")));
+    refused(
+        &o,
+        &["trained on other objects", "object 8 is 8 (obj_000008"],
+    );
 }
 
 #[test]
@@ -192,20 +385,21 @@ fn detections_and_their_box_are_refused_where_they_mean_nothing() {
         &["--detections", "--checkpoint"],
     );
     std::fs::write(d.join("r.csv"), "scene_id,im_id,obj_id,score,R,t,time\n").unwrap();
+    let elsewhere = tempfile::tempdir().unwrap();
     let o = run(synthgen()
         .args(["detector", "run", "--checkpoint"])
         .arg(d.join("no_run"))
         .arg("--data")
-        .arg(d)
+        .arg(d.join("data"))
         .arg("--out")
-        .arg(d.join("out.json")));
+        .arg(elsewhere.path().join("out.json")));
     refused(&o, &["config.json"]);
     refused(
         &run(synthgen()
             .args(["detector", "train", "--data"])
             .arg(d)
             .args(["--input", "60x48", "--out"])
-            .arg(d.join("o"))),
+            .arg(elsewhere.path().join("o"))),
         &["60x48", "multiples of 8"],
     );
 }

@@ -21,6 +21,7 @@ mod inspect;
 mod linemod;
 mod mix;
 mod model_align;
+mod outputs_apart;
 // The README's commands run in a temporary clone whose ../shared/data links the real one.
 #[cfg(unix)]
 mod readme;

@@ -229,7 +229,7 @@ fn mix_errors() {
     std::fs::write(d.join("busy/notes.txt"), "mine").unwrap();
     for (out, force, want) in [
         ("busy", false, "--force"),
-        ("real", true, "the output folder real is the real dataset"),
+        ("real", true, "the output real (--out) is the real dataset"),
         ("synth/sub", true, "lies inside the synthetic dataset"),
     ] {
         let mut cmd = synthgen();

@@ -230,3 +230,126 @@ fn a_folder_of_scans_aligned_to_a_dataset_and_replayed_textured() {
     let m = |r: &serde_json::Value| r["objects"]["5"]["hist_distance"].as_f64().unwrap();
     assert!((m(&p) - m(&t)).abs() < 0.05, "{} vs {}", m(&p), m(&t));
 }
+
+/// A textured box as a scan: an OBJ (a 60 × 40 × 20 mm box, in metres) whose MTL names its
+/// textures as the MTL text `mtl` says, in `dir`.
+fn box_scan(dir: &Path, mtl: &str) -> std::path::PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    let (x, y, z) = (0.03, 0.02, 0.01);
+    let mut s = String::from("mtllib box.mtl\nusemtl m\n");
+    for zz in [-z, z] {
+        for yy in [-y, y] {
+            for xx in [-x, x] {
+                s += &format!("v {xx} {yy} {zz}\n");
+            }
+        }
+    }
+    s += "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n";
+    for f in [
+        [1, 3, 4, 2],
+        [5, 6, 8, 7],
+        [1, 2, 6, 5],
+        [3, 7, 8, 4],
+        [1, 5, 7, 3],
+        [2, 4, 8, 6],
+    ] {
+        s += &format!("f {}/1 {}/2 {}/3 {}/4\n", f[0], f[1], f[2], f[3]);
+    }
+    std::fs::write(dir.join("box.obj"), s).unwrap();
+    std::fs::write(dir.join("box.mtl"), mtl).unwrap();
+    dir.join("box.obj")
+}
+
+fn png(path: &Path, rgb: [u8; 3]) {
+    image::RgbImage::from_pixel(4, 4, image::Rgb(rgb))
+        .save(path)
+        .unwrap();
+}
+
+/// Regression (issue 50): `map_Kd ../../x.png` was copied to OUT/../../x.png; a texture name
+/// leading back to its own file (absolute, or `..` onto it) was copied onto itself and
+/// truncated to 0 bytes; `--force` into the scan's own folder deleted the scan; an MTL colour
+/// with two numbers panicked in the OBJ parser; `--samples 200000000` aborted.
+#[test]
+fn a_scans_file_names_never_decide_where_align_writes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scan_dir = d.join("a/b/scan");
+    std::fs::create_dir_all(&scan_dir).unwrap();
+    png(&d.join("a/x.png"), [200, 10, 10]);
+    png(&scan_dir.join("tex.png"), [10, 200, 10]);
+    let mtl = format!(
+        "newmtl m\nKd 0.5 0.5\nmap_Kd ../../x.png\nmap_Ks {}\n",
+        scan_dir.join("tex.png").display()
+    );
+    let scan = box_scan(&scan_dir, &mtl);
+    let before: Vec<(std::path::PathBuf, Vec<u8>)> = [
+        d.join("a/x.png"),
+        scan_dir.join("tex.png"),
+        scan_dir.join("box.mtl"),
+        scan.clone(),
+    ]
+    .into_iter()
+    .map(|p| (p.clone(), std::fs::read(&p).unwrap()))
+    .collect();
+    let unchanged = || {
+        for (p, b) in &before {
+            assert_eq!(&std::fs::read(p).unwrap(), b, "{} changed", p.display());
+        }
+    };
+    let out = d.join("out");
+    let o = align(&scan, &scan, &out, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(
+        e.contains("MTL line 2: `Kd 0.5 0.5`") && !e.contains("panicked"),
+        "{e}"
+    );
+    unchanged();
+    let mut written: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    written.sort();
+    assert_eq!(
+        written,
+        ["align.json", "box.mtl", "box.obj", "tex.png", "x.png"]
+    );
+    let copied = std::fs::read_to_string(out.join("box.mtl")).unwrap();
+    assert!(
+        copied.contains("map_Kd x.png\n") && copied.contains("map_Ks tex.png\n"),
+        "{copied}"
+    );
+    // Nothing beside the scan or the output: the folder holds what it held, plus out/.
+    let mut top: Vec<String> = std::fs::read_dir(d.join("a"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    top.sort();
+    assert_eq!(top, ["b", "x.png"]);
+
+    // In place, over the scan's folder or a folder holding its texture: refused, untouched.
+    for bad in [scan_dir.clone(), d.join("a")] {
+        let o = align(&scan, &scan, &bad, &["--force"]);
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        assert!(
+            stderr(&o).contains("never writes into its inputs"),
+            "{}",
+            stderr(&o)
+        );
+        unchanged();
+    }
+    // A size beyond reason is refused with a message, not an abort.
+    let o = align(&scan, &scan, &d.join("big"), &["--samples", "200000000"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("--samples 200000000 is outside"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!d.join("big").exists());
+    // --force over an earlier alignment replaces it.
+    let o = align(&scan, &scan, &out, &["--force"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    unchanged();
+}

@@ -365,7 +365,7 @@ fn replay_bad_input_is_refused_with_the_reason() {
     assert!(!d.join("o3").exists());
     // The output may not lie inside the dataset it replays.
     let o = replay(&broken, &broken.join("twin"), &[]);
-    refused(&o, &["lies inside the real dataset"]);
+    refused(&o, &["lies inside the --replay dataset"]);
     assert!(!broken.join("twin").exists());
 }
 

@@ -191,7 +191,8 @@ fn eval_on_nothing(dir: &Path, extra: &[&OsStr]) -> std::process::Output {
 #[test]
 fn save_results_without_a_checkpoint_needs_refine() {
     let tmp = tempfile::tempdir().unwrap();
-    let out = tmp.path().join("out.csv");
+    let elsewhere = tempfile::tempdir().unwrap();
+    let out = elsewhere.path().join("out.csv");
     let o = eval_on_nothing(tmp.path(), &["--save-results".as_ref(), out.as_os_str()]);
     refused(&o, &["--save-results", "--refine edges"]);
     assert!(!out.exists());

@@ -327,3 +327,78 @@ fn read_only_output_fails_clearly() {
     assert!(err.contains("Read-only file system"), "{err}");
     assert!(err.contains(&out.display().to_string()), "{err}");
 }
+
+/// Regression (issue 50): an interrupted `render --replay` left a folder neither a re-run nor
+/// `--force` would take, and `--replay` could not `--resume`. Killed at random points and
+/// resumed, a replay ends byte for byte as one uninterrupted run; a killed one is replaced by
+/// `--force`; `--resume` of another replay is refused.
+#[test]
+fn a_replay_killed_at_random_points_resumes_byte_identical_or_is_forced() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = dir.path().join("box.ply");
+    write_box_ply(&mesh);
+    let source = dir.path().join("source");
+    let o = run(&mut render_cmd(
+        &mesh,
+        &source,
+        &["--frames", "120", "--image-size", "320,240"],
+    ));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let replay = |out: &Path, extra: &[&str]| {
+        let mut c = synthgen();
+        c.args(["render", "-q", "--jobs", "1", "--replay"])
+            .arg(&source)
+            .arg("--out")
+            .arg(out)
+            .args(extra);
+        c
+    };
+    let reference = dir.path().join("reference");
+    let t0 = std::time::Instant::now();
+    assert!(run(&mut replay(&reference, &[])).status.success());
+    let full_ms = t0.elapsed().as_millis().max(20) as u64;
+
+    let out = dir.path().join("killed");
+    let mut rng = 0x7e91_u64;
+    let mut kills = 0;
+    for attempt in 0..8 {
+        let mut cmd = replay(&out, if attempt > 0 { &["--resume"] } else { &[] });
+        let mut child = cmd
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let delay = 2 + next(&mut rng) % (full_ms / 4);
+        std::thread::sleep(Duration::from_millis(delay));
+        if child.try_wait().unwrap().is_none() {
+            child.kill().unwrap();
+            kills += 1;
+        }
+        child.wait().unwrap();
+    }
+    eprintln!("killed {kills} of 8 replays (a full one takes {full_ms} ms)");
+    assert!(kills >= 2, "only {kills} kills landed");
+    // Another seed is another replay.
+    if !out.join("synthgen.json").exists() {
+        let o = run(&mut replay(&out, &["--resume", "--seed", "3"]));
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        assert!(stderr(&o).contains("holds another run"), "{}", stderr(&o));
+    }
+    let o = run(&mut replay(&out, &["--resume"]));
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_same_files(&reference, &out);
+
+    // Killed early, then replaced with --force: the run plan says the folder is a replay's.
+    let forced = dir.path().join("forced");
+    let mut child = replay(&forced, &[])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(full_ms / 3));
+    let _ = child.kill();
+    child.wait().unwrap();
+    let o = run(&mut replay(&forced, &["--force"]));
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_same_files(&reference, &forced);
+}

@@ -389,6 +389,17 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
         &mut notes,
     )?;
     widen_distances(&mut base, &test_frames, &mut notes)?;
+    let names: Vec<&str> = VARIANTS
+        .iter()
+        .map(|v| v.name)
+        .chain([REAL_ONLY, rows::NAIVE, rows::NAIVE_ICP])
+        .collect();
+    let ablation_rows: Vec<&str> = VARIANTS
+        .iter()
+        .filter(|v| v.ablation && !settings.ablation)
+        .map(|v| v.name)
+        .collect();
+    check_rows(&args.rows, &names, &ablation_rows)?;
     let wanted = |name: &str| args.rows.is_empty() || args.rows.iter().any(|r| r == name);
     let variants: Vec<&Variant> = VARIANTS
         .iter()
@@ -535,6 +546,14 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
         }
     }
 
+    // Rows an earlier run finished stay in the report when this run asks for others.
+    for name in &names {
+        let ablation_off = ablation_rows.contains(name);
+        if !wanted(name) && !ablation_off && !records.iter().any(|r| r.name == *name) {
+            records.extend(rows::read_record(&out, name));
+        }
+    }
+    records.sort_by_key(|r| names.iter().position(|n| *n == r.name));
     let elapsed = started.elapsed().as_secs_f64();
     timing
         .render_s
@@ -774,6 +793,28 @@ fn write_timing(out: &Path, t: &report::Timing) -> Result<()> {
         &out.join(TIMING_FILE),
         (serde_json::to_string_pretty(t)? + "\n").as_bytes(),
     )?;
+    Ok(())
+}
+
+/// `--rows`: every name must be a row of this experiment; an ablation row needs
+/// `--ablation` (`ablation_rows`: those not run without it).
+pub(crate) fn check_rows(asked: &[String], names: &[&str], ablation_rows: &[&str]) -> Result<()> {
+    for r in asked {
+        if ablation_rows.contains(&r.as_str()) {
+            return Err(user_error(
+                format!(
+                    "--rows {r} is an ablation row, and this experiment runs without --ablation"
+                ),
+                "add --ablation, or leave the row out",
+            ));
+        }
+        if !names.contains(&r.as_str()) {
+            return Err(user_error(
+                format!("--rows: no row is called {r:?}"),
+                format!("the rows of this experiment: {}", names.join(", ")),
+            ));
+        }
+    }
     Ok(())
 }
 

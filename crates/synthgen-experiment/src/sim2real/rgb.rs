@@ -90,6 +90,9 @@ pub struct RgbSettings {
     /// synthgen's defaults) is refused rather than mixing rows refined two ways.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub refine_options: Option<EdgeRefineOptions>,
+    /// `--refine`: none, edges or views (the options above are its settings).
+    #[serde(default)]
+    pub refine: Refine,
     /// With `--refine edges|views`: what of each test instance shows, which the refinement
     /// keeps to (`--visible-box`; absent: none, as before it existed).
     #[serde(default, skip_serializing_if = "no_box")]
@@ -358,6 +361,10 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
             Refine::Edges => Some(EdgeRefineOptions::default()),
             _ => None,
         },
+        refine: match args.refine {
+            r @ (Refine::Views | Refine::Edges) => r,
+            _ => Refine::None,
+        },
         visible_box: args.visible_box,
     };
     let _lock = OutputLock::acquire(&out)?;
@@ -441,6 +448,12 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
     base.validate()?;
 
     // 2. The synthetic sets.
+    let names: Vec<&str> = SYNTH_ROWS
+        .iter()
+        .map(|r| r.name)
+        .chain([NAIVE_BOX, REAL_ONLY])
+        .collect();
+    super::check_rows(&args.rows, &names, &[])?;
     let wanted = |name: &str| args.rows.is_empty() || args.rows.iter().any(|r| r == name);
     let blender = cfg!(feature = "blender");
     let mut sets: Vec<(&SynthRow, usize, PathBuf)> = Vec::new();
@@ -587,6 +600,13 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
         }
     }
 
+    // Rows an earlier run finished stay in the report when this run asks for others.
+    for name in &names {
+        if !wanted(name) {
+            rows.extend(read_row_file::<RgbRow>(&out, name));
+        }
+    }
+    rows.sort_by_key(|r| names.iter().position(|n| *n == r.name));
     let skipped: BTreeMap<String, Vec<u64>> = sets
         .iter()
         .map(|(row, _, dir)| (row.name.to_string(), super::failed_frames(dir)))
@@ -619,6 +639,9 @@ fn replace_models(
     let (meshes, kept) = synthgen_jobs::models::replacement_meshes(test, dir, ids, "--models")?;
     for (o, mesh) in objects.iter_mut().zip(meshes) {
         let Some(mesh) = mesh else { continue };
+        let l = synthgen_assets::load_model(&mesh, synthgen_assets::Units::Auto, &NoProgress)
+            .with_context(|| format!("cannot load the --models mesh of object {}", o.obj_id))?;
+        synthgen_jobs::models::check_replacement(test, o.obj_id, &mesh, &l.model, "--models")?;
         o.model = mesh.canonicalize().unwrap_or(mesh);
         o.units = "auto".into();
     }
@@ -997,6 +1020,7 @@ fn report_json(
     serde_json::json!({
         "model": s.model,
         "gt_boxes": true,
+        "refine": s.refine,
         "main_row": MAIN_ROW,
         "all": main.map(|r| &r.all),
         "objects": main.map(|r| &r.objects),

@@ -320,6 +320,23 @@ pub fn read_rgb(path: &Path) -> Result<RgbImage> {
     })
 }
 
+/// [`read_rgb`] of a dataset frame, refused (an error naming the file) when its size is not
+/// the dataset camera's `width × height`: the intrinsics, boxes and masks describe that size.
+pub fn read_rgb_sized(path: &Path, size: [u32; 2]) -> Result<RgbImage> {
+    let img = read_rgb(path)?;
+    if [img.width, img.height] != size {
+        return Err(Error::Malformed {
+            file: "image".into(),
+            message: format!(
+                "it is {}x{}, but the dataset's camera (camera.json) is {}x{}",
+                img.width, img.height, size[0], size[1]
+            ),
+            path: path.to_path_buf(),
+        });
+    }
+    Ok(img)
+}
+
 #[cfg(test)]
 #[allow(clippy::unwrap_used, clippy::expect_used)]
 mod tests {

@@ -11,7 +11,9 @@ pub mod types;
 pub mod writer;
 
 pub use chunk::{write_map, ChunkAnnotations, FrameRecord, SCENE_CAMERA, SCENE_GT, SCENE_GT_INFO};
-pub use image::{read_depth_m, read_mask, read_rgb, Plane, PngCompression, RgbFormat, RgbImage};
+pub use image::{
+    read_depth_m, read_mask, read_rgb, read_rgb_sized, Plane, PngCompression, RgbFormat, RgbImage,
+};
 pub use reader::{BopDataset, BopScene};
 pub use types::{CameraInfo, GtEntry, ModelInfo, SceneCamera};
 pub use writer::{BopWriter, BopWriterOptions, DoneFrames, WriteSummary};
