@@ -172,7 +172,7 @@ pub struct AnnotateArgs {
     pub overlay: Option<PathBuf>,
 
     /// How many frames get an overlay (spread evenly).
-    #[arg(long, default_value_t = 12, value_name = "N")]
+    #[arg(long, default_value_t = 12, value_name = "N", value_parser = size(0, 10_000))]
     pub overlay_count: usize,
 
     /// Only this split (default: all).
@@ -317,7 +317,7 @@ pub struct PreviewArgs {
     pub out: PathBuf,
 
     /// Frames on the sheet.
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = 16, value_parser = size(1, 10_000))]
     pub count: usize,
 
     /// Seed of the choice of frames.
@@ -329,7 +329,7 @@ pub struct PreviewArgs {
     pub split: Option<String>,
 
     /// Width of one frame on the sheet, pixels.
-    #[arg(long, default_value_t = 320)]
+    #[arg(long, default_value_t = 320, value_parser = clap::value_parser!(u32).range(16..=4096))]
     pub tile_width: u32,
 }
 
@@ -357,6 +357,16 @@ Output (BOP layout): OUT/train/SCENE/ (real and synthetic, new image ids), OUT/t
 (held-out real frames, the same for every count and ratio with the same seed and
 --test-count or --test-scenes), OUT/camera.json, OUT/models/, OUT/provenance.json (source
 of every frame) and OUT/synthgen.json (with --test-scenes, its list).";
+
+/// `--jobs N`: worker threads, 1 to 1024 (a typo of 100000 would start as many threads).
+pub fn threads() -> clap::builder::RangedU64ValueParser<usize> {
+    size(1, 1024)
+}
+
+/// A count or size flag limited to `lo..=hi`: clap's message names the flag and the range.
+pub fn size(lo: u64, hi: u64) -> clap::builder::RangedU64ValueParser<usize> {
+    clap::builder::RangedU64ValueParser::<usize>::new().range(lo..=hi)
+}
 
 /// A dataset folder, or a frame count whose folder comes from the project config.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -751,7 +761,7 @@ pub struct RenderArgs {
     pub split: Option<String>,
 
     /// Frames per scene folder (BOP PBR sets use 1000).
-    #[arg(long, default_value_t = 1000)]
+    #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
     pub chunk_size: u32,
 
     /// RGB image format.
@@ -782,7 +792,7 @@ pub struct RenderArgs {
     pub visib_delta_m: f64,
 
     /// Worker threads (default: all cores).
-    #[arg(long, short)]
+    #[arg(long, short, value_parser = crate::cli::threads())]
     pub jobs: Option<usize>,
 
     /// Stop at the first frame that fails instead of reporting failures at the end.
@@ -796,7 +806,7 @@ pub struct RenderArgs {
     pub max_failed_fraction: f64,
 
     /// --backend blender: Cycles path-tracing samples per pixel.
-    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=65_536))]
     pub samples: u32,
 
     /// --backend blender: denoise with OpenImageDenoise.
@@ -804,7 +814,7 @@ pub struct RenderArgs {
     pub denoise: bool,
 
     /// --backend blender: CPU threads for Cycles (default: all cores).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub blender_threads: Option<u32>,
 
     /// --backend blender: the venv with bpy (default: $SYNTHGEN_BLENDER_VENV, else

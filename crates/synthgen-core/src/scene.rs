@@ -539,6 +539,33 @@ impl SceneSpec {
         Ok(spec)
     }
 
+    /// The files and folders the spec reads (its objects' meshes, distractor meshes, image
+    /// folders, sensor file), by role: what a command writing a dataset must stay apart from.
+    pub fn input_paths(&self) -> Vec<(&'static str, PathBuf)> {
+        let mut out: Vec<(&'static str, PathBuf)> = self
+            .objects
+            .iter()
+            .map(|o| ("scene object mesh", o.path.clone()))
+            .collect();
+        out.extend(
+            self.distractors
+                .meshes
+                .iter()
+                .map(|m| ("scene distractor mesh", m.clone())),
+        );
+        for (role, dir) in [
+            ("background.images_dir", &self.background.images_dir),
+            ("ground.texture_dir", &self.ground.texture_dir),
+            ("walls.texture_dir", &self.walls.texture_dir),
+            ("sensor file", &self.sensor.file),
+        ] {
+            if let Some(d) = dir {
+                out.push((role, d.clone()));
+            }
+        }
+        out
+    }
+
     /// Parses a TOML spec; a `[sensor] file` is read relative to the current folder.
     pub fn from_toml_str(text: &str) -> Result<SceneSpec, Error> {
         Self::parse(text, Path::new("."))

@@ -101,10 +101,19 @@ impl RenderRequest {
 
     /// The frames this process renders: all of `first_frame .. + frames`, or its shard.
     pub fn frame_range(&self) -> Result<Range<u64>> {
-        if self.first_frame.checked_add(self.frames).is_none() {
+        // BOP names scene folders with 6 digits: frame index / chunk size must stay below 10^6.
+        let last = u64::from(self.sink.chunk_size.max(1)) * 1_000_000;
+        if self
+            .first_frame
+            .checked_add(self.frames)
+            .is_none_or(|end| end > last)
+        {
             return Err(user_error(
-                "--first-frame + --frames is beyond the last frame index (2^64 - 1)",
-                "use smaller frame numbers",
+                format!(
+                    "--first-frame {} + --frames {} is beyond the last frame a dataset numbers ({last}: 10^6 scene folders of --chunk-size {} images)",
+                    self.first_frame, self.frames, self.sink.chunk_size
+                ),
+                "render fewer frames, or raise --chunk-size",
             ));
         }
         Ok(match self.shard {
@@ -254,6 +263,14 @@ pub fn render(req: &RenderRequest, progress: &dyn Progress) -> Result<RenderOutc
         ));
     }
     let sources = req.sources(&spec)?;
+    // What the scene file names is an input too (the command line's are checked by the CLI).
+    let inputs = spec.input_paths();
+    let named: Vec<(&str, &Path)> = inputs
+        .iter()
+        .map(|(r, p)| (*r, p.as_path()))
+        .chain(sources.iter().map(|s| ("object mesh", s.path.as_path())))
+        .collect();
+    synthgen_formats::output::check_apart(&req.out, &named)?;
     if !req.resume {
         check_out_dir(&req.out, req.force)?;
     }

@@ -115,6 +115,23 @@ fn default_loss_points() -> usize {
     100
 }
 
+/// The largest sizes a training run may ask for (far above anything useful on a CPU).
+pub struct Limits {
+    pub epochs: usize,
+    pub batch: usize,
+    pub width: usize,
+    pub points: usize,
+    pub crop_size: usize,
+}
+
+pub const LIMITS: Limits = Limits {
+    epochs: 10_000,
+    batch: 4096,
+    width: 4096,
+    points: 100_000,
+    crop_size: 1024,
+};
+
 impl TrainConfig {
     /// Checks the hyper-parameters: what AdamW and the data pipeline can work with.
     pub fn validate(&self) -> Result<()> {
@@ -143,6 +160,20 @@ impl TrainConfig {
         let points_ok = self.n_points > 0 || !self.model.needs_depth();
         if self.batch == 0 || self.epochs == 0 || self.width == 0 || !points_ok {
             return bad("--batch, --epochs, --width and --points must be positive".into());
+        }
+        // Sizes that only a typo reaches: refused with their limit instead of an allocation
+        // abort (a width of 100000 asks for 10^10 weights).
+        for (flag, v, max) in [
+            ("--epochs", self.epochs, LIMITS.epochs),
+            ("--batch", self.batch, LIMITS.batch),
+            ("--width", self.width, LIMITS.width),
+            ("--points", self.n_points, LIMITS.points),
+            ("--loss-points", self.loss_points, LIMITS.points),
+            ("--crop-size", self.crop_size as usize, LIMITS.crop_size),
+        ] {
+            if v > max {
+                return bad(format!("{flag} {v} is over its limit of {max}"));
+            }
         }
         if self.model == ModelKind::Rgb && self.crop_size < 16 {
             return bad(format!(
@@ -512,9 +543,14 @@ pub fn train(
         .instances
         .iter()
         .partition(|i| val.contains(&i.frame()));
-    if train_set.is_empty() {
+    if train_set.is_empty() || val_set.is_empty() {
+        let frames: BTreeSet<(u32, u32)> = data.instances.iter().map(Instance::frame).collect();
         return Err(Error::NoInstances {
-            reason: "no training instances after the validation split".into(),
+            reason: format!(
+                "{} frame{} with usable instances: training holds whole frames out for validation, so it needs at least 2 (render or select more frames, or lower --min-visib-fract)",
+                frames.len(),
+                if frames.len() == 1 { "" } else { "s" }
+            ),
             path: cfg.data.clone(),
         });
     }

@@ -102,7 +102,7 @@ pub struct DetectorTrainArgs {
     pub force: bool,
 
     /// Worker threads (default: all cores).
-    #[arg(long, short = 'j')]
+    #[arg(long, short = 'j', value_parser = crate::cli::threads())]
     pub jobs: Option<usize>,
 
     #[arg(long, value_enum, default_value = "cpu")]
@@ -137,7 +137,7 @@ pub struct DetectorRunArgs {
     pub per_class: usize,
 
     /// Worker threads (default: all cores).
-    #[arg(long, short = 'j')]
+    #[arg(long, short = 'j', value_parser = crate::cli::threads())]
     pub jobs: Option<usize>,
 
     #[arg(long, value_enum, default_value = "cpu")]

@@ -139,7 +139,7 @@ pub struct ExperimentMixArgs {
     pub seed: u64,
 
     /// Train each row this many times (training seeds seed, seed+1, ...): mean ± std.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = crate::cli::size(1, 100))]
     pub repeats: usize,
 
     /// Small and fast, to check the pipeline: the --quick defaults above and rendered sets
@@ -156,6 +156,6 @@ pub struct ExperimentMixArgs {
     pub force: bool,
 
     /// Worker threads (default: all cores).
-    #[arg(long, short = 'j')]
+    #[arg(long, short = 'j', value_parser = crate::cli::threads())]
     pub jobs: Option<usize>,
 }

@@ -107,6 +107,6 @@ pub struct ExperimentRgbArgs {
     pub force: bool,
 
     /// Worker threads (default: all cores).
-    #[arg(long, short = 'j')]
+    #[arg(long, short = 'j', value_parser = crate::cli::threads())]
     pub jobs: Option<usize>,
 }

@@ -133,7 +133,7 @@ pub struct SensorFitArgs {
     pub json: bool,
 
     /// Worker threads (default: all cores).
-    #[arg(long, short)]
+    #[arg(long, short, value_parser = crate::cli::threads())]
     pub jobs: Option<usize>,
 }
 
@@ -161,6 +161,6 @@ pub struct SensorCompareArgs {
     pub json: bool,
 
     /// Worker threads (default: all cores).
-    #[arg(long, short)]
+    #[arg(long, short, value_parser = crate::cli::threads())]
     pub jobs: Option<usize>,
 }

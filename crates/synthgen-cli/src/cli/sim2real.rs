@@ -177,13 +177,13 @@ pub struct ExperimentSim2realArgs {
     /// Training on the synthetic sets: each instance's visible mask grows or shrinks by up
     /// to this many pixels (a real segmenter's boundary). 0: as rendered. The default was
     /// chosen on validation scenes (docs/experiments.md).
-    #[arg(long, value_name = "PX", default_value_t = 3)]
+    #[arg(long, value_name = "PX", default_value_t = 3, value_parser = clap::value_parser!(u32).range(0..=64))]
     pub mask_jitter_px: u32,
 
     /// Training on the synthetic sets: each instance's visible mask moves by up to this many
     /// pixels along x and y (a mask registered to the colour image over a depth image a few
     /// pixels off). 0: in place.
-    #[arg(long, value_name = "PX", default_value_t = 0)]
+    #[arg(long, value_name = "PX", default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=64))]
     pub mask_shift_px: u32,
 
     /// Training on the synthetic sets: the probability that an instance loses the pixels
@@ -257,7 +257,7 @@ pub struct ExperimentSim2realArgs {
     pub force: bool,
 
     /// Worker threads (default: all cores).
-    #[arg(long, short = 'j')]
+    #[arg(long, short = 'j', value_parser = crate::cli::threads())]
     pub jobs: Option<usize>,
 }
 

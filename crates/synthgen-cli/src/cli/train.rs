@@ -229,7 +229,7 @@ pub struct TrainArgs {
     pub device: DeviceArg,
 
     /// Worker threads (default: all cores).
-    #[arg(long, short = 'j')]
+    #[arg(long, short = 'j', value_parser = crate::cli::threads())]
     pub jobs: Option<usize>,
 }
 

@@ -10,6 +10,7 @@ mod blender;
 fn blender_backend() {}
 mod bop_eval;
 mod careless;
+mod careless3;
 mod coco;
 mod common;
 mod corpus;

@@ -223,6 +223,17 @@ fn no_command_writes_into_around_or_over_its_inputs() {
         let o = run(synthgen().current_dir(d).args(*args));
         refused(&o, &[never, relation]);
     }
+    // A mesh the scene file names is an input too.
+    std::fs::write(
+        d.join("s.toml"),
+        "[[objects]]\npath = \"data/models/obj_000001.ply\"\n",
+    )
+    .unwrap();
+    let o = run(synthgen()
+        .current_dir(d)
+        .args(["render", "--scene", "s.toml", "--out", "data", "--force"]));
+    refused(&o, &["contains the scene object mesh"]);
+    std::fs::remove_file(d.join("s.toml")).unwrap();
     // Two outputs on one path.
     let o = run(synthgen().current_dir(d).args([
         "sensor", "fit", "--data", "data", "--out", "s.toml", "--plot", "s.toml",

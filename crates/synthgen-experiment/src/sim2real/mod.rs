@@ -346,6 +346,18 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
         seed: args.seed,
         quick: args.quick,
     };
+    // Before anything is written or fitted: a misspelt row must not cost a fit.
+    let names: Vec<&str> = VARIANTS
+        .iter()
+        .map(|v| v.name)
+        .chain([REAL_ONLY, rows::NAIVE, rows::NAIVE_ICP])
+        .collect();
+    let ablation_rows: Vec<&str> = VARIANTS
+        .iter()
+        .filter(|v| v.ablation && !settings.ablation)
+        .map(|v| v.name)
+        .collect();
+    check_rows(&args.rows, &names, &ablation_rows)?;
     let _lock = OutputLock::acquire(&out)?;
     check_settings(&out, &settings, args.force)?;
     printer.info(format!(
@@ -389,17 +401,6 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
         &mut notes,
     )?;
     widen_distances(&mut base, &test_frames, &mut notes)?;
-    let names: Vec<&str> = VARIANTS
-        .iter()
-        .map(|v| v.name)
-        .chain([REAL_ONLY, rows::NAIVE, rows::NAIVE_ICP])
-        .collect();
-    let ablation_rows: Vec<&str> = VARIANTS
-        .iter()
-        .filter(|v| v.ablation && !settings.ablation)
-        .map(|v| v.name)
-        .collect();
-    check_rows(&args.rows, &names, &ablation_rows)?;
     let wanted = |name: &str| args.rows.is_empty() || args.rows.iter().any(|r| r == name);
     let variants: Vec<&Variant> = VARIANTS
         .iter()

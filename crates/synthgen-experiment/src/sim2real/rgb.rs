@@ -285,6 +285,12 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
             "e.g. --frames 1500 --epochs 20",
         ));
     }
+    let names: Vec<&str> = SYNTH_ROWS
+        .iter()
+        .map(|r| r.name)
+        .chain([NAIVE_BOX, REAL_ONLY])
+        .collect();
+    super::check_rows(&args.rows, &names, &[])?;
     synthgen_jobs::use_threads(args.jobs);
     let test_dir = super::existing(&args.test, "test")?;
     let fit_dir = args
@@ -448,12 +454,6 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
     base.validate()?;
 
     // 2. The synthetic sets.
-    let names: Vec<&str> = SYNTH_ROWS
-        .iter()
-        .map(|r| r.name)
-        .chain([NAIVE_BOX, REAL_ONLY])
-        .collect();
-    super::check_rows(&args.rows, &names, &[])?;
     let wanted = |name: &str| args.rows.is_empty() || args.rows.iter().any(|r| r == name);
     let blender = cfg!(feature = "blender");
     let mut sets: Vec<(&SynthRow, usize, PathBuf)> = Vec::new();
