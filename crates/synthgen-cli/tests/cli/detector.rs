@@ -27,6 +27,21 @@ fn train_detector(data: &Path, out: &Path, extra: &[&str]) -> std::process::Outp
         .args(extra))
 }
 
+/// `synthgen detector run --checkpoint DET --data DATA --out OUT`.
+fn detector_run(
+    det: impl AsRef<std::ffi::OsStr>,
+    data: impl AsRef<std::ffi::OsStr>,
+    out: impl AsRef<std::ffi::OsStr>,
+) -> std::process::Output {
+    run(synthgen()
+        .args(["detector", "run", "--checkpoint"])
+        .arg(det)
+        .arg("--data")
+        .arg(data)
+        .arg("--out")
+        .arg(out))
+}
+
 /// `scene_gt_info.json`'s visible boxes of a BOP dataset's train_pbr scene 0 as BOP
 /// detections (COCO's width: bbox_visib's + 1), leaving out object `skip`.
 fn gt_detections(data: &Path, skip: u64) -> Value {
@@ -105,13 +120,7 @@ fn the_detector_trains_resumes_runs_and_feeds_eval() {
 
     // The run over the frames: BOP detections and a recall table of both objects.
     let found = dir.path().join("det.json");
-    let o = run(synthgen()
-        .args(["detector", "run", "--checkpoint"])
-        .arg(&det)
-        .arg("--data")
-        .arg(&data)
-        .arg("--out")
-        .arg(&found));
+    let o = detector_run(&det, &data, &found);
     assert!(o.status.success(), "{}", stderr(&o));
     let table = String::from_utf8_lossy(&o.stdout).to_string();
     assert!(
@@ -199,13 +208,7 @@ fn the_detector_trains_resumes_runs_and_feeds_eval() {
     // refused by their provenance; those of no frame here are refused too.
     let other = two_class_set(dir.path(), "other", "8", "4");
     let other_dets = dir.path().join("other_det.json");
-    let o = run(synthgen()
-        .args(["detector", "run", "--checkpoint"])
-        .arg(&det)
-        .arg("--data")
-        .arg(&other)
-        .arg("--out")
-        .arg(&other_dets));
+    let o = detector_run(&det, &other, &other_dets);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(dir.path().join("other_det.provenance.json").is_file());
     let o = run(synthgen()
@@ -236,13 +239,7 @@ fn the_detector_trains_resumes_runs_and_feeds_eval() {
         .arg("--data")
         .arg(&data));
     refused(&o, &["a detector's run", "detector run --checkpoint"]);
-    let o = run(synthgen()
-        .args(["detector", "run", "--checkpoint"])
-        .arg(&dense)
-        .arg("--data")
-        .arg(&data)
-        .arg("--out")
-        .arg(dir.path().join("x.json")));
+    let o = detector_run(&dense, &data, dir.path().join("x.json"));
     refused(&o, &["a pose model's run", "eval --checkpoint"]);
 }
 
@@ -310,26 +307,14 @@ fn the_detector_is_seeded_resumes_as_configured_and_writes_over_no_input() {
     let scene_gt = data.join("train_pbr/000000/scene_gt.json");
     let gt = bytes(&scene_gt);
     for out in [a.join("model.safetensors"), scene_gt.clone(), a.clone()] {
-        let o = run(synthgen()
-            .args(["detector", "run", "--checkpoint"])
-            .arg(&a)
-            .arg("--data")
-            .arg(&data)
-            .arg("--out")
-            .arg(&out));
+        let o = detector_run(&a, &data, &out);
         refused(&o, &["a command never writes into its inputs"]);
     }
     assert!(bytes(&a.join("model.safetensors")) == model && bytes(&scene_gt) == gt);
     // --out naming a folder gets detections.json in it (was: os error 20).
     let folder = dir.path().join("dets");
     std::fs::create_dir_all(&folder).unwrap();
-    let o = run(synthgen()
-        .args(["detector", "run", "--checkpoint"])
-        .arg(&a)
-        .arg("--data")
-        .arg(&data)
-        .arg("--out")
-        .arg(format!("{}/", folder.display())));
+    let o = detector_run(&a, &data, format!("{}/", folder.display()));
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(folder.join("detections.json").is_file());
     let prov = json_file(&folder.join("detections.provenance.json"));
@@ -351,13 +336,7 @@ fn the_detector_is_seeded_resumes_as_configured_and_writes_over_no_input() {
         ])
         .arg(&cube_set));
     assert!(o.status.success(), "{}", stderr(&o));
-    let o = run(synthgen()
-        .args(["detector", "run", "--checkpoint"])
-        .arg(&a)
-        .arg("--data")
-        .arg(&cube_set)
-        .arg("--out")
-        .arg(dir.path().join("c.json")));
+    let o = detector_run(&a, &cube_set, dir.path().join("c.json"));
     refused(
         &o,
         &["trained on other objects", "object 8 is 8 (obj_000008"],
@@ -386,13 +365,11 @@ fn detections_and_their_box_are_refused_where_they_mean_nothing() {
     );
     std::fs::write(d.join("r.csv"), "scene_id,im_id,obj_id,score,R,t,time\n").unwrap();
     let elsewhere = tempfile::tempdir().unwrap();
-    let o = run(synthgen()
-        .args(["detector", "run", "--checkpoint"])
-        .arg(d.join("no_run"))
-        .arg("--data")
-        .arg(d.join("data"))
-        .arg("--out")
-        .arg(elsewhere.path().join("out.json")));
+    let o = detector_run(
+        d.join("no_run"),
+        d.join("data"),
+        elsewhere.path().join("out.json"),
+    );
     refused(&o, &["config.json"]);
     refused(
         &run(synthgen()

@@ -3,27 +3,7 @@
 //! the inputs are left byte for byte as they were; a file's contents (an MTL's texture
 //! names) never decide where a command writes.
 
-use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
-
-use crate::common::{refused, run, stderr, synthgen};
-
-/// Every file under `root` with its bytes.
-fn snapshot(root: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
-    let mut out = BTreeMap::new();
-    let mut stack = vec![root.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                out.insert(p.clone(), std::fs::read(&p).unwrap());
-            }
-        }
-    }
-    out
-}
+use crate::common::{refused, run, stderr, synthgen, tree};
 
 /// Regression (issue 50): `detector run --out` could be the detector's checkpoint or a
 /// dataset's scene_gt.json, `scene fit --out` could land inside its dataset; the rule held
@@ -47,7 +27,7 @@ fn no_command_writes_into_around_or_over_its_inputs() {
     }
     std::fs::write(d.join("r.csv"), "scene_id,im_id,obj_id,score,R,t,time\n").unwrap();
     std::fs::copy(&mesh, d.join("mesh.ply")).unwrap();
-    let before = snapshot(d);
+    let before = tree(d);
     let never = "a command never writes into its inputs";
     let cases: &[(&[&str], &str)] = &[
         (
@@ -248,5 +228,5 @@ fn no_command_writes_into_around_or_over_its_inputs() {
         "data/train_pbr/000000/scene_gt.json",
     ]));
     refused(&o, &["is not a COCO annotation file"]);
-    assert!(before == snapshot(d), "an input changed");
+    assert!(before == tree(d), "an input changed");
 }

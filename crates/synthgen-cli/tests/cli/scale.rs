@@ -5,28 +5,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
-use crate::common::{run, stderr, synthgen};
+use crate::common::{run, stderr, synthgen, tree};
 use crate::render::write_box_ply;
-
-/// Every file under `root` (hidden ones included), relative path → bytes.
-fn tree(root: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
-    let mut out = BTreeMap::new();
-    let mut stack = vec![root.to_path_buf()];
-    while let Some(dir) = stack.pop() {
-        for e in std::fs::read_dir(&dir).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                out.insert(
-                    p.strip_prefix(root).unwrap().to_path_buf(),
-                    std::fs::read(&p).unwrap(),
-                );
-            }
-        }
-    }
-    out
-}
 
 fn manifest(root: &Path) -> serde_json::Value {
     serde_json::from_slice(&std::fs::read(root.join("synthgen.json")).unwrap()).unwrap()
