@@ -20,7 +20,7 @@ pub fn load_eval_objects(
     ds: &dyn FrameSource,
     obj_ids: impl IntoIterator<Item = u32>,
 ) -> Result<BTreeMap<u32, EvalObject>> {
-    let (info_path, model_path) = crate::bop::eval_model_paths(ds);
+    let (info_path, model_path) = eval_model_paths(ds);
     if info_path == ds.models_info_path() {
         return load_each_object(
             ds.models_info(),
@@ -45,7 +45,7 @@ pub fn load_eval_objects(
 
 /// Whether the metrics of `ds` read other models than its own (`models_eval/`).
 pub fn has_eval_models(ds: &dyn FrameSource) -> bool {
-    crate::bop::eval_model_paths(ds).0 != ds.models_info_path()
+    eval_model_paths(ds).0 != ds.models_info_path()
 }
 
 /// Loads each distinct object of `obj_ids` once (its models_info entry and its model file,
@@ -86,4 +86,19 @@ pub fn eval_object(model: &Model, info: &ModelInfo) -> EvalObject {
         diameter_m: info.diameter / 1000.0,
         symmetric: !info.symmetries.is_empty(),
     }
+}
+
+/// The models used for the metrics: BOP's `models_eval/` when the dataset has it (as
+/// bop_toolkit uses), else the dataset's models. Returns the models_info path and a model
+/// path per object.
+pub fn eval_model_paths(ds: &dyn FrameSource) -> (PathBuf, Box<dyn Fn(u32) -> PathBuf + '_>) {
+    let eval_dir = ds.root().join("models_eval");
+    let eval_info = eval_dir.join("models_info.json");
+    if eval_info.is_file() {
+        return (
+            eval_info,
+            Box::new(move |id| eval_dir.join(format!("obj_{id:06}.ply"))),
+        );
+    }
+    (ds.models_info_path(), Box::new(|id| ds.model_file(id)))
 }

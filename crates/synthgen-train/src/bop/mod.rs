@@ -182,20 +182,7 @@ impl BopObject {
     }
 }
 
-/// The models used for the metrics: BOP's `models_eval/` when the dataset has it (as
-/// bop_toolkit uses), else the dataset's models. Returns the models_info path and a model
-/// path per object.
-pub fn eval_model_paths(ds: &dyn FrameSource) -> (PathBuf, Box<dyn Fn(u32) -> PathBuf + '_>) {
-    let eval_dir = ds.root().join("models_eval");
-    let eval_info = eval_dir.join("models_info.json");
-    if eval_info.is_file() {
-        return (
-            eval_info,
-            Box::new(move |id| eval_dir.join(format!("obj_{id:06}.ply"))),
-        );
-    }
-    (ds.models_info_path(), Box::new(|id| ds.model_file(id)))
-}
+pub use crate::dataset_objects::eval_model_paths;
 
 /// Loads the objects `obj_ids` for the metrics (see [`eval_model_paths`]).
 pub fn load_bop_objects(
