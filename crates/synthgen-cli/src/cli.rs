@@ -358,6 +358,27 @@ Output (BOP layout): OUT/train/SCENE/ (real and synthetic, new image ids), OUT/t
 --test-count or --test-scenes), OUT/camera.json, OUT/models/, OUT/provenance.json (source
 of every frame) and OUT/synthgen.json (with --test-scenes, its list).";
 
+/// The flags of `subcommands` (e.g. `["detector", "train"]`) given on this process's command
+/// line, not defaulted: `--resume` compares those with the run it continues. The command line
+/// is parsed again (it parsed once already, so this cannot fail differently).
+pub fn explicit_flags(subcommands: &[&str]) -> Vec<String> {
+    use clap::CommandFactory;
+    let Ok(top) = Cli::command().try_get_matches_from(std::env::args_os()) else {
+        return Vec::new();
+    };
+    let mut m = &top;
+    for s in subcommands {
+        match m.subcommand_matches(s) {
+            Some(sub) => m = sub,
+            None => return Vec::new(),
+        }
+    }
+    m.ids()
+        .filter(|id| m.value_source(id.as_str()) == Some(clap::parser::ValueSource::CommandLine))
+        .map(|id| id.as_str().to_string())
+        .collect()
+}
+
 /// `--jobs N`: worker threads, 1 to 1024 (a typo of 100000 would start as many threads).
 pub fn threads() -> clap::builder::RangedU64ValueParser<usize> {
     size(1, 1024)

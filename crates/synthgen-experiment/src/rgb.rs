@@ -286,6 +286,7 @@ pub fn run(args: RgbOptions, printer: &Log) -> Result<String> {
 
     // One configuration per variant; they differ only in the translation.
     let config = |v: Translation, classes: Vec<u32>| TrainConfig {
+        objects: Vec::new(),
         model: ModelKind::Rgb,
         width,
         n_points: 0,

@@ -38,6 +38,9 @@ pub struct DetectorTrainRequest {
     pub force: bool,
     pub jobs: Option<usize>,
     pub cuda: bool,
+    /// The settings the command line gave, as (flag, `config.json` key): with `resume` each
+    /// must equal the run's own.
+    pub explicit: Vec<(String, String)>,
 }
 
 /// Trains `req`; the epochs and the summary go to `progress`.
@@ -71,6 +74,7 @@ pub fn train_detector_run(
             ));
         }
         check_apart(&req.out, &[("dataset", &saved.data)])?;
+        crate::train::check_resumed_settings(&req.out, &saved, &req.config, &req.explicit)?;
         DetectorConfig {
             epochs: req.config.epochs,
             ..saved

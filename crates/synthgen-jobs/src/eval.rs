@@ -427,6 +427,18 @@ fn run_checkpoint(args: &EvalRequest, ckpt: &Path, printer: &Printer<'_>) -> Res
     let device = train::device(args.cuda)?;
     let model = load_model(ckpt, &cfg, &device)?;
     let ds = open_dataset(&args.data)?;
+    let wrong = mismatched_objects(&cfg.objects, ds.as_ref());
+    if !wrong.is_empty() {
+        return Err(user_error(
+            format!(
+                "the checkpoint {} was trained on other objects than {} has under the same ids: {}",
+                ckpt.display(),
+                args.data.display(),
+                describe_mismatches(&wrong)
+            ),
+            "score a model trained on this dataset's objects",
+        ));
+    }
     let split = pick_split(ds.as_ref(), args.split.as_deref())?;
     let detected = detections_for(args, ds.as_ref(), &split, printer)?;
     let detected = detected.as_ref();

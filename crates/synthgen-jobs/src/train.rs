@@ -8,6 +8,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use synthgen_core::Progress;
+use synthgen_formats::identity::{dataset_objects, describe_mismatches, mismatched_objects};
 use synthgen_formats::layout::open_source;
 use synthgen_formats::output::{check_apart, OutputLock};
 use synthgen_train::data::load_source_instances;
@@ -38,6 +39,48 @@ pub struct TrainRequest {
     pub jobs: Option<usize>,
     /// Train on the GPU (candle's CUDA backend).
     pub cuda: bool,
+    /// The settings the command line gave, as (flag, `config.json` key): with `resume` each
+    /// must equal the run's own ([`check_resumed_settings`]).
+    pub explicit: Vec<(String, String)>,
+}
+
+/// `--resume` continues a run as it was configured: each setting the command line gave
+/// (`explicit`: flag and `config.json` key) must equal the run's (`saved`); a different one is
+/// refused, naming both values, rather than silently ignored.
+pub(crate) fn check_resumed_settings<T: serde::Serialize>(
+    out: &Path,
+    saved: &T,
+    asked: &T,
+    explicit: &[(String, String)],
+) -> Result<()> {
+    let (saved, asked) = (serde_json::to_value(saved)?, serde_json::to_value(asked)?);
+    let differ: Vec<String> = explicit
+        .iter()
+        .filter(|(_, key)| saved.get(key) != asked.get(key))
+        .map(|(flag, key)| {
+            let show =
+                |v: Option<&serde_json::Value>| v.map_or("none".to_string(), |v| v.to_string());
+            format!(
+                "{flag} {} (the run's: {})",
+                show(asked.get(key)),
+                show(saved.get(key))
+            )
+        })
+        .collect();
+    if differ.is_empty() {
+        return Ok(());
+    }
+    Err(user_error(
+        format!(
+            "--resume continues the run in {} as it was configured, and the command line asks for other settings: {}",
+            out.display(),
+            differ.join(", ")
+        ),
+        format!(
+            "drop them (only --epochs may change), or start a new run with --force or another --out; the run's settings are in {}",
+            out.join(CONFIG_FILE).display()
+        ),
+    ))
 }
 
 /// The guards of a run folder: `--resume` needs its checkpoint; a new run into a folder that
@@ -84,6 +127,7 @@ pub fn train_run(req: &TrainRequest, progress: &dyn Progress) -> Result<TrainOut
     check_run_folder(&args.out, args.resume, args.force)?;
     let cfg = if args.resume {
         let saved = read_config(&args.out.join(CONFIG_FILE))?;
+        check_resumed_settings(&args.out, &saved, &req.config, &req.explicit)?;
         TrainConfig {
             epochs: req.config.epochs,
             data: req.config.data.clone(),
@@ -172,9 +216,29 @@ pub fn train_run(req: &TrainRequest, progress: &dyn Progress) -> Result<TrainOut
     } else {
         cfg.classes.clone()
     };
+    // What the ids stand for: a resumed run on other data must be of the same objects.
+    let known = dataset_objects(source.as_ref());
+    let objects = set
+        .obj_ids()
+        .iter()
+        .filter_map(|id| known.get(id).cloned())
+        .collect();
+    let wrong = mismatched_objects(&cfg.objects, source.as_ref());
+    if !wrong.is_empty() {
+        return Err(user_error(
+            format!(
+                "the run in {} was trained on other objects than {} has under the same ids: {}",
+                args.out.display(),
+                args.config.data.display(),
+                describe_mismatches(&wrong)
+            ),
+            "resume on a dataset of the same objects, or start a new run",
+        ));
+    }
     let cfg = TrainConfig {
         split: set.split.clone(),
         classes,
+        objects,
         ..cfg
     };
     let observer = ProgressObserver {

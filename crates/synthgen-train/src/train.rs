@@ -109,6 +109,11 @@ pub struct TrainConfig {
     /// objects. For TNet (`--per-object`): the classes it is conditioned on (empty: none).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub classes: Vec<u32>,
+    /// What the training data's objects are (model name, diameter, extents), so that a
+    /// checkpoint scored on a dataset whose ids are other objects is refused (empty in
+    /// configs written before, and where the trainer was not given the dataset).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub objects: Vec<synthgen_formats::identity::ObjectIdentity>,
 }
 
 fn default_loss_points() -> usize {
@@ -797,6 +802,7 @@ mod tests {
     #[test]
     fn cosine_schedule_ends_at_a_hundredth() {
         let cfg = TrainConfig {
+            objects: Vec::new(),
             model: ModelKind::Tnet,
             width: 8,
             n_points: 4,

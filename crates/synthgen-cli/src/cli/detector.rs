@@ -92,9 +92,10 @@ pub struct DetectorTrainArgs {
     #[arg(long, default_value_t = 0.1)]
     pub min_visib_fract: f64,
 
-    /// Continue the run in --out from its checkpoint, as it was configured: only --epochs
-    /// may be given (raised); the settings that make the run cannot change.
-    #[arg(long, conflicts_with_all = ["force", "split", "objects", "batch", "lr", "input", "seed", "val_fraction", "min_visib_fract"])]
+    /// Continue the run in --out from its checkpoint, as it was configured: --epochs may be
+    /// raised; a setting that makes the run (--lr, --batch, --input, ...) given with another
+    /// value than the run's is refused.
+    #[arg(long, conflicts_with = "force")]
     pub resume: bool,
 
     /// Replace a run already in --out.

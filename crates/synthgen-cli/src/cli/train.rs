@@ -217,7 +217,9 @@ pub struct TrainArgs {
     #[arg(long, default_value = "runs/tnet")]
     pub out: PathBuf,
 
-    /// Continue the run in --out from its last checkpoint (AdamW's moments restart).
+    /// Continue the run in --out from its last checkpoint (AdamW's moments restart), as it
+    /// was configured: --epochs may be raised; a setting that makes the run (--lr, --batch,
+    /// --model, ...) given with another value than the run's is refused.
     #[arg(long)]
     pub resume: bool,
 

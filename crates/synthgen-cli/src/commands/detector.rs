@@ -6,6 +6,7 @@ use synthgen_detect::detector::DetectorConfig;
 use synthgen_jobs::detect::{detect_run, train_detector_run, DetectRequest, DetectorTrainRequest};
 
 use crate::cli::{DetectorRunArgs, DetectorTrainArgs, DeviceArg};
+use crate::commands::explicit_settings;
 use crate::{ExitStatus, Printer};
 
 pub fn run_train(args: DetectorTrainArgs, printer: &Printer) -> Result<ExitStatus> {
@@ -30,6 +31,7 @@ pub fn run_train(args: DetectorTrainArgs, printer: &Printer) -> Result<ExitStatu
         force: args.force,
         jobs: args.jobs,
         cuda: args.device == DeviceArg::Cuda,
+        explicit: explicit_settings(&["detector", "train"], SETTINGS),
     };
     train_detector_run(&request, printer)?;
     Ok(ExitStatus::Success)
@@ -50,3 +52,16 @@ pub fn run_run(args: DetectorRunArgs, printer: &Printer) -> Result<ExitStatus> {
     printer.data(&table)?;
     Ok(ExitStatus::Success)
 }
+
+/// The flags that make a detector run (clap's id, `config.json`'s key): `--resume` refuses
+/// another value than the run's.
+const SETTINGS: &[(&str, &str)] = &[
+    ("split", "split"),
+    ("objects", "classes"),
+    ("batch", "batch"),
+    ("lr", "lr"),
+    ("input", "input"),
+    ("seed", "seed"),
+    ("val_fraction", "val_fraction"),
+    ("min_visib_fract", "min_visib_fract"),
+];

@@ -41,3 +41,14 @@ pub use synthgen_jobs::user_error;
 pub fn hint_for(err: &anyhow::Error) -> Option<String> {
     synthgen_jobs::error_hint(err)
 }
+
+/// The settings of `table` (clap id, `config.json` key) that the command line of
+/// `subcommands` gave, as (flag, key), for `--resume`'s comparison with the run.
+pub fn explicit_settings(subcommands: &[&str], table: &[(&str, &str)]) -> Vec<(String, String)> {
+    let given = crate::cli::explicit_flags(subcommands);
+    table
+        .iter()
+        .filter(|(id, _)| given.iter().any(|g| g == id))
+        .map(|(id, key)| (format!("--{}", id.replace('_', "-")), (*key).to_string()))
+        .collect()
+}

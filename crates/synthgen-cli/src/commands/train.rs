@@ -10,6 +10,7 @@ use synthgen_train::models::ModelKind;
 use synthgen_train::train::{Schedule, TrainConfig};
 
 use crate::cli::{DeviceArg, ScheduleArg, TrainArgs, TrainModelArg, TranslationArg};
+use crate::commands::explicit_settings;
 use crate::{ExitStatus, Printer};
 
 pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
@@ -21,6 +22,7 @@ pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
         TrainModelArg::RgbDense => ModelKind::RgbDense,
     };
     let config = TrainConfig {
+        objects: Vec::new(),
         model,
         width: args.width,
         n_points: args.points,
@@ -62,7 +64,28 @@ pub fn run(args: TrainArgs, printer: &Printer) -> Result<ExitStatus> {
         per_object: args.per_object,
         jobs: args.jobs,
         cuda: args.device == DeviceArg::Cuda,
+        explicit: explicit_settings(&["train"], SETTINGS),
     };
     train_run(&request, printer)?;
     Ok(ExitStatus::Success)
 }
+
+/// The flags that make a run (clap's id, `config.json`'s key): `--resume` refuses another
+/// value than the run's.
+const SETTINGS: &[(&str, &str)] = &[
+    ("model", "model"),
+    ("translation", "translation"),
+    ("batch", "batch"),
+    ("lr", "lr"),
+    ("weight_decay", "weight_decay"),
+    ("schedule", "schedule"),
+    ("seed", "seed"),
+    ("points", "n_points"),
+    ("width", "width"),
+    ("crop_size", "crop_size"),
+    ("loss_points", "loss_points"),
+    ("no_symmetric_loss", "plain_add_loss"),
+    ("val_fraction", "val_fraction"),
+    ("min_visib_fract", "min_visib_fract"),
+    ("split", "split"),
+];

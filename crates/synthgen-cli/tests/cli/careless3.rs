@@ -213,3 +213,64 @@ fn sim2real_refuses_unknown_rows_before_any_work() {
         assert!(!d.join("exp/fit").exists(), "work done before the refusal");
     }
 }
+
+/// `train --resume` ignored `--lr` and the other settings silently; a checkpoint scored on a
+/// dataset whose ids are other objects was scored.
+#[test]
+fn train_resume_refuses_other_settings_and_eval_other_objects() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    assert!(render(d, "set", "4", "1", &[]).status.success());
+    let train = |extra: &[&str]| {
+        run(synthgen()
+            .current_dir(d)
+            .args([
+                "train",
+                "-q",
+                "--data",
+                "set",
+                "--model",
+                "full",
+                "--crop-size",
+                "16",
+            ])
+            .args([
+                "--batch", "4", "--points", "32", "--width", "16", "--out", "run",
+            ])
+            .args(extra))
+    };
+    assert!(train(&["--epochs", "1"]).status.success());
+    let o = train(&["--epochs", "2", "--resume", "--lr", "0.5"]);
+    refused(
+        &o,
+        &["asks for other settings", "--lr 0.5 (the run's: 0.001)"],
+    );
+    let o = train(&["--epochs", "2", "--resume"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // Object 1 of this dataset is a box, not the driller the run learnt.
+    box_obj(&d.join("box.obj"), 0.0);
+    let o = run(synthgen().current_dir(d).args([
+        "render",
+        "-q",
+        "--objects",
+        "box.obj",
+        "--frames",
+        "2",
+        "--image-size",
+        "160,120",
+        "--out",
+        "boxes",
+    ]));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = run(synthgen().current_dir(d).args([
+        "eval",
+        "--checkpoint",
+        "run/model.safetensors",
+        "--data",
+        "boxes",
+    ]));
+    refused(
+        &o,
+        &["trained on other objects", "object 1 is 1 (obj_000001"],
+    );
+}

@@ -275,6 +275,7 @@ pub fn run(ctx: &RowContext, spec: &RowSpec) -> Result<RowRecord> {
     let t2 = Instant::now();
     let run_dir = dir.join("train");
     let cfg = TrainConfig {
+        objects: Vec::new(),
         model,
         width: s.width,
         n_points: s.points,

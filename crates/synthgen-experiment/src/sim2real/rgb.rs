@@ -701,6 +701,7 @@ fn ensure_scene_fit(fit: &Path, scenes: &[u32], dir: &Path, printer: &Log) -> Re
 fn train_config(s: &RgbSettings, data: &Path, split: String) -> TrainConfig {
     let kind = s.kind();
     TrainConfig {
+        objects: Vec::new(),
         model: kind,
         width: s.width,
         n_points: 1,
@@ -817,6 +818,7 @@ fn train_row(
         )
     };
     let cfg = TrainConfig {
+        objects: Vec::new(),
         split: set.split.clone(),
         ..cfg
     };

@@ -293,6 +293,7 @@ pub fn train_row(
         (None, None) => s.epochs,
     };
     let cfg = TrainConfig {
+        objects: Vec::new(),
         model,
         width: s.width,
         n_points: s.points,
@@ -333,6 +334,7 @@ pub fn train_row(
     let mut seconds_eval = 0.0;
     for k in 0..members {
         let cfg = TrainConfig {
+            objects: Vec::new(),
             seed: member_seed(s.seed, k),
             ..cfg.clone()
         };
