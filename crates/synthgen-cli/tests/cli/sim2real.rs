@@ -198,6 +198,22 @@ fn an_ensemble_trains_each_member_and_scores_their_mean() {
         .as_f64()
         .unwrap()
         .is_finite());
+    // Regression (issue 50): a re-run asking for other rows rewrote report.json with
+    // "all": null; the rows an earlier run finished stay in the report.
+    let o = sim2real(
+        &real,
+        &real,
+        &out,
+        &[&args[..4], &["--rows", "naive_centroid", "--ensemble", "2"]].concat(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let again: Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(again["all"], r["all"]);
+    assert!(
+        again["rows"].to_string().contains("synth_fitted"),
+        "{again}"
+    );
     let o = sim2real(
         &real,
         &real,
