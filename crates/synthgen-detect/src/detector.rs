@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use candle_core::{Device, Tensor};
-use candle_nn::{AdamW, Optimizer, ParamsAdamW, VarMap};
+use candle_nn::{Optimizer, ParamsAdamW, VarMap};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -26,10 +26,11 @@ use synthgen_core::Progress;
 use synthgen_formats::bop::read_rgb_sized;
 use synthgen_formats::identity::{frames_key, FramesKey, ObjectIdentity};
 use synthgen_formats::source::{FrameSource, SourceFrame};
+use synthgen_train::optim::FusedAdamW;
 
 use synthgen_train::train::{
-    read_json, read_run_config, save_checkpoint, write_atomic, RunKind, Schedule, TrainState,
-    CONFIG_FILE, METRICS_FILE, MODEL_FILE, STATE_FILE,
+    pipelined, read_json, read_run_config, save_checkpoint, write_atomic, RunKind, Schedule,
+    TrainState, CONFIG_FILE, METRICS_FILE, MODEL_FILE, STATE_FILE,
 };
 use synthgen_train::{Error, Result};
 
@@ -699,7 +700,7 @@ pub fn train_detector(
         lines.push('\n');
     }
     write_atomic(&out.join(METRICS_FILE), lines.as_bytes())?;
-    let mut opt = AdamW::new(
+    let mut opt = FusedAdamW::new(
         det.varmap.all_vars(),
         ParamsAdamW {
             lr: cfg.lr,
@@ -722,15 +723,18 @@ pub fn train_detector(
         )));
         let (mut sum, mut count) = (0.0, 0usize);
         let mut lr = cfg.lr;
-        for batch in ord.chunks(cfg.batch) {
-            lr = cfg.lr_at(step, total, epoch);
-            opt.set_learning_rate(lr);
-            let samples: Vec<Sample> = batch
+        let batches: Vec<&[usize]> = ord.chunks(cfg.batch).collect();
+        let first_step = step;
+        // The next batch's windows, augmentation and targets are made while the network runs
+        // on this one; each batch's randomness is its step's, as without the overlap.
+        let prepare = |k: usize| -> Result<(Tensor, Tensor, Tensor, Tensor)> {
+            let at = first_step + k;
+            let samples: Vec<Sample> = batches[k]
                 .par_iter()
                 .map(|&i| {
                     let f = &frames[i];
                     let mut rng = ChaCha8Rng::seed_from_u64(splitmix64(
-                        splitmix64(cfg.seed ^ (step as u64).wrapping_mul(0x9e37_79b9))
+                        splitmix64(cfg.seed ^ (at as u64).wrapping_mul(0x9e37_79b9))
                             ^ (u64::from(f.scene_id) << 32 | u64::from(f.im_id)),
                     ));
                     sample_of(f, cfg, Some(&mut rng))
@@ -742,6 +746,11 @@ pub fn train_detector(
                 device,
             )?;
             let (heat, reg, centres) = targets(&samples, cfg, device)?;
+            Ok((x, heat, reg, centres))
+        };
+        pipelined(batches.len(), prepare, |k, (x, heat, reg, centres)| {
+            lr = cfg.lr_at(step, total, epoch);
+            opt.set_learning_rate(lr);
             let loss = detector_loss(&det.forward(&x)?, &heat, &reg, &centres)?;
             let value = f64::from(loss.to_scalar::<f32>()?);
             if !value.is_finite() {
@@ -754,8 +763,8 @@ pub fn train_detector(
                 });
             }
             opt.backward_step(&loss)?;
-            sum += value * batch.len() as f64;
-            count += batch.len();
+            sum += value * batches[k].len() as f64;
+            count += batches[k].len();
             step += 1;
             progress.set_message(&format!(
                 "epoch {}/{} loss {:.4}",
@@ -764,7 +773,8 @@ pub fn train_detector(
                 sum / count as f64
             ));
             progress.advance(1);
-        }
+            Ok(())
+        })?;
         progress.finish();
         let (val_loss, found, boxes) = validate(&det, &frames, &val)?;
         let m = DetectorEpoch {

@@ -20,7 +20,8 @@ use candle_nn::VarBuilder;
 
 use synthgen_train::models::dense::{dense, Dense};
 use synthgen_train::models::im2col::Window;
-use synthgen_train::models::rgb_dense::{conv, upsample2};
+use synthgen_train::models::rgb_dense::conv;
+use synthgen_train::models::upsample::upsample2_cat;
 
 const ENC: [usize; 3] = [32, 64, 128];
 const MID: usize = 128;
@@ -96,7 +97,7 @@ impl DetectorNet {
         let e3 = conv(&self.enc[2], &e2, DOWN)?;
         let m = conv(&self.mid[0], &e3, SAME)?;
         let m = conv(&self.mid[1], &m, SAME)?;
-        let x = Tensor::cat(&[&upsample2(&m)?, &e2], 3)?;
+        let x = upsample2_cat(&m, &e2)?;
         let d = conv(&self.dec, &x, SAME)?;
         let (b, s_h, s_w, c) = d.dims4()?;
         let out = candle_core::Module::forward(&self.head, &d.reshape((b * s_h * s_w, c))?)?

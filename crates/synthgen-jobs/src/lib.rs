@@ -92,11 +92,16 @@ pub fn error_hint(err: &anyhow::Error) -> Option<String> {
     })
 }
 
-/// `--jobs N`: the process's rayon pool gets N threads (None: all cores). The global pool can
-/// be set once per process; a second call (only tests run several jobs in one process) keeps
-/// the first pool.
+/// `--jobs N`: the process's rayon pool gets N threads (None: all cores, or
+/// `RAYON_NUM_THREADS`). The global pool can be set once per process; a second call (only
+/// tests run several jobs in one process) keeps the first pool. candle's CPU matrix products
+/// split their work by `RAYON_NUM_THREADS` (else the core count), so it is set to N as well:
+/// a training's products then split into as many parts as there are threads to run them.
 pub fn use_threads(jobs: Option<usize>) {
     if let Some(j) = jobs {
+        // Set before the pool starts its threads, while this is the only thread that reads
+        // the environment.
+        std::env::set_var("RAYON_NUM_THREADS", j.to_string());
         let _ = rayon::ThreadPoolBuilder::new()
             .num_threads(j)
             .build_global();

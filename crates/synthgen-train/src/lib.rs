@@ -13,6 +13,7 @@
 //! ```
 
 pub mod baseline;
+pub mod batch;
 pub mod bop;
 pub mod data;
 pub mod dataset_objects;
@@ -22,6 +23,7 @@ pub mod init;
 pub mod losses;
 pub mod metrics;
 pub mod models;
+pub mod optim;
 pub mod plot;
 pub mod pose_model;
 mod quat;

@@ -7,28 +7,26 @@ use std::path::Path;
 
 use candle_core::{DType, Device, Tensor};
 use candle_nn::VarMap;
+use rayon::prelude::*;
 use synthgen_core::glam::{DMat3, DQuat, DVec3};
 use synthgen_core::Pose;
 use synthgen_formats::bop::ModelInfo;
 use synthgen_formats::source::FrameSource;
 
+use crate::batch::{BoxTargets, PointTarget, Prepared, PreparedBatch};
 use crate::data::Instance;
 use crate::dataset_objects::{eval_object, load_each_object};
 use crate::error::{Error, Result};
 use crate::init::seeded_var_builder;
 use crate::losses::{
-    quaternion_confidence_loss, rotation_points_loss, smooth_l1_loss, symmetric_targets,
-    symmetry_poses,
+    quaternion_confidence_loss, rotation_points_loss, smooth_l1_loss, symmetry_poses,
 };
 use crate::metrics::{subsample_vertices, EvalObject};
 use crate::models::full::{full_loss, Full};
-use crate::models::rgb::{
-    box_geometry, canonical_sign, class_indices, crops_nhwc, quaternion_rotation, ray_rotation,
-    RgbNet, Translation, TARGET_SCALE,
-};
-use crate::models::rgb_dense::{canonical_coords, dense_loss, dense_out, DenseNet};
-use crate::models::rnet::{crops_tensor, pixel_indices, RNet, RotationOut, CONFIDENCE_WEIGHT};
-use crate::models::tnet::{centres_from_offsets, make_batch, offset_l1_loss, TNet};
+use crate::models::rgb::{canonical_sign, quaternion_rotation, RgbNet, Translation, TARGET_SCALE};
+use crate::models::rgb_dense::{dense_loss, dense_out, DenseNet};
+use crate::models::rnet::{RNet, RotationOut, CONFIDENCE_WEIGHT};
+use crate::models::tnet::{centres_from_offsets, offset_l1_loss, TNet};
 use crate::models::ModelKind;
 use crate::rgb_input;
 
@@ -247,6 +245,53 @@ fn dense_pnp(
         .map(|sol| (sol.pose, sol.inliers.len() as f32 / n as f32))
 }
 
+/// The dense model's poses of a batch (PnP + RANSAC on the visible cells, with the heads'
+/// pose: [`dense_pose`]), one instance per task.
+fn dense_predictions(
+    result: &crate::models::rgb_dense::DenseOut,
+    samples: &[rgb_input::RgbSample],
+    radii: &[f64],
+    rays: &[DMat3],
+    crop_size: u32,
+) -> Result<Vec<Prediction>> {
+    let out = dense_out(crop_size);
+    let cells = (out * out) as usize;
+    let quats: Vec<Vec<f32>> = result.quats.to_dtype(DType::F32)?.to_vec2()?;
+    let trans: Vec<Vec<f32>> = result.translation.to_dtype(DType::F32)?.to_vec2()?;
+    let coords: Vec<f32> = result
+        .coords
+        .to_dtype(DType::F32)?
+        .flatten_all()?
+        .to_vec1()?;
+    let logits: Vec<f32> = result
+        .logits
+        .to_dtype(DType::F32)?
+        .flatten_all()?
+        .to_vec1()?;
+    Ok(samples
+        .par_iter()
+        .enumerate()
+        .map(|(b, s)| {
+            let q = &quats[b];
+            let head = rays[b] * quaternion_rotation([q[0], q[1], q[2], q[3]]);
+            let t = &trans[b];
+            let t_head = Translation::CentreTz.translation(
+                [t[0], t[1], t[2]].map(f64::from),
+                &s.bbox,
+                &s.camera,
+            );
+            dense_pose(
+                &coords[b * cells * 3..(b + 1) * cells * 3],
+                &logits[b * cells..(b + 1) * cells],
+                out,
+                radii[b],
+                s,
+                Pose::new(head, t_head),
+            )
+        })
+        .collect())
+}
+
 /// How often a training step hides an instance's class from a per-object TNet, so that the
 /// class-free prediction (an object the model has no class for) stays a trained one.
 pub const CLASS_DROPOUT: f64 = 0.15;
@@ -254,7 +299,7 @@ pub const CLASS_DROPOUT: f64 = 0.15;
 /// (B, classes) one-hot rows of the batch's object ids; an id outside `classes` is an all-zero
 /// row, and so (with `jitter_seed`, training) is a [`CLASS_DROPOUT`] share of the instances,
 /// drawn from (seed, scene, image, gt).
-fn class_one_hot(
+pub(crate) fn class_one_hot(
     batch: &[&Instance],
     classes: &[u32],
     jitter_seed: Option<u64>,
@@ -498,7 +543,7 @@ impl PoseModel {
         objects: Option<&Objects>,
         predict: bool,
     ) -> Result<(Tensor, Vec<Prediction>)> {
-        self.forward(batch, objects, predict, None)
+        self.compute(&self.prepare(batch, objects, None)?, predict)
     }
 
     /// The loss of a training step: as [`PoseModel::run`], and the RGB model sees its boxes
@@ -509,59 +554,27 @@ impl PoseModel {
         objects: Option<&Objects>,
         jitter_seed: u64,
     ) -> Result<Tensor> {
-        Ok(self.forward(batch, objects, false, Some(jitter_seed))?.0)
+        self.loss_of(&self.prepare(batch, objects, Some(jitter_seed))?)
     }
 
-    fn forward(
-        &self,
-        batch: &[&Instance],
-        objects: Option<&Objects>,
-        predict: bool,
-        jitter_seed: Option<u64>,
-    ) -> Result<(Tensor, Vec<Prediction>)> {
-        if let Net::G(net) = &self.net {
-            return self.forward_rgb(net, batch, objects, predict, jitter_seed);
-        }
-        if let Net::D(net) = &self.net {
-            return self.forward_dense(net, batch, objects, predict, jitter_seed);
-        }
-        let clouds: Vec<&[[f32; 3]]> = batch.iter().map(|i| i.points_m.as_slice()).collect();
-        let centres: Vec<[f32; 3]> = batch
-            .iter()
-            .map(|i| i.pose.translation_m.as_vec3().to_array())
-            .collect();
-        let b = make_batch(&clouds, Some(&centres), self.scale, &self.device)?;
-        let rgb = |_: ()| -> Result<(Tensor, Tensor)> {
-            let mut crops = Vec::with_capacity(batch.len());
-            let mut xys = Vec::with_capacity(batch.len());
-            for i in batch {
-                if i.crop_rgb.is_empty() || i.crop_xy.len() != i.points_m.len() {
-                    return Err(Error::InvalidOption(format!(
-                        "instance (scene {}, image {}, gt {}) has no RGB crop; load the data with a crop size",
-                        i.scene_id, i.im_id, i.gt_id
-                    )));
-                }
-                crops.push(i.crop_rgb.as_slice());
-                xys.push(i.crop_xy.as_slice());
-            }
-            Ok((
-                crops_tensor(&crops, self.crop_size, &self.device)?,
-                pixel_indices(&xys, self.crop_size, &self.device)?,
-            ))
-        };
+    /// The loss of a batch [`PoseModel::prepare`]d: the network's step alone.
+    pub fn loss_of(&self, batch: &PreparedBatch) -> Result<Tensor> {
+        Ok(self.compute(batch, false)?.0)
+    }
+
+    /// The network on a prepared batch: its loss and (with `predict`) the per-instance
+    /// predictions.
+    fn compute(&self, batch: &PreparedBatch, predict: bool) -> Result<(Tensor, Vec<Prediction>)> {
         let none = || Prediction {
             centre_m: None,
             rotation: None,
         };
-        match &self.net {
-            Net::T(net) => {
-                let class = (net.n_classes() > 0)
-                    .then(|| class_one_hot(batch, &self.classes, jitter_seed, &self.device))
-                    .transpose()?;
+        match (&self.net, &batch.inner) {
+            (Net::T(net), Prepared::Points { b, class, .. }) => {
                 let pred = net.forward(&b.points, class.as_ref())?;
                 let loss = offset_l1_loss(&pred, &b.offsets)?;
                 let preds = if predict {
-                    centres_from_offsets(&b, &pred, self.scale)?
+                    centres_from_offsets(b, &pred, self.scale)?
                         .into_iter()
                         .map(|c| Prediction {
                             centre_m: Some(c),
@@ -573,16 +586,17 @@ impl PoseModel {
                 };
                 Ok((loss, preds))
             }
-            Net::R(net) => {
-                let (crops, pix) = rgb(())?;
-                let out = net.forward(&b.points, &crops, &pix)?;
-                let q: Vec<f32> = batch
-                    .iter()
-                    .flat_map(|i| quaternion_wxyz(&i.pose.rotation).map(|v| v as f32))
-                    .collect();
-                let q = Tensor::from_vec(q, (batch.len(), 4), &self.device)?;
-                let loss =
-                    quaternion_confidence_loss(&q, &out.quats, &out.conf, CONFIDENCE_WEIGHT)?;
+            (
+                Net::R(net),
+                Prepared::Points {
+                    b,
+                    rgb: Some((crops, pix)),
+                    target: PointTarget::Quats(q),
+                    ..
+                },
+            ) => {
+                let out = net.forward(&b.points, crops, pix)?;
+                let loss = quaternion_confidence_loss(q, &out.quats, &out.conf, CONFIDENCE_WEIGHT)?;
                 let preds = if predict {
                     best_rotations(&out)?
                         .into_iter()
@@ -596,33 +610,26 @@ impl PoseModel {
                 };
                 Ok((loss, preds))
             }
-            Net::F(net) => {
-                let objects = objects.ok_or_else(|| {
-                    Error::InvalidOption("the full model needs the objects' models".into())
-                })?;
-                let (crops, pix) = rgb(())?;
-                let out = net.forward(&b.points, &crops, &pix)?;
-                // The GT poses in the normalized frame: centred on the cloud's mean, scaled.
-                let s = f64::from(self.scale);
-                let poses: Vec<Pose> = batch
-                    .iter()
-                    .zip(&b.means_m)
-                    .map(|(i, m)| {
-                        let mean = DVec3::new(m[0].into(), m[1].into(), m[2].into());
-                        Pose::new(i.pose.rotation, (i.pose.translation_m - mean) * s)
-                    })
-                    .collect();
-                let (model_pts, targets) = self.posed_targets(batch, &poses, s, objects)?;
+            (
+                Net::F(net),
+                Prepared::Points {
+                    b,
+                    rgb: Some((crops, pix)),
+                    target: PointTarget::Posed(model_pts, targets),
+                    ..
+                },
+            ) => {
+                let out = net.forward(&b.points, crops, pix)?;
                 let loss = full_loss(
                     &out,
                     &b.points,
-                    &model_pts,
-                    &targets,
+                    model_pts,
+                    targets,
                     f64::from(self.scale),
                     CONFIDENCE_WEIGHT,
                 )?;
                 let preds = if predict {
-                    let centres = centres_from_offsets(&b, &out.offsets, self.scale)?;
+                    let centres = centres_from_offsets(b, &out.offsets, self.scale)?;
                     centres
                         .into_iter()
                         .zip(best_rotations(&out.rotation)?)
@@ -636,49 +643,69 @@ impl PoseModel {
                 };
                 Ok((loss, preds))
             }
-            Net::G(_) | Net::D(_) => unreachable!("handled above"),
+            (
+                Net::G(net),
+                Prepared::Rgb {
+                    samples,
+                    crops,
+                    geometry,
+                    class,
+                    targets,
+                },
+            ) => self.compute_rgb(net, samples, crops, geometry, class, targets, predict),
+            (
+                Net::D(net),
+                Prepared::Dense {
+                    samples,
+                    crops,
+                    class,
+                    coords,
+                    visible,
+                    radii,
+                    targets,
+                },
+            ) => {
+                let result = net.forward(crops, class)?;
+                let loss = ((dense_loss(&result, coords, visible)?
+                    + (rotation_points_loss(
+                        &result.quats,
+                        &targets.model_pts,
+                        &targets.r_target,
+                    )? * DENSE_ROTATION_WEIGHT)?)?
+                    + smooth_l1_loss(&result.translation, &targets.t_target, RGB_SMOOTH_L1_BETA)?)?;
+                if !predict {
+                    return Ok((loss, Vec::new()));
+                }
+                Ok((
+                    loss,
+                    dense_predictions(&result, samples, radii, &targets.rays, self.crop_size)?,
+                ))
+            }
+            _ => Err(Error::InvalidOption(format!(
+                "internal: a batch prepared for another model than this {} model",
+                self.kind.name()
+            ))),
         }
     }
 
-    /// The RGB model on a batch: crops (jittered with `jitter_seed`), box geometry and class
-    /// heads in; smooth L1 on the translation targets plus the rotation's point loss out.
-    fn forward_rgb(
+    /// The RGB model on a prepared batch: smooth L1 on the translation targets plus the
+    /// rotation's point loss; the poses along each crop's ray.
+    #[allow(clippy::too_many_arguments)]
+    fn compute_rgb(
         &self,
         net: &RgbNet,
-        batch: &[&Instance],
-        objects: Option<&Objects>,
+        samples: &[rgb_input::RgbSample],
+        crops: &Tensor,
+        geometry: &Tensor,
+        class: &Tensor,
+        targets: &BoxTargets,
         predict: bool,
-        jitter_seed: Option<u64>,
     ) -> Result<(Tensor, Vec<Prediction>)> {
-        let objects = objects.ok_or_else(|| {
-            Error::InvalidOption("the rgb model needs the objects' models".into())
-        })?;
         let translation = self.translation.unwrap_or(Translation::CentreTz);
-        let samples: Vec<rgb_input::RgbSample> = batch
-            .iter()
-            .map(|i| {
-                rgb_input::sample(i, self.crop_size, jitter_seed).ok_or_else(|| {
-                    Error::InvalidOption(format!(
-                        "instance (scene {}, image {}, gt {}) has no box region; load the data with an rgb box size",
-                        i.scene_id, i.im_id, i.gt_id
-                    ))
-                })
-            })
-            .collect::<Result<_>>()?;
-        let crops: Vec<&[u8]> = samples.iter().map(|s| s.crop.as_slice()).collect();
-        let crops = crops_nhwc(&crops, self.crop_size, &self.device)?;
-        let geometry: Vec<f32> = samples
-            .iter()
-            .flat_map(|s| box_geometry(&s.bbox, &s.camera))
-            .collect();
-        let geometry = Tensor::from_vec(geometry, (batch.len(), 3), &self.device)?;
-        let obj_ids: Vec<u32> = batch.iter().map(|i| i.obj_id).collect();
-        let class = class_indices(&obj_ids, &self.classes, &self.device)?;
-        let out = net.forward(&crops, &geometry, &class)?;
-        let (rays, t_target, model_pts, r_target) =
-            self.box_targets(batch, &samples, translation, objects)?;
-        let loss = (smooth_l1_loss(&out.translation, &t_target, RGB_SMOOTH_L1_BETA)?
-            + (rotation_points_loss(&out.quats, &model_pts, &r_target)? * RGB_ROTATION_WEIGHT)?)?;
+        let out = net.forward(crops, geometry, class)?;
+        let loss = (smooth_l1_loss(&out.translation, &targets.t_target, RGB_SMOOTH_L1_BETA)?
+            + (rotation_points_loss(&out.quats, &targets.model_pts, &targets.r_target)?
+                * RGB_ROTATION_WEIGHT)?)?;
         if !predict {
             return Ok((loss, Vec::new()));
         }
@@ -687,7 +714,7 @@ impl PoseModel {
         let preds = t
             .iter()
             .zip(&q)
-            .zip(samples.iter().zip(&rays))
+            .zip(samples.iter().zip(&targets.rays))
             .map(|((t, q), (s, ray))| {
                 let t =
                     translation.translation([t[0], t[1], t[2]].map(f64::from), &s.bbox, &s.camera);
@@ -699,224 +726,6 @@ impl PoseModel {
             })
             .collect();
         Ok((loss, preds))
-    }
-
-    /// The dense RGB model on a batch: crops (with `jitter_seed`, jittered boxes and colours
-    /// and [`rgb_input::dense_augment`]), the targets cut from each instance's
-    /// [`rgb_input::CoordRegion`] over the same box (canonical for symmetric objects, over the
-    /// object's radius); with `predict`, poses by PnP + RANSAC on the visible cells.
-    /// Instances without targets (real frames without depth) add nothing to the loss; a
-    /// training step needs them all.
-    fn forward_dense(
-        &self,
-        net: &DenseNet,
-        batch: &[&Instance],
-        objects: Option<&Objects>,
-        predict: bool,
-        jitter_seed: Option<u64>,
-    ) -> Result<(Tensor, Vec<Prediction>)> {
-        let objects = objects.ok_or_else(|| {
-            Error::InvalidOption("the rgb-dense model needs the objects' models".into())
-        })?;
-        let out = dense_out(self.crop_size);
-        let cells = (out * out) as usize;
-        let mut samples = Vec::with_capacity(batch.len());
-        let mut targets = Vec::with_capacity(batch.len() * cells * 3);
-        let mut visible = Vec::with_capacity(batch.len() * cells);
-        let mut radii = Vec::with_capacity(batch.len());
-        for i in batch {
-            let what = || {
-                format!(
-                    "instance (scene {}, image {}, gt {})",
-                    i.scene_id, i.im_id, i.gt_id
-                )
-            };
-            let mut s = rgb_input::sample(i, self.crop_size, jitter_seed).ok_or_else(|| {
-                Error::InvalidOption(format!(
-                    "{} has no box region; load the data with an rgb box size",
-                    what()
-                ))
-            })?;
-            let obj = objects.get(&i.obj_id).ok_or_else(|| {
-                Error::InvalidOption(format!("no model loaded for object {}", i.obj_id))
-            })?;
-            let radius = (0.5 * obj.eval.diameter_m).max(1e-6);
-            let region = i
-                .region
-                .as_ref()
-                .ok_or_else(|| Error::InvalidOption(what()))?;
-            let mut t = match &region.target {
-                Some(t) => t.cut(&region.region, &s.bbox, out),
-                None if jitter_seed.is_some() => {
-                    return Err(Error::InvalidOption(format!(
-                        "{} has no coordinate targets: the rgb-dense model trains on frames with depth (every synthgen render has it)",
-                        what()
-                    )))
-                }
-                None => vec![[f32::NAN; 3]; cells],
-            };
-            if let Some(seed) = jitter_seed {
-                rgb_input::dense_augment(&mut s.crop, self.crop_size, &mut t, out, seed, i);
-            }
-            canonical_coords(&mut t, &i.pose, &obj.symmetries);
-            for c in &t {
-                let v = c[0].is_finite();
-                visible.push(if v { 1f32 } else { 0.0 });
-                targets.extend(c.map(|x| {
-                    if v {
-                        (f64::from(x) / radius) as f32
-                    } else {
-                        0.0
-                    }
-                }));
-            }
-            radii.push(radius);
-            samples.push(s);
-        }
-        let crops: Vec<&[u8]> = samples.iter().map(|s| s.crop.as_slice()).collect();
-        let crops = crops_nhwc(&crops, self.crop_size, &self.device)?;
-        let ids: Vec<u32> = batch.iter().map(|i| i.obj_id).collect();
-        let class = class_indices(&ids, &self.classes, &self.device)?;
-        let o = out as usize;
-        let result = net.forward(&crops, &class)?;
-        let (rays, t_target, model_pts, r_target) =
-            self.box_targets(batch, &samples, Translation::CentreTz, objects)?;
-        let loss = ((dense_loss(
-            &result,
-            &Tensor::from_vec(targets, (batch.len(), o, o, 3), &self.device)?,
-            &Tensor::from_vec(visible, (batch.len(), o, o), &self.device)?,
-        )? + (rotation_points_loss(&result.quats, &model_pts, &r_target)?
-            * DENSE_ROTATION_WEIGHT)?)?
-            + smooth_l1_loss(&result.translation, &t_target, RGB_SMOOTH_L1_BETA)?)?;
-        if !predict {
-            return Ok((loss, Vec::new()));
-        }
-        let quats: Vec<Vec<f32>> = result.quats.to_dtype(DType::F32)?.to_vec2()?;
-        let trans: Vec<Vec<f32>> = result.translation.to_dtype(DType::F32)?.to_vec2()?;
-        let coords: Vec<f32> = result
-            .coords
-            .to_dtype(DType::F32)?
-            .flatten_all()?
-            .to_vec1()?;
-        let logits: Vec<f32> = result
-            .logits
-            .to_dtype(DType::F32)?
-            .flatten_all()?
-            .to_vec1()?;
-        let preds = samples
-            .iter()
-            .enumerate()
-            .map(|(b, s)| {
-                let q = &quats[b];
-                let head = rays[b] * quaternion_rotation([q[0], q[1], q[2], q[3]]);
-                let t = &trans[b];
-                let t_head = Translation::CentreTz.translation(
-                    [t[0], t[1], t[2]].map(f64::from),
-                    &s.bbox,
-                    &s.camera,
-                );
-                dense_pose(
-                    &coords[b * cells * 3..(b + 1) * cells * 3],
-                    &logits[b * cells..(b + 1) * cells],
-                    out,
-                    radii[b],
-                    s,
-                    Pose::new(head, t_head),
-                )
-            })
-            .collect();
-        Ok((loss, preds))
-    }
-
-    /// The RGB models' head targets for crops `samples` of `batch`: the rays through the
-    /// crops' centres ([`ray_rotation`]), the translation targets (B, 3) in `translation`'s
-    /// parametrization, and the rotation's model points and targets ([`Self::posed_targets`]
-    /// at [`TARGET_SCALE`]) for the GT's allocentric rotation (as seen along the ray) about
-    /// the model's origin.
-    fn box_targets(
-        &self,
-        batch: &[&Instance],
-        samples: &[rgb_input::RgbSample],
-        translation: Translation,
-        objects: &Objects,
-    ) -> Result<(Vec<DMat3>, Tensor, Tensor, Tensor)> {
-        let t_target: Vec<f32> = batch
-            .iter()
-            .zip(samples)
-            .flat_map(|(i, s)| {
-                translation
-                    .target(i.pose.translation_m, &s.bbox, &s.camera)
-                    .map(|v| v as f32)
-            })
-            .collect();
-        let t_target = Tensor::from_vec(t_target, (batch.len(), 3), &self.device)?;
-        let rays: Vec<DMat3> = samples
-            .iter()
-            .map(|s| ray_rotation(&s.bbox, &s.camera))
-            .collect();
-        let poses: Vec<Pose> = batch
-            .iter()
-            .zip(&rays)
-            .map(|(i, ray)| Pose::new(ray.transpose() * i.pose.rotation, DVec3::ZERO))
-            .collect();
-        let (model_pts, r_target) = self.posed_targets(batch, &poses, TARGET_SCALE, objects)?;
-        Ok((rays, t_target, model_pts, r_target))
-    }
-
-    /// Model points scaled by `scale` (B, M, 3) and their targets (B, K, M, 3) under `poses`
-    /// (one per instance, already in the frame the loss works in: Full's normalized frame,
-    /// the RGB model's rotation-only one), composed with each of the object's symmetries.
-    /// Objects with fewer symmetries repeat their identity target (that leaves the minimum
-    /// unchanged).
-    fn posed_targets(
-        &self,
-        batch: &[&Instance],
-        poses: &[Pose],
-        scale: f64,
-        objects: &Objects,
-    ) -> Result<(Tensor, Tensor)> {
-        let objs: Vec<&TrainObject> = batch
-            .iter()
-            .map(|i| {
-                objects.get(&i.obj_id).ok_or_else(|| {
-                    Error::InvalidOption(format!("no model loaded for object {}", i.obj_id))
-                })
-            })
-            .collect::<Result<_>>()?;
-        let m = objs
-            .iter()
-            .map(|o| o.loss_points_m.len())
-            .min()
-            .unwrap_or(0);
-        if m == 0 {
-            return Err(Error::InvalidOption("an object model has no points".into()));
-        }
-        let k = objs.iter().map(|o| o.symmetries.len()).max().unwrap_or(1);
-        let s = scale;
-        let mut pts = Vec::with_capacity(batch.len() * m * 3);
-        let mut tgt = Vec::with_capacity(batch.len() * k * m * 3);
-        for (obj, pose) in objs.iter().zip(poses) {
-            let p = &obj.loss_points_m[..m];
-            pts.extend(p.iter().flat_map(|v| (*v * s).to_array().map(|x| x as f32)));
-            // Scale the object too: y = s·(R S x + t − mean) = R S (s x) + s (t − mean) for
-            // the rotation part of S; S's translation scales with the points.
-            let scaled_syms: Vec<Pose> = obj
-                .symmetries
-                .iter()
-                .map(|sym| Pose::new(sym.rotation, sym.translation_m * s))
-                .collect();
-            let scaled_pts: Vec<DVec3> = p.iter().map(|v| *v * s).collect();
-            let mut t = symmetric_targets(&scaled_pts, pose, &scaled_syms);
-            let one = m * 3;
-            while t.len() < k * one {
-                t.extend_from_within(0..one);
-            }
-            tgt.extend(t);
-        }
-        Ok((
-            Tensor::from_vec(pts, (batch.len(), m, 3), &self.device)?,
-            Tensor::from_vec(tgt, (batch.len(), k, m, 3), &self.device)?,
-        ))
     }
 
     /// Predictions for instances, in batches.

@@ -7,7 +7,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use candle_core::Device;
-use candle_nn::{AdamW, Optimizer, ParamsAdamW};
+use candle_nn::{Optimizer, ParamsAdamW};
+
+use crate::optim::FusedAdamW;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -387,6 +389,32 @@ pub fn centre_error_m(pred: [f32; 3], inst: &Instance) -> f64 {
     (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
 }
 
+/// Runs `step(k, item k)` for k in 0..n in order while `prepare(k + 1)` runs on another
+/// thread: a training step's data (crops, augmentation, targets) made ready during the step
+/// before. The items and their order are those of a plain loop; only the timing overlaps.
+/// The first error (from either side) stops the loop.
+pub fn pipelined<P: Send>(
+    n: usize,
+    prepare: impl Fn(usize) -> Result<P> + Sync,
+    mut step: impl FnMut(usize, P) -> Result<()>,
+) -> Result<()> {
+    let prepare = &prepare;
+    std::thread::scope(|scope| {
+        let mut next = (n > 0).then(|| scope.spawn(move || prepare(0)));
+        for k in 0..n {
+            let Some(handle) = next.take() else { break };
+            let item = handle.join().map_err(|_| {
+                Error::InvalidOption("internal: a batch preparation panicked".into())
+            })??;
+            if k + 1 < n {
+                next = Some(scope.spawn(move || prepare(k + 1)));
+            }
+            step(k, item)?;
+        }
+        Ok(())
+    })
+}
+
 /// `bytes` written to `path` atomically.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     synthgen_core::atomic::write_atomic(path, bytes, false)
@@ -589,7 +617,7 @@ pub fn train(
     }
     write_atomic(&out.join(METRICS_FILE), lines.as_bytes())?;
 
-    let mut opt = AdamW::new(
+    let mut opt = FusedAdamW::new(
         model.varmap.all_vars(),
         ParamsAdamW {
             lr: cfg.lr,
@@ -609,11 +637,19 @@ pub fn train(
         order.shuffle(&mut rng);
         let (mut sum, mut count) = (0.0f64, 0usize);
         let mut lr = cfg.lr;
-        for batch in order.chunks(cfg.batch) {
+        let batches: Vec<&[&Instance]> = order.chunks(cfg.batch).collect();
+        let first_step = step;
+        // The next batch is prepared (crops cut and jittered, targets built) while the network
+        // runs on this one; each batch's jitter is its step's, as without the overlap.
+        let prepare = |k: usize| {
+            let jitter =
+                splitmix64(cfg.seed ^ 0x6a17_7e25 ^ ((first_step + k) as u64).wrapping_mul(0x9e37));
+            model.prepare(batches[k], objects, Some(jitter))
+        };
+        pipelined(batches.len(), prepare, |k, prepared| {
             lr = cfg.lr_at(step, total_steps, epoch);
             opt.set_learning_rate(lr);
-            let jitter = splitmix64(cfg.seed ^ 0x6a17_7e25 ^ (step as u64).wrapping_mul(0x9e37));
-            let loss = model.run_training(batch, objects, jitter)?;
+            let loss = model.loss_of(&prepared)?;
             // A non-finite loss would poison the weights: stop, keeping the last epoch's
             // checkpoint (written only after a finite validation).
             let value = f64::from(loss.to_scalar::<f32>()?);
@@ -621,11 +657,12 @@ pub fn train(
                 return Err(diverged(out, value, epoch + 1, step + 1, epoch));
             }
             opt.backward_step(&loss)?;
-            sum += value * batch.len() as f64;
-            count += batch.len();
+            sum += value * batches[k].len() as f64;
+            count += batches[k].len();
             step += 1;
             observer.step(sum / count as f64);
-        }
+            Ok(())
+        })?;
         let v = validate(&model, &val_set, objects, cfg.batch)?;
         if !v.loss.is_finite() {
             return Err(diverged(out, v.loss, epoch + 1, step, epoch));

@@ -41,6 +41,7 @@ mod stdout;
 mod surfaces;
 mod train;
 mod train_linemod;
+mod training_threads;
 mod view;
 mod view_browser;
 mod ycbv;

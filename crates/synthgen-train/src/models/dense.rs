@@ -10,7 +10,9 @@
 use candle_core::{Module, Result, Tensor};
 use candle_nn::VarBuilder;
 
+use super::conv::conv_bias_relu;
 use super::fused::dense_relu;
+use super::im2col::Window;
 
 #[derive(Debug, Clone)]
 pub struct Dense {
@@ -45,14 +47,25 @@ impl Dense {
     /// `relu(x·Wᵀ + b + extra[group])`: `extra` (G, out) is added to each of G equal,
     /// contiguous groups of rows (TNet's per-cloud global term).
     pub fn forward_relu_grouped(&self, x: &Tensor, extra: Option<&Tensor>) -> Result<Tensor> {
+        dense_relu(x, &self.weight, &self.bias_rows(x, extra)?)
+    }
+
+    /// The layer as a convolution of the NHWC map `x` (its weight's columns the `k × k × C`
+    /// window, as `im2col`'s), ReLU, with `extra` (B, out) added per image:
+    /// [`super::conv::conv_bias_relu`].
+    pub fn conv_relu(&self, x: &Tensor, win: Window, extra: Option<&Tensor>) -> Result<Tensor> {
+        conv_bias_relu(x, &self.weight, &self.bias_rows(x, extra)?, win)
+    }
+
+    /// The bias rows (G, out): the layer's bias plus `extra`'s rows (G of them), or alone.
+    fn bias_rows(&self, x: &Tensor, extra: Option<&Tensor>) -> Result<Tensor> {
         let out = self.weight.dim(0)?;
-        let bias = match (&self.bias, extra) {
-            (Some(b), Some(e)) => e.broadcast_add(&b.unsqueeze(0)?)?,
-            (Some(b), None) => b.unsqueeze(0)?,
-            (None, Some(e)) => e.clone(),
-            (None, None) => Tensor::zeros((1, out), x.dtype(), x.device())?,
-        };
-        dense_relu(x, &self.weight, &bias)
+        match (&self.bias, extra) {
+            (Some(b), Some(e)) => e.broadcast_add(&b.unsqueeze(0)?),
+            (Some(b), None) => b.unsqueeze(0),
+            (None, Some(e)) => Ok(e.clone()),
+            (None, None) => Tensor::zeros((1, out), x.dtype(), x.device()),
+        }
     }
 }
 

@@ -87,7 +87,7 @@ pub(super) fn f32_slice<'a>(s: &'a CpuStorage, l: &Layout, op: &str) -> Result<&
 }
 
 /// `z ← relu(z + bias[group(row)])` in place; `z` holds rows × c values.
-fn add_bias_relu_in_place(z: &mut [f32], bias: &[f32], c: usize, per_group: usize) {
+pub(super) fn add_bias_relu_in_place(z: &mut [f32], bias: &[f32], c: usize, per_group: usize) {
     z.par_chunks_mut(CHUNK_ROWS * c)
         .enumerate()
         .for_each(|(k, z)| {
@@ -153,7 +153,7 @@ impl CustomOp3 for DenseRelu {
 }
 
 /// `grad` where `res` > 0, else 0 (the relu gradient, from the relu's output).
-struct ReluMask;
+pub(super) struct ReluMask;
 
 impl CustomOp2 for ReluMask {
     fn name(&self) -> &'static str {
@@ -183,8 +183,8 @@ impl CustomOp2 for ReluMask {
 }
 
 /// Column sums per group of rows: (rows, C) → (G, C), accumulated in f64.
-struct GroupSum {
-    groups: usize,
+pub(super) struct GroupSum {
+    pub(super) groups: usize,
 }
 
 impl CustomOp1 for GroupSum {

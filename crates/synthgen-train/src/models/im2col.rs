@@ -62,23 +62,53 @@ pub fn im2col(x: &Tensor, win: Window) -> Result<Tensor> {
         .reshape((b * oh * ow, win.k * win.k * c))
 }
 
-struct Im2Col {
-    win: Window,
+pub(super) struct Im2Col {
+    pub(super) win: Window,
 }
 
-/// Calls `f(row_offset, channel_offset)` for every (output pixel, window position) whose
-/// input pixel lies inside the image: the row's column offset and the pixel's offset in one
-/// image of `h × w × c` values.
-fn for_each_tap(
+/// The patches of the NHWC image data `x` (`dims`), as [`im2col`] lays them out; built in
+/// parallel, one image per task.
+pub(super) fn im2col_values(
+    x: &[f32],
+    (b, h, w, c): (usize, usize, usize, usize),
+    win: Window,
+) -> Vec<f32> {
+    let (oh, ow) = (win.out(h), win.out(w));
+    let per_image = oh * ow * win.k * win.k * c;
+    let mut out = zeros(b * per_image);
+    out.par_chunks_mut(per_image)
+        .zip(x.par_chunks(h * w * c))
+        .for_each(|(o, img)| {
+            for_each_span(win, (h, w, c), (oh, ow), |dst, src, len| {
+                o[dst..dst + len].copy_from_slice(&img[src..src + len]);
+            });
+        });
+    out
+}
+
+/// Calls `f(row_offset, pixel_offset, len)` for every run of window positions of one output
+/// pixel and one window row whose input pixels lie inside the image: they are `len` values
+/// at `row_offset` in the output pixel's row and at `pixel_offset` in one image of
+/// `h × w × c` values (a window row's in-image positions are consecutive pixels, so one copy
+/// moves `k · c` values where a copy per position moved `c`).
+fn for_each_span(
     win: Window,
     (h, w, c): (usize, usize, usize),
     (oh, ow): (usize, usize),
-    mut f: impl FnMut(usize, usize),
+    mut f: impl FnMut(usize, usize, usize),
 ) {
     let row_len = win.k * win.k * c;
     for oy in 0..oh {
         for ox in 0..ow {
             let row = (oy * ow + ox) * row_len;
+            // The window's columns inside the image: kx in kx0..kx1.
+            let x0 = ox * win.stride;
+            let kx0 = win.pad.saturating_sub(x0);
+            let kx1 = win.k.min((w + win.pad).saturating_sub(x0));
+            if kx0 >= kx1 {
+                continue;
+            }
+            let ix0 = x0 + kx0 - win.pad;
             for ky in 0..win.k {
                 let Some(iy) = (oy * win.stride + ky)
                     .checked_sub(win.pad)
@@ -86,18 +116,21 @@ fn for_each_tap(
                 else {
                     continue;
                 };
-                for kx in 0..win.k {
-                    let Some(ix) = (ox * win.stride + kx)
-                        .checked_sub(win.pad)
-                        .filter(|&x| x < w)
-                    else {
-                        continue;
-                    };
-                    f(row + (ky * win.k + kx) * c, (iy * w + ix) * c);
-                }
+                f(
+                    row + (ky * win.k + kx0) * c,
+                    (iy * w + ix0) * c,
+                    (kx1 - kx0) * c,
+                );
             }
         }
     }
+}
+
+/// `n` zeros, written by the worker threads (a large `vec![0.0; n]` is one thread's memset).
+pub(super) fn zeros(n: usize) -> Vec<f32> {
+    let mut v = Vec::with_capacity(n);
+    v.par_extend(rayon::iter::repeat_n(0f32, n).with_min_len(1 << 16));
+    v
 }
 
 impl CustomOp1 for Im2Col {
@@ -109,15 +142,7 @@ impl CustomOp1 for Im2Col {
         let x = f32_slice(s, l, self.name())?;
         let (b, h, w, c) = l.shape().dims4()?;
         let (oh, ow) = (self.win.out(h), self.win.out(w));
-        let per_image = oh * ow * self.win.k * self.win.k * c;
-        let mut out = vec![0f32; b * per_image];
-        out.par_chunks_mut(per_image)
-            .zip(x.par_chunks(h * w * c))
-            .for_each(|(o, img)| {
-                for_each_tap(self.win, (h, w, c), (oh, ow), |dst, src| {
-                    o[dst..dst + c].copy_from_slice(&img[src..src + c]);
-                });
-            });
+        let out = im2col_values(x, (b, h, w, c), self.win);
         let shape = Shape::from((b * oh * ow, self.win.k * self.win.k * c));
         Ok((CpuStorage::F32(out), shape))
     }
@@ -132,9 +157,9 @@ impl CustomOp1 for Im2Col {
 }
 
 /// `im2col`'s gradient: every row's values added back onto the pixels they were read from.
-struct Col2Im {
-    win: Window,
-    dims: (usize, usize, usize, usize),
+pub(super) struct Col2Im {
+    pub(super) win: Window,
+    pub(super) dims: (usize, usize, usize, usize),
 }
 
 impl CustomOp1 for Col2Im {
@@ -150,12 +175,12 @@ impl CustomOp1 for Col2Im {
         if g.len() != b * per_image {
             candle_core::bail!("col2im: {} values for {:?}", g.len(), self.dims);
         }
-        let mut out = vec![0f32; b * h * w * c];
+        let mut out = zeros(b * h * w * c);
         out.par_chunks_mut(h * w * c)
             .zip(g.par_chunks(per_image))
             .for_each(|(img, rows)| {
-                for_each_tap(self.win, (h, w, c), (oh, ow), |src, dst| {
-                    for (o, v) in img[dst..dst + c].iter_mut().zip(&rows[src..src + c]) {
+                for_each_span(self.win, (h, w, c), (oh, ow), |src, dst, len| {
+                    for (o, v) in img[dst..dst + len].iter_mut().zip(&rows[src..src + len]) {
                         *o += v;
                     }
                 });

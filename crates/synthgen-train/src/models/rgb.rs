@@ -30,7 +30,7 @@ use serde::{Deserialize, Serialize};
 use synthgen_core::glam::{DMat3, DQuat, DVec3};
 
 use super::dense::{dense, dense_no_bias, Dense};
-use super::im2col::{im2col, Window};
+use super::im2col::Window;
 
 /// Default side of the square input crop, pixels.
 pub const DEFAULT_RGB_CROP: u32 = 64;
@@ -208,9 +208,7 @@ impl RgbNet {
         let b = crops.dim(0)?;
         let mut x = crops.clone();
         for c in &self.convs {
-            let (_, h, w, _) = x.dims4()?;
-            let y = c.forward_relu(&im2col(&x, CONV)?)?;
-            x = y.reshape((b, CONV.out(h), CONV.out(w), y.dim(1)?))?;
+            x = c.conv_relu(&x, CONV, None)?;
         }
         let flat = x.flatten_from(1)?.contiguous()?;
         let g = self.fc1_geom.forward(geometry)?; // (B, width)

@@ -31,8 +31,9 @@ use synthgen_core::glam::DVec3;
 use synthgen_core::Pose;
 
 use super::dense::{dense, dense_no_bias, Dense};
-use super::im2col::{im2col, Window};
+use super::im2col::Window;
 use super::rgb::{normalize_quaternions, pick_class};
+use super::upsample::upsample2_cat;
 
 /// Encoder channels (three stride-2 layers) and the 1/8 layer's.
 const ENC: [usize; 3] = [32, 64, 128];
@@ -81,21 +82,12 @@ pub struct DenseOut {
     pub translation: Tensor,
 }
 
-/// A convolution of an NHWC map (`im2col` + the fused layer), ReLU.
+/// A convolution of an NHWC map, ReLU: one fused node ([`Dense::conv_relu`]).
 pub fn conv(layer: &Dense, x: &Tensor, win: Window) -> Result<Tensor> {
-    let (b, h, w, _) = x.dims4()?;
-    let y = layer.forward_relu(&im2col(x, win)?)?;
-    y.reshape((b, win.out(h), win.out(w), y.dim(1)?))
+    layer.conv_relu(x, win, None)
 }
 
-/// Nearest-neighbour ×2 upsampling of an NHWC map.
-pub fn upsample2(x: &Tensor) -> Result<Tensor> {
-    let (b, h, w, c) = x.dims4()?;
-    x.reshape((b, h, 1, w, 1, c))?
-        .broadcast_as((b, h, 2, w, 2, c))?
-        .contiguous()?
-        .reshape((b, 2 * h, 2 * w, c))
-}
+pub use super::upsample::upsample2;
 
 impl DenseNet {
     /// For `crop`-pixel inputs (a multiple of 8), a global feature of `width` and `classes`
@@ -135,17 +127,12 @@ impl DenseNet {
         let e2 = conv(&self.enc[1], &e1, DOWN)?;
         let e3 = conv(&self.enc[2], &e2, DOWN)?;
         let m = conv(&self.mid, &e3, SAME)?;
-        let b = m.dim(0)?;
         let g = self
             .global
             .forward_relu(&m.flatten_from(1)?.contiguous()?)?;
         let extra = candle_core::Module::forward(&self.global2, &g)?;
-        let x = Tensor::cat(&[&upsample2(&m)?, &e2], 3)?;
-        let (_, h, w, _) = x.dims4()?;
-        let y = self
-            .dec2
-            .forward_relu_grouped(&im2col(&x, SAME)?, Some(&extra))?;
-        let d = y.reshape((b, h, w, y.dim(1)?))?;
+        let x = upsample2_cat(&m, &e2)?;
+        let d = self.dec2.conv_relu(&x, SAME, Some(&extra))?;
         let (b, s, _, c) = d.dims4()?;
         let out = candle_core::Module::forward(&self.head, &d.reshape((b * s * s, c))?)?
             .reshape((b, s * s, self.classes, DENSE_OUT))?;
@@ -216,27 +203,6 @@ mod tests {
     use candle_core::{DType, Device};
     use candle_nn::VarMap;
     use synthgen_core::glam::DMat3;
-
-    #[test]
-    fn upsampling_repeats_each_pixel_twice_each_way() {
-        let dev = Device::Cpu;
-        let x = Tensor::arange(0f32, 8.0, &dev)
-            .unwrap()
-            .reshape((1, 2, 2, 2))
-            .unwrap();
-        let y: Vec<Vec<Vec<f32>>> = upsample2(&x)
-            .unwrap()
-            .squeeze(0)
-            .unwrap()
-            .to_vec3()
-            .unwrap();
-        assert_eq!(y.len(), 4);
-        assert_eq!(y[0][0], vec![0.0, 1.0]);
-        assert_eq!(y[1][1], vec![0.0, 1.0]);
-        assert_eq!(y[0][2], vec![2.0, 3.0]);
-        assert_eq!(y[3][3], vec![6.0, 7.0]);
-        assert_eq!(y[2][1], vec![4.0, 5.0]);
-    }
 
     #[test]
     fn shapes_and_the_class_picks_its_head() {
