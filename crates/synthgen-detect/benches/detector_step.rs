@@ -10,11 +10,12 @@
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 use candle_core::{Device, Tensor};
-use candle_nn::{AdamW, Optimizer, ParamsAdamW, VarMap};
+use candle_nn::{Optimizer, ParamsAdamW, VarMap};
 use criterion::{criterion_group, criterion_main, Criterion};
 use rand::{Rng, SeedableRng};
 use synthgen_detect::detector::DetectorConfig;
 use synthgen_detect::net::{detector_loss, DetectorNet, DET_STRIDE};
+use synthgen_nn::optim::FusedAdamW;
 
 /// LM-O's objects, one heatmap each.
 const CLASSES: [u32; 8] = [1, 5, 6, 8, 9, 10, 11, 12];
@@ -76,13 +77,13 @@ fn detector(c: &mut Criterion) {
     let [iw, ih] = cfg.input;
     let nc = cfg.classes.len();
     let varmap = VarMap::new();
-    let vb = synthgen_train::init::seeded_var_builder(&varmap, cfg.seed, &dev);
+    let vb = synthgen_nn::init::seeded_var_builder(&varmap, cfg.seed, &dev);
     let net = DetectorNet::new(nc, vb).unwrap();
     let vars = varmap.all_vars();
     // To check against the peer's "params".
     let params: usize = vars.iter().map(|v| v.elem_count()).sum();
     eprintln!("detector: {params} parameters");
-    let mut opt = AdamW::new(
+    let mut opt = FusedAdamW::new(
         vars,
         ParamsAdamW {
             lr: cfg.lr,

@@ -26,7 +26,7 @@ use synthgen_core::Progress;
 use synthgen_formats::bop::read_rgb_sized;
 use synthgen_formats::identity::{frames_key, FramesKey, ObjectIdentity};
 use synthgen_formats::source::{FrameSource, SourceFrame};
-use synthgen_train::optim::FusedAdamW;
+use synthgen_nn::optim::FusedAdamW;
 
 use synthgen_train::train::{
     pipelined, read_json, read_run_config, save_checkpoint, write_atomic, RunKind, Schedule,
@@ -402,11 +402,8 @@ impl Detector {
         let varmap = VarMap::new();
         // Seeded: the same --seed gives the same initial weights (candle's own init draws
         // from the unseeded thread RNG).
-        let vb = synthgen_train::init::seeded_var_builder(
-            &varmap,
-            splitmix64(cfg.seed ^ 0xde7e),
-            device,
-        );
+        let vb =
+            synthgen_nn::init::seeded_var_builder(&varmap, splitmix64(cfg.seed ^ 0xde7e), device);
         let net = DetectorNet::new(cfg.classes.len(), vb)?;
         Ok(Detector {
             cfg,

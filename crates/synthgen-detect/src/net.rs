@@ -9,7 +9,7 @@
 //! (3→32→64→128), two 3×3 ones at 1/8 (128; ~47 px of the input seen by a cell, about an
 //! object at the input's scale), a nearest-neighbour ×2 upsampling concatenated with the 1/4
 //! map and a 3×3 convolution (→64), and a 1×1 head of [`DET_OUT`] channels per class. All
-//! convolutions are `im2col` + a fused dense layer ([`super::im2col`]).
+//! convolutions are `im2col` + a fused dense layer ([`synthgen_nn::im2col`]).
 //!
 //! Loss: CenterNet's penalty-reduced focal loss over the heatmaps (Gaussian targets around
 //! each box's centre cell), plus the L1 distance of the offset and the log size at the centre
@@ -18,10 +18,10 @@
 use candle_core::{Result, Tensor};
 use candle_nn::VarBuilder;
 
-use synthgen_train::models::dense::{dense, Dense};
-use synthgen_train::models::im2col::Window;
+use synthgen_nn::dense::{dense, Dense};
+use synthgen_nn::im2col::Window;
+use synthgen_nn::upsample::upsample2_cat;
 use synthgen_train::models::rgb_dense::conv;
-use synthgen_train::models::upsample::upsample2_cat;
 
 const ENC: [usize; 3] = [32, 64, 128];
 const MID: usize = 128;

@@ -10,11 +10,12 @@ static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 use std::collections::BTreeMap;
 
 use candle_core::Device;
-use candle_nn::{AdamW, Optimizer, ParamsAdamW};
+use candle_nn::{Optimizer, ParamsAdamW};
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use rand::{Rng, SeedableRng};
 use synthgen_core::glam::{DMat3, DVec3};
 use synthgen_core::Pose;
+use synthgen_nn::optim::FusedAdamW;
 use synthgen_train::data::Instance;
 use synthgen_train::metrics::EvalObject;
 use synthgen_train::models::rgb::{Pinhole, Translation};
@@ -89,7 +90,7 @@ fn setup(n: usize) -> (Vec<Instance>, BTreeMap<u32, TrainObject>) {
 fn rgb(c: &mut Criterion) {
     let dev = Device::Cpu;
     let model = PoseModel::rgb(Translation::CentreTz, &[1, 5, 6, 8, 9], 256, 64, 0, &dev).unwrap();
-    let mut opt = AdamW::new(model.varmap.all_vars(), ParamsAdamW::default()).unwrap();
+    let mut opt = FusedAdamW::new(model.varmap.all_vars(), ParamsAdamW::default()).unwrap();
     let (instances, objects) = setup(64);
     let batch: Vec<&Instance> = instances.iter().take(32).collect();
     let mut step = 0u64;
@@ -97,6 +98,16 @@ fn rgb(c: &mut Criterion) {
         b.iter(|| {
             step += 1;
             let loss = model.run_training(&batch, Some(&objects), step).unwrap();
+            opt.backward_step(&loss).unwrap();
+            loss.to_scalar::<f32>().unwrap()
+        })
+    });
+    // The network's step alone on a batch made ready before (what the peer times, and what
+    // the trainer runs while it prepares the next batch: `train::pipelined`).
+    let prepared = model.prepare(&batch, Some(&objects), Some(1)).unwrap();
+    c.bench_function("rgb_net_step_32x64_w256", |b| {
+        b.iter(|| {
+            let loss = model.loss_of(&prepared).unwrap();
             opt.backward_step(&loss).unwrap();
             loss.to_scalar::<f32>().unwrap()
         })

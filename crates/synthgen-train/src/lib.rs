@@ -13,17 +13,14 @@
 //! ```
 
 pub mod baseline;
-pub mod batch;
 pub mod bop;
 pub mod data;
 pub mod dataset_objects;
 mod error;
 pub mod eval;
-pub mod init;
 pub mod losses;
 pub mod metrics;
 pub mod models;
-pub mod optim;
 pub mod plot;
 pub mod pose_model;
 mod quat;

@@ -40,24 +40,8 @@ pub fn symmetric_add_per_pixel(
     points: &Tensor,
     targets: &Tensor,
 ) -> Result<Tensor> {
-    let (b, n, _, _) = pred_r.dims4()?;
-    let (_, m, _) = points.dims3()?;
-    // All pixels' rotations in one batched matmul: x (B, M, 3) · R̂ as (B, 3, N·3), where
-    // entry [k, (i, r)] = R̂_i[r, k]; gives (B, M, N, 3) = (R̂_i x_j)_r.
-    let r_cols = pred_r
-        .permute((0, 3, 1, 2))?
-        .contiguous()?
-        .reshape((b, 3, n * 3))?;
-    let posed = points
-        .matmul(&r_cols)?
-        .reshape((b, m, n, 3))?
-        .transpose(1, 2)?
-        .broadcast_add(&pred_t.unsqueeze(2)?)?; // (B, N, M, 3)
-                                                // (B, N, 1, M, 3) − (B, 1, K, M, 3).
-    let diff = posed.unsqueeze(2)?.broadcast_sub(&targets.unsqueeze(1)?)?;
-    // The epsilon keeps the gradient of the norm finite at zero distance.
-    let dist = (diff.sqr()?.sum(D::Minus1)? + 1e-12)?.sqrt()?; // (B, N, K, M)
-    dist.mean(D::Minus1)?.min(D::Minus1)
+    // One multi-threaded node on the CPU (candle's ops elsewhere).
+    synthgen_nn::point_distance::symmetric_add_distances(pred_r, pred_t, points, targets)
 }
 
 /// Full's confidence-weighted form (DenseFusion): (1/BN) Σ (d_i c_i − w log c_i), with d_i

@@ -9,13 +9,13 @@ use std::time::Instant;
 use candle_core::Device;
 use candle_nn::{Optimizer, ParamsAdamW};
 
-use crate::optim::FusedAdamW;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use synthgen_core::rng::splitmix64;
 use synthgen_core::Progress;
+use synthgen_nn::optim::FusedAdamW;
 
 use crate::data::{DataOptions, Instance, InstanceSet};
 use crate::error::{Error, Result};

@@ -7,11 +7,12 @@
 use std::collections::BTreeMap;
 
 use candle_core::Device;
-use candle_nn::{AdamW, Optimizer, ParamsAdamW};
+use candle_nn::{Optimizer, ParamsAdamW};
 use criterion::Criterion;
 use rand::{Rng, SeedableRng};
 use synthgen_core::glam::{DMat3, DVec3};
 use synthgen_core::Pose;
+use synthgen_nn::optim::FusedAdamW;
 use synthgen_train::data::Instance;
 use synthgen_train::metrics::EvalObject;
 use synthgen_train::models::rnet::DEFAULT_CROP;
@@ -117,7 +118,7 @@ pub fn step(c: &mut Criterion, kind: ModelKind, name: &str) {
     // To check against the peer's "params".
     let params: usize = vars.iter().map(|v| v.elem_count()).sum();
     eprintln!("{name}: {params} parameters");
-    let mut opt = AdamW::new(vars, ParamsAdamW::default()).unwrap();
+    let mut opt = FusedAdamW::new(vars, ParamsAdamW::default()).unwrap();
     let (instances, objects) = setup();
     let batch: Vec<&Instance> = instances.iter().collect();
     let mut seed = 0u64;
@@ -125,6 +126,16 @@ pub fn step(c: &mut Criterion, kind: ModelKind, name: &str) {
         b.iter(|| {
             seed += 1;
             let loss = model.run_training(&batch, Some(&objects), seed).unwrap();
+            opt.backward_step(&loss).unwrap();
+            loss.to_scalar::<f32>().unwrap()
+        })
+    });
+    // The network's step alone on a batch made ready before (what the peer times, and what
+    // the trainer runs while it prepares the next batch: `train::pipelined`).
+    let prepared = model.prepare(&batch, Some(&objects), Some(1)).unwrap();
+    c.bench_function(&name.replace("_step_", "_net_step_"), |b| {
+        b.iter(|| {
+            let loss = model.loss_of(&prepared).unwrap();
             opt.backward_step(&loss).unwrap();
             loss.to_scalar::<f32>().unwrap()
         })

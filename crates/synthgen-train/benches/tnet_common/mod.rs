@@ -2,16 +2,17 @@
 //! `tnet_step_mimalloc`.
 
 use candle_core::{DType, Device};
-use candle_nn::{AdamW, Optimizer, ParamsAdamW, VarBuilder, VarMap};
+use candle_nn::{Optimizer, ParamsAdamW, VarBuilder, VarMap};
 use criterion::Criterion;
 use rand::{Rng, SeedableRng};
+use synthgen_nn::optim::FusedAdamW;
 use synthgen_train::models::tnet::{make_batch, offset_l1_loss, TNet, DEFAULT_SCALE};
 
 pub fn tnet_step(c: &mut Criterion) {
     let dev = Device::Cpu;
     let varmap = VarMap::new();
     let net = TNet::new(128, 0, VarBuilder::from_varmap(&varmap, DType::F32, &dev)).unwrap();
-    let mut opt = AdamW::new(varmap.all_vars(), ParamsAdamW::default()).unwrap();
+    let mut opt = FusedAdamW::new(varmap.all_vars(), ParamsAdamW::default()).unwrap();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
     let clouds: Vec<Vec<[f32; 3]>> = (0..32)
         .map(|_| {

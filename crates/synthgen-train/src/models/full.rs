@@ -34,7 +34,7 @@ impl Full {
         })
     }
 
-    /// `points`: (B, N, 3) normalized; `crops`: (B, 3, S, S); `pixels`: (B·N) u32.
+    /// `points`: (B, N, 3) normalized; `crops`: (B, S, S, 3) NHWC; `pixels`: (B·N) u32.
     pub fn forward(&self, points: &Tensor, crops: &Tensor, pixels: &Tensor) -> Result<FullOut> {
         let (b, n, _) = points.dims3()?;
         let (offsets, feat) = self.tnet.forward_with_features(points, None)?;

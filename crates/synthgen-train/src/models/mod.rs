@@ -1,16 +1,11 @@
 //! The pose models: TNet (centre), RNet (rotation) and Full (both) on RGB-D, and the RGB model
 //! (a whole pose from a box's colour crop), see docs/training.md.
 
-pub mod conv;
-pub mod dense;
 pub mod full;
-pub mod fused;
-pub mod im2col;
 pub mod rgb;
 pub mod rgb_dense;
 pub mod rnet;
 pub mod tnet;
-pub mod upsample;
 
 use serde::{Deserialize, Serialize};
 

@@ -2,7 +2,7 @@
 //!
 //! A detector gives a box (here the GT `bbox_visib`, jittered while training: a trained detector
 //! is out of scope); the square crop around it goes through four 3×3 stride-2 convolutions
-//! (3→32→64→128→128, ReLU; as `im2col` + a fused dense layer, NHWC, see [`super::im2col`]),
+//! (3→32→64→128→128, ReLU; as `im2col` + a fused dense layer, NHWC, see [`synthgen_nn::im2col`]),
 //! a fully connected layer that also takes the box's place in the
 //! image ([`box_geometry`]), a second one, and a head per object class (the detector's class)
 //! with 7 outputs: three for the translation and a quaternion (w, x, y, z; normalized).
@@ -29,8 +29,8 @@ use candle_nn::VarBuilder;
 use serde::{Deserialize, Serialize};
 use synthgen_core::glam::{DMat3, DQuat, DVec3};
 
-use super::dense::{dense, dense_no_bias, Dense};
-use super::im2col::Window;
+use synthgen_nn::dense::{dense, dense_no_bias, Dense};
+use synthgen_nn::im2col::Window;
 
 /// Default side of the square input crop, pixels.
 pub const DEFAULT_RGB_CROP: u32 = 64;
@@ -438,7 +438,7 @@ mod tests {
     fn forward_shapes_and_class_heads() {
         let dev = Device::Cpu;
         let vm = VarMap::new();
-        let vb = crate::init::seeded_var_builder(&vm, 3, &dev);
+        let vb = synthgen_nn::init::seeded_var_builder(&vm, 3, &dev);
         let net = RgbNet::new(20, 16, 2, vb).unwrap();
         assert_eq!(feature_side(20), 2);
         let crops = Tensor::randn(0f32, 1.0, (3, 20, 20, 3), &dev).unwrap();

@@ -17,7 +17,7 @@
 //! point-matching loss). A **translation head** on the same feature regresses the centre's
 //! offset in the box and the scale-invariant depth, as the RGB model's centre + Tz (CDPN's
 //! SITE): PnP's depth is its weak direction. All convolutions are `im2col` + a fused dense layer (see
-//! [`super::im2col`]).
+//! [`synthgen_nn::im2col`]).
 //!
 //! Loss: the mean L1 distance of the coordinates over the visible cells, plus the binary
 //! cross-entropy of the visibility over all cells. A symmetric object's target is the
@@ -30,10 +30,10 @@ use candle_nn::VarBuilder;
 use synthgen_core::glam::DVec3;
 use synthgen_core::Pose;
 
-use super::dense::{dense, dense_no_bias, Dense};
-use super::im2col::Window;
 use super::rgb::{normalize_quaternions, pick_class};
-use super::upsample::upsample2_cat;
+use synthgen_nn::dense::{dense, dense_no_bias, Dense};
+use synthgen_nn::im2col::Window;
+use synthgen_nn::upsample::upsample2_cat;
 
 /// Encoder channels (three stride-2 layers) and the 1/8 layer's.
 const ENC: [usize; 3] = [32, 64, 128];
@@ -87,7 +87,7 @@ pub fn conv(layer: &Dense, x: &Tensor, win: Window) -> Result<Tensor> {
     layer.conv_relu(x, win, None)
 }
 
-pub use super::upsample::upsample2;
+pub use synthgen_nn::upsample::upsample2;
 
 impl DenseNet {
     /// For `crop`-pixel inputs (a multiple of 8), a global feature of `width` and `classes`

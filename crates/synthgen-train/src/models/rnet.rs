@@ -10,10 +10,12 @@
 //! pixel's quaternion.
 
 use candle_core::{DType, Device, Module, Result, Tensor, D};
-use candle_nn::{conv2d, Conv2d, Conv2dConfig, VarBuilder};
+use candle_nn::{conv2d, Conv2dConfig, VarBuilder};
 
-use super::dense::{dense as linear, dense_no_bias as linear_no_bias, Dense as Linear};
 pub use crate::quat::quaternion_to_matrix;
+use synthgen_nn::conv::conv_bias_relu;
+use synthgen_nn::dense::{dense as linear, dense_no_bias as linear_no_bias, Dense as Linear};
+use synthgen_nn::im2col::Window;
 
 /// Default side of the square RGB crop, pixels.
 pub const DEFAULT_CROP: u32 = 48;
@@ -42,35 +44,73 @@ impl PointStem {
     }
 }
 
-/// The colour CNN: (B, 3, S, S) → (B, 32, S/2, S/2) (S even).
+/// The colour CNN: (B, S, S, 3) → (B, S/2, S/2, 32) (S even), NHWC.
+///
+/// The variables are candle's `conv2d` (`weight` (C_out, C_in, 3, 3), `bias` (C_out); its
+/// initialization), so checkpoints of the NCHW network load unchanged; the forward pass runs
+/// each layer as one fused convolution + bias + ReLU over the NHWC map
+/// ([`conv_bias_relu`], multi-threaded, the patches kept inside the op), the weight viewed
+/// as (C_out, 3·3·C_in) in the (ky, kx, c) column order of the patches.
 pub struct ColourCnn {
-    c1: Conv2d,
-    c2: Conv2d,
-    c3: Conv2d,
+    layers: [ConvLayer; 3],
+}
+
+struct ConvLayer {
+    weight: Tensor,
+    bias: Tensor,
+    win: Window,
+}
+
+impl ConvLayer {
+    fn new(c_in: usize, c_out: usize, stride: usize, vb: VarBuilder) -> Result<ConvLayer> {
+        let cfg = Conv2dConfig {
+            padding: 1,
+            stride,
+            ..Default::default()
+        };
+        let conv = conv2d(c_in, c_out, 3, cfg, vb)?;
+        let Some(bias) = conv.bias() else {
+            candle_core::bail!("the colour CNN's convolutions have a bias");
+        };
+        Ok(ConvLayer {
+            weight: conv.weight().clone(),
+            bias: bias.clone(),
+            win: Window {
+                k: 3,
+                stride,
+                pad: 1,
+            },
+        })
+    }
+
+    fn forward(&self, x: &Tensor) -> Result<Tensor> {
+        let (c_out, c_in, k, _) = self.weight.dims4()?;
+        let w = self
+            .weight
+            .permute((0, 2, 3, 1))?
+            .reshape((c_out, k * k * c_in))?;
+        conv_bias_relu(x, &w, &self.bias.unsqueeze(0)?, self.win)
+    }
 }
 
 impl ColourCnn {
     pub fn new(vb: VarBuilder) -> Result<ColourCnn> {
-        let same = Conv2dConfig {
-            padding: 1,
-            ..Default::default()
-        };
-        let down = Conv2dConfig {
-            padding: 1,
-            stride: 2,
-            ..Default::default()
-        };
         Ok(ColourCnn {
-            c1: conv2d(3, 16, 3, same, vb.pp("c1"))?,
-            c2: conv2d(16, COLOUR_CHANNELS, 3, down, vb.pp("c2"))?,
-            c3: conv2d(COLOUR_CHANNELS, COLOUR_CHANNELS, 3, same, vb.pp("c3"))?,
+            layers: [
+                ConvLayer::new(3, 16, 1, vb.pp("c1"))?,
+                ConvLayer::new(16, COLOUR_CHANNELS, 2, vb.pp("c2"))?,
+                ConvLayer::new(COLOUR_CHANNELS, COLOUR_CHANNELS, 1, vb.pp("c3"))?,
+            ],
         })
     }
 
+    /// `x`: (B, S, S, 3) standardized ([`super::rgb::crops_nhwc`]).
     pub fn forward(&self, x: &Tensor) -> Result<Tensor> {
-        let x = self.c1.forward(x)?.relu()?;
-        let x = self.c2.forward(&x)?.relu()?;
-        self.c3.forward(&x)?.relu()
+        let mut x = x.clone();
+        for layer in &self.layers {
+            x = layer.forward(&x)?;
+        }
+        Ok(x)
     }
 }
 
@@ -109,7 +149,7 @@ impl RotationBranch {
         })
     }
 
-    /// `point_feat`: (B·N, 128); `crops`: (B, 3, S, S); `pixels`: (B·N) u32 indices into the
+    /// `point_feat`: (B·N, 128); `crops`: (B, S, S, 3); `pixels`: (B·N) u32 indices into the
     /// flattened (B, S/2, S/2) feature maps (see [`pixel_indices`]).
     pub fn forward(
         &self,
@@ -119,13 +159,9 @@ impl RotationBranch {
         b: usize,
         n: usize,
     ) -> Result<RotationOut> {
-        let fmap = self.cnn.forward(crops)?; // (B, C, h, w)
-        let (_, c, h, w) = fmap.dims4()?;
-        let flat = fmap
-            .reshape((b, c, h * w))?
-            .transpose(1, 2)?
-            .contiguous()?
-            .reshape((b * h * w, c))?;
+        let fmap = self.cnn.forward(crops)?; // (B, h, w, C)
+        let (_, h, w, c) = fmap.dims4()?;
+        let flat = fmap.reshape((b * h * w, c))?;
         let colour = flat.index_select(pixels, 0)?; // (B·N, C)
         let fused = (self.fuse_c.forward(&colour)? + self.fuse_p.forward(point_feat)?)?.relu()?;
         let fused = self.fuse2.forward_relu(&fused)?; // (B·N, width)
@@ -156,33 +192,13 @@ impl RNet {
         })
     }
 
-    /// `points`: (B, N, 3) normalized; `crops`: (B, 3, S, S); `pixels`: (B·N) u32.
+    /// `points`: (B, N, 3) normalized; `crops`: (B, S, S, 3) ([`super::rgb::crops_nhwc`]);
+    /// `pixels`: (B·N) u32.
     pub fn forward(&self, points: &Tensor, crops: &Tensor, pixels: &Tensor) -> Result<RotationOut> {
         let (b, n, _) = points.dims3()?;
         let f = self.stem.forward(&points.reshape((b * n, 3))?)?;
         self.rot.forward(&f, crops, pixels, b, n)
     }
-}
-
-/// Crops (`S² × 3` bytes each, RGB row-major) as a (B, 3, S, S) tensor, standardized
-/// ((v/255 − 0.5) / 0.25).
-pub fn crops_tensor(crops: &[&[u8]], size: u32, device: &Device) -> Result<Tensor> {
-    let s = size as usize;
-    let mut v = Vec::with_capacity(crops.len() * 3 * s * s);
-    for crop in crops {
-        if crop.len() != s * s * 3 {
-            candle_core::bail!("crop has {} bytes, expected {}", crop.len(), s * s * 3);
-        }
-        for c in 0..3 {
-            v.extend(
-                crop.iter()
-                    .skip(c)
-                    .step_by(3)
-                    .map(|&x| (f32::from(x) / 255.0 - 0.5) / 0.25),
-            );
-        }
-    }
-    Tensor::from_vec(v, (crops.len(), 3, s, s), device)
 }
 
 /// Indices of the sampled pixels into the flattened half-resolution feature maps of a batch:
@@ -240,6 +256,64 @@ mod tests {
         assert_eq!(v, vec![0, 6, 16 + 15]);
     }
 
+    /// The NHWC colour CNN computes what candle's NCHW `conv2d` layers of the same variables
+    /// compute (checkpoints of the NCHW network keep their meaning), values and gradients.
+    #[test]
+    fn colour_cnn_is_candles_conv2d_on_nhwc_maps() {
+        let dev = Device::Cpu;
+        let varmap = candle_nn::VarMap::new();
+        let vb = VarBuilder::from_varmap(&varmap, DType::F32, &dev);
+        let cnn = ColourCnn::new(vb.pp("cnn")).unwrap();
+        let x = Tensor::randn(0f32, 1.0, (4, 48, 48, 3), &dev).unwrap();
+        let x = candle_core::Var::from_tensor(&x).unwrap();
+        let got = cnn.forward(&x).unwrap(); // (B, 4, 4, 32)
+        let mut want = x.permute((0, 3, 1, 2)).unwrap();
+        for (name, stride) in [("c1", 1), ("c2", 2), ("c3", 1)] {
+            let vars = varmap.data().lock().unwrap();
+            let w = vars[&format!("cnn.{name}.weight")].as_tensor().clone();
+            let b = vars[&format!("cnn.{name}.bias")].as_tensor().clone();
+            want = want
+                .conv2d(&w, 1, stride, 1, 1)
+                .unwrap()
+                .broadcast_add(&b.reshape((1, (), 1, 1)).unwrap())
+                .unwrap()
+                .relu()
+                .unwrap();
+        }
+        let want = want.permute((0, 2, 3, 1)).unwrap();
+        assert_eq!(got.dims(), want.dims());
+        let close = |a: &Tensor, b: &Tensor| {
+            let d: f32 = (a - b)
+                .unwrap()
+                .abs()
+                .unwrap()
+                .max_all()
+                .unwrap()
+                .to_scalar()
+                .unwrap();
+            let m: f32 = b.abs().unwrap().max_all().unwrap().to_scalar().unwrap();
+            assert!(d <= 1e-5 * m.max(1.0), "max difference {d}, max value {m}");
+        };
+        close(&got, &want);
+        let wsum = Tensor::randn(0f32, 1.0, got.dims(), &dev).unwrap();
+        let g1 = (&got * &wsum)
+            .unwrap()
+            .sum_all()
+            .unwrap()
+            .backward()
+            .unwrap();
+        let g2 = (&want * &wsum)
+            .unwrap()
+            .sum_all()
+            .unwrap()
+            .backward()
+            .unwrap();
+        close(g1.get(&x).unwrap(), g2.get(&x).unwrap());
+        for var in varmap.all_vars() {
+            close(g1.get(&var).unwrap(), g2.get(&var).unwrap());
+        }
+    }
+
     #[test]
     fn rnet_shapes_and_unit_quaternions() {
         let dev = Device::Cpu;
@@ -249,8 +323,8 @@ mod tests {
         let (b, n, s) = (2usize, 5usize, 8u32);
         let pts = Tensor::randn(0f32, 1.0, (b, n, 3), &dev).unwrap();
         let crop = vec![128u8; (s * s * 3) as usize];
-        let crops = crops_tensor(&[&crop, &crop], s, &dev).unwrap();
-        assert_eq!(crops.dims(), &[2, 3, 8, 8]);
+        let crops = crate::models::rgb::crops_nhwc(&[&crop, &crop], s, &dev).unwrap();
+        assert_eq!(crops.dims(), &[2, 8, 8, 3]);
         let xy: Vec<[f32; 2]> = (0..n).map(|i| [i as f32, 7.0 - i as f32]).collect();
         let pix = pixel_indices(&[&xy, &xy], s, &dev).unwrap();
         let out = net.forward(&pts, &crops, &pix).unwrap();

@@ -14,10 +14,10 @@
 use candle_core::{DType, Device, Module, Result, Tensor, D};
 use candle_nn::VarBuilder;
 
-use super::dense::{dense as linear, dense_no_bias as linear_no_bias, Dense as Linear};
+use synthgen_nn::dense::{dense as linear, dense_no_bias as linear_no_bias, Dense as Linear};
 
-use super::fused::group_max;
 use super::rnet::PointStem;
+use synthgen_nn::fused::group_max;
 
 /// Input normalization: points minus the cloud's mean, times `scale` (1/m).
 pub const DEFAULT_SCALE: f32 = 10.0;
@@ -299,7 +299,7 @@ mod tests {
             let varmap = VarMap::new();
             // Seeded: candle's own initializers draw from an unseeded generator, and an
             // unlucky start once missed the bound.
-            let vb = crate::init::seeded_var_builder(&varmap, 5, &dev);
+            let vb = synthgen_nn::init::seeded_var_builder(&varmap, 5, &dev);
             let net = TNet::new(32, n_classes, vb).unwrap();
             let c = (n_classes > 0).then_some(&train.2);
             let mut opt = AdamW::new(

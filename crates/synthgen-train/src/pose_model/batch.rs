@@ -14,6 +14,7 @@ use rayon::prelude::*;
 use synthgen_core::glam::{DMat3, DVec3};
 use synthgen_core::Pose;
 
+use super::{class_one_hot, quaternion_wxyz, Objects, PoseModel, TrainObject};
 use crate::data::Instance;
 use crate::error::{Error, Result};
 use crate::losses::symmetric_targets;
@@ -21,10 +22,9 @@ use crate::models::rgb::{
     box_geometry, class_indices, crops_nhwc, ray_rotation, Translation, TARGET_SCALE,
 };
 use crate::models::rgb_dense::{canonical_coords, dense_out};
-use crate::models::rnet::{crops_tensor, pixel_indices};
+use crate::models::rnet::pixel_indices;
 use crate::models::tnet::{make_batch, TNetBatch};
 use crate::models::ModelKind;
-use crate::pose_model::{class_one_hot, quaternion_wxyz, Objects, PoseModel, TrainObject};
 use crate::rgb_input::{self, RgbSample};
 
 /// A batch ready for [`PoseModel::loss_of`] (and, with its instances' samples, for the
@@ -151,7 +151,7 @@ impl PoseModel {
                 xys.push(i.crop_xy.as_slice());
             }
             Ok((
-                crops_tensor(&crops, self.crop_size, &self.device)?,
+                crops_nhwc(&crops, self.crop_size, &self.device)?,
                 pixel_indices(&xys, self.crop_size, &self.device)?,
             ))
         };

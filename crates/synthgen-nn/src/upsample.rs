@@ -10,7 +10,7 @@
 use candle_core::{CpuStorage, CustomOp2, Layout, Result, Shape, Tensor};
 use rayon::prelude::*;
 
-use super::fused::{f32_slice, fused_path};
+use crate::fused::{f32_slice, fused_path};
 
 /// Nearest-neighbour ×2 upsampling of an NHWC map, from candle's ops.
 pub fn upsample2(x: &Tensor) -> Result<Tensor> {

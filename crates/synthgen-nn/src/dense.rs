@@ -10,9 +10,9 @@
 use candle_core::{Module, Result, Tensor};
 use candle_nn::VarBuilder;
 
-use super::conv::conv_bias_relu;
-use super::fused::dense_relu;
-use super::im2col::Window;
+use crate::conv::conv_bias_relu;
+use crate::fused::dense_relu;
+use crate::im2col::Window;
 
 #[derive(Debug, Clone)]
 pub struct Dense {
@@ -52,7 +52,7 @@ impl Dense {
 
     /// The layer as a convolution of the NHWC map `x` (its weight's columns the `k × k × C`
     /// window, as `im2col`'s), ReLU, with `extra` (B, out) added per image:
-    /// [`super::conv::conv_bias_relu`].
+    /// [`crate::conv::conv_bias_relu`].
     pub fn conv_relu(&self, x: &Tensor, win: Window, extra: Option<&Tensor>) -> Result<Tensor> {
         conv_bias_relu(x, &self.weight, &self.bias_rows(x, extra)?, win)
     }

@@ -4,7 +4,7 @@
 //! `conv_transpose2d` loop; for the RGB model's four stride-2 layers that was ~90% of a
 //! training step (495 ms for 32 crops, docs/benchmarks.md). Here a convolution over an NHWC
 //! image is `im2col` (each output pixel's k×k×C patch as one row, zeros outside the image)
-//! followed by a fused dense layer ([`super::dense::Dense::forward_relu`]): the forward and
+//! followed by a fused dense layer ([`crate::dense::Dense::forward_relu`]): the forward and
 //! both weight and input gradients are then matrix products, and `im2col`'s own gradient is
 //! the scatter-add `col2im`. On other devices and dtypes `im2col` composes candle's own ops
 //! (zero padding and `index_select`), with the same values and gradients.
@@ -12,7 +12,7 @@
 use candle_core::{CpuStorage, CustomOp1, Layout, Result, Shape, Tensor};
 use rayon::prelude::*;
 
-use super::fused::{f32_slice, fused_path};
+use crate::fused::{f32_slice, fused_path};
 
 /// A square convolution window: side, stride and zero padding.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -62,13 +62,13 @@ pub fn im2col(x: &Tensor, win: Window) -> Result<Tensor> {
         .reshape((b * oh * ow, win.k * win.k * c))
 }
 
-pub(super) struct Im2Col {
-    pub(super) win: Window,
+pub(crate) struct Im2Col {
+    pub(crate) win: Window,
 }
 
 /// The patches of the NHWC image data `x` (`dims`), as [`im2col`] lays them out; built in
 /// parallel, one image per task.
-pub(super) fn im2col_values(
+pub(crate) fn im2col_values(
     x: &[f32],
     (b, h, w, c): (usize, usize, usize, usize),
     win: Window,
@@ -127,7 +127,7 @@ fn for_each_span(
 }
 
 /// `n` zeros, written by the worker threads (a large `vec![0.0; n]` is one thread's memset).
-pub(super) fn zeros(n: usize) -> Vec<f32> {
+pub(crate) fn zeros(n: usize) -> Vec<f32> {
     let mut v = Vec::with_capacity(n);
     v.par_extend(rayon::iter::repeat_n(0f32, n).with_min_len(1 << 16));
     v
@@ -157,9 +157,9 @@ impl CustomOp1 for Im2Col {
 }
 
 /// `im2col`'s gradient: every row's values added back onto the pixels they were read from.
-pub(super) struct Col2Im {
-    pub(super) win: Window,
-    pub(super) dims: (usize, usize, usize, usize),
+pub(crate) struct Col2Im {
+    pub(crate) win: Window,
+    pub(crate) dims: (usize, usize, usize, usize),
 }
 
 impl CustomOp1 for Col2Im {

@@ -71,12 +71,12 @@ pub fn group_max(x: &Tensor, groups: usize) -> Result<Tensor> {
     }
 }
 
-pub(super) fn fused_path(t: &Tensor) -> bool {
+pub(crate) fn fused_path(t: &Tensor) -> bool {
     t.device().is_cpu() && t.dtype() == DType::F32
 }
 
 /// The f32 data of a contiguous CPU tensor.
-pub(super) fn f32_slice<'a>(s: &'a CpuStorage, l: &Layout, op: &str) -> Result<&'a [f32]> {
+pub(crate) fn f32_slice<'a>(s: &'a CpuStorage, l: &Layout, op: &str) -> Result<&'a [f32]> {
     let CpuStorage::F32(data) = s else {
         candle_core::bail!("{op}: f32 tensors only");
     };
@@ -87,7 +87,7 @@ pub(super) fn f32_slice<'a>(s: &'a CpuStorage, l: &Layout, op: &str) -> Result<&
 }
 
 /// `z ← relu(z + bias[group(row)])` in place; `z` holds rows × c values.
-pub(super) fn add_bias_relu_in_place(z: &mut [f32], bias: &[f32], c: usize, per_group: usize) {
+pub(crate) fn add_bias_relu_in_place(z: &mut [f32], bias: &[f32], c: usize, per_group: usize) {
     z.par_chunks_mut(CHUNK_ROWS * c)
         .enumerate()
         .for_each(|(k, z)| {
@@ -153,7 +153,7 @@ impl CustomOp3 for DenseRelu {
 }
 
 /// `grad` where `res` > 0, else 0 (the relu gradient, from the relu's output).
-pub(super) struct ReluMask;
+pub(crate) struct ReluMask;
 
 impl CustomOp2 for ReluMask {
     fn name(&self) -> &'static str {
@@ -183,8 +183,8 @@ impl CustomOp2 for ReluMask {
 }
 
 /// Column sums per group of rows: (rows, C) → (G, C), accumulated in f64.
-pub(super) struct GroupSum {
-    pub(super) groups: usize,
+pub(crate) struct GroupSum {
+    pub(crate) groups: usize,
 }
 
 impl CustomOp1 for GroupSum {

@@ -2,6 +2,8 @@
 //! instances into tensors, loss, and per-instance predictions; checkpoints (strict load,
 //! and partial initialization from another kind's checkpoint).
 
+pub mod batch;
+
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -13,11 +15,9 @@ use synthgen_core::Pose;
 use synthgen_formats::bop::ModelInfo;
 use synthgen_formats::source::FrameSource;
 
-use crate::batch::{BoxTargets, PointTarget, Prepared, PreparedBatch};
 use crate::data::Instance;
 use crate::dataset_objects::{eval_object, load_each_object};
 use crate::error::{Error, Result};
-use crate::init::seeded_var_builder;
 use crate::losses::{
     quaternion_confidence_loss, rotation_points_loss, smooth_l1_loss, symmetry_poses,
 };
@@ -29,6 +29,8 @@ use crate::models::rnet::{RNet, RotationOut, CONFIDENCE_WEIGHT};
 use crate::models::tnet::{centres_from_offsets, offset_l1_loss, TNet};
 use crate::models::ModelKind;
 use crate::rgb_input;
+use batch::{BoxTargets, PointTarget, Prepared, PreparedBatch};
+use synthgen_nn::init::seeded_var_builder;
 
 /// The RGB model's smooth L1 β, in the translation targets' units (decimetres, tenths of the
 /// box side): quadratic below 1 cm (1% of the box), linear beyond.

@@ -1,6 +1,6 @@
 //! A whole convolution layer `relu(conv(x, W) + b)` over an NHWC map as one graph node.
 //!
-//! As `im2col` then the fused dense layer ([`super::fused::dense_relu`]), the patch matrix
+//! As `im2col` then the fused dense layer ([`crate::fused::dense_relu`]), the patch matrix
 //! (B·OH·OW × k·k·C: 56 MB for the dense RGB model's decoder at batch 32) was a node of the
 //! graph: kept for the backward pass, and its gradient, as large, was summed by candle's
 //! backprop into a freshly zeroed tensor on one thread (a memset and an add of 14 M values
@@ -15,8 +15,8 @@ use std::sync::Mutex;
 use candle_core::backend::BackendStorage;
 use candle_core::{CpuStorage, CustomOp3, DType, Layout, Result, Shape, Tensor};
 
-use super::fused::{add_bias_relu_in_place, dense_relu, f32_slice, fused_path, GroupSum, ReluMask};
-use super::im2col::{im2col, im2col_values, Col2Im, Window};
+use crate::fused::{add_bias_relu_in_place, dense_relu, f32_slice, fused_path, GroupSum, ReluMask};
+use crate::im2col::{im2col, im2col_values, Col2Im, Window};
 
 /// `relu(conv(x, w) + bias[group])`: `x` (B, H, W, C), `w` (out, k·k·C) with columns
 /// (ky, kx, c) as [`im2col`]'s, `bias` (G, out) with G = 1 or G = B (a term per image);
@@ -118,7 +118,7 @@ impl CustomOp3 for ConvRelu {
             Some(c) => c,
             None => x
                 .detach()
-                .apply_op1_no_bwd(&super::im2col::Im2Col { win: self.win })?,
+                .apply_op1_no_bwd(&crate::im2col::Im2Col { win: self.win })?,
         };
         // An input that needs no gradient (the crops of the first layer) gets none.
         let wants_dx = x.is_variable() || x.track_op();
