@@ -265,7 +265,7 @@ impl PyDataset {
     }
 
     /// `(points (M, 3) metres, diameter metres, symmetric)`: the evaluation model
-    /// `synthgen eval` scores this object with (1000 evenly strided vertices).
+    /// `synthgen eval` scores this object with (every vertex, as bop_toolkit does).
     fn eval_model<'py>(
         &self,
         py: Python<'py>,

@@ -92,7 +92,18 @@ def test_real_ycbv_frames(ycbv_real: Path) -> None:
     assert only[0].masks_visib.shape[0] == len(only[0].objects)
 
 
+def _ply_vertex_count(path: Path) -> int:
+    with path.open("rb") as f:
+        for line in f:
+            if line.startswith(b"element vertex"):
+                return int(line.split()[2])
+            if line.strip() == b"end_header":
+                break
+    raise AssertionError(f"{path}: no vertex count in the PLY header")
+
+
 def test_eval_model(rendered: Path) -> None:
     points, diameter, symmetric = synthgen.open_dataset(rendered).eval_model(1)
-    assert points.shape[1] == 3 and 0 < len(points) <= 1000
+    # Every vertex of the model, as bop_toolkit scores ADD(-S) (no subsample).
+    assert points.shape == (_ply_vertex_count(rendered / "models" / "obj_000001.ply"), 3)
     assert 0.1 < diameter < 0.5 and symmetric is False
