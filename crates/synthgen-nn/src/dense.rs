@@ -57,6 +57,12 @@ impl Dense {
         conv_bias_relu(x, &self.weight, &self.bias_rows(x, extra)?, win)
     }
 
+    /// `relu(x·Wᵀ + b + y·W_oᵀ)`: this layer on `x` plus `other` (its bias ignored) on `y`,
+    /// as one node ([`crate::fused::dense2_relu`]).
+    pub fn forward_relu_with(&self, x: &Tensor, other: &Dense, y: &Tensor) -> Result<Tensor> {
+        crate::fused::dense2_relu(x, y, &self.weight, &other.weight, self.bias.as_ref())
+    }
+
     /// The bias rows (G, out): the layer's bias plus `extra`'s rows (G of them), or alone.
     fn bias_rows(&self, x: &Tensor, extra: Option<&Tensor>) -> Result<Tensor> {
         let out = self.weight.dim(0)?;

@@ -71,6 +71,64 @@ pub fn group_max(x: &Tensor, groups: usize) -> Result<Tensor> {
     }
 }
 
+/// `relu(x1·W1ᵀ + x2·W2ᵀ + b)` as one graph node: the layers of two inputs summed before the
+/// ReLU (RNet's fusion of colour and point features). `x1` (rows, k1), `x2` (rows, k2), `w1`
+/// (out, k1), `w2` (out, k2), `bias` (out) or none. As [`dense_relu`], no (rows × out)
+/// product, sum or pre-activation is kept or accumulated; the backward pass skips the
+/// gradient of an input that tracks none.
+pub fn dense2_relu(
+    x1: &Tensor,
+    x2: &Tensor,
+    w1: &Tensor,
+    w2: &Tensor,
+    bias: Option<&Tensor>,
+) -> Result<Tensor> {
+    let (rows, k1) = x1.dims2()?;
+    let (rows2, k2) = x2.dims2()?;
+    let (out, wk1) = w1.dims2()?;
+    let (out2, wk2) = w2.dims2()?;
+    let bias_ok = bias.map_or(Ok(true), |b| b.dims1().map(|n| n == out))?;
+    if rows != rows2 || wk1 != k1 || wk2 != k2 || out2 != out || !bias_ok {
+        candle_core::bail!(
+            "dense2_relu: x1 {:?}, x2 {:?}, w1 {:?}, w2 {:?} do not fit",
+            x1.dims(),
+            x2.dims(),
+            w1.dims(),
+            w2.dims()
+        );
+    }
+    let bias_col = match bias {
+        Some(b) => b.unsqueeze(1)?,
+        None => Tensor::zeros((out, 1), w1.dtype(), w1.device())?,
+    };
+    if [x1, x2, w1, w2, &bias_col].iter().all(|t| fused_path(t)) {
+        // The weights and the bias as one small (out, k1 + k2 + 1) tensor: a custom op takes
+        // at most three inputs.
+        let wb = Tensor::cat(&[w1, w2, &bias_col], 1)?;
+        return x1
+            .contiguous()?
+            .apply_op3(&x2.contiguous()?, &wb, Dense2Relu { k1, k2 });
+    }
+    (x1.matmul(&w1.t()?)? + x2.matmul(&w2.t()?)?)?
+        .broadcast_add(&bias_col.t()?)?
+        .relu()
+}
+
+/// The mean of each of `groups` equal, contiguous groups of rows: (rows, C) → (groups, C)
+/// (RNet's global feature, the average over a cloud's pixels), accumulated in f64; its
+/// backward pass spreads each group's gradient over its rows, in parallel.
+pub fn group_mean(x: &Tensor, groups: usize) -> Result<Tensor> {
+    let (rows, c) = x.dims2()?;
+    if groups == 0 || rows % groups != 0 || rows == 0 {
+        candle_core::bail!("group_mean: {rows} rows do not split into {groups} groups");
+    }
+    if fused_path(x) {
+        x.contiguous()?.apply_op1(GroupMean { groups })
+    } else {
+        x.reshape((groups, rows / groups, c))?.mean(1)
+    }
+}
+
 pub(crate) fn fused_path(t: &Tensor) -> bool {
     t.device().is_cpu() && t.dtype() == DType::F32
 }
@@ -140,15 +198,16 @@ impl CustomOp3 for DenseRelu {
         let dz = grad.contiguous()?.apply_op2_no_bwd(res, &ReluMask)?;
         // The two products are independent; run them side by side (the tall-skinny dW product
         // does not keep both cores busy on its own).
+        // No input gradient for data (the first layer's points).
         let (dx, dw) = rayon::join(
-            || dz.matmul(&w.detach()),
+            || x.track_op().then(|| dz.matmul(&w.detach())).transpose(),
             || dz.t().and_then(|t| t.matmul(&x.detach())),
         );
         let (dx, dw) = (dx?, dw?);
         let db = dz.apply_op1_no_bwd(&GroupSum {
             groups: bias.dim(0)?,
         })?;
-        Ok((Some(dx), Some(dw), Some(db)))
+        Ok((dx, Some(dw), Some(db)))
     }
 }
 
@@ -224,6 +283,156 @@ impl CustomOp1 for GroupSum {
         }
         let out = sums.into_iter().map(|v| v as f32).collect();
         Ok((CpuStorage::F32(out), Shape::from((self.groups, c))))
+    }
+}
+
+struct Dense2Relu {
+    k1: usize,
+    k2: usize,
+}
+
+impl Dense2Relu {
+    /// Columns `from..from + k` of the (out, k1 + k2 + 1) weights, as a contiguous (out, k).
+    fn block(wb: &[f32], out: usize, from: usize, k: usize) -> Vec<f32> {
+        let width = wb.len() / out;
+        (0..out)
+            .flat_map(|o| wb[o * width + from..o * width + from + k].iter().copied())
+            .collect()
+    }
+}
+
+impl CustomOp3 for Dense2Relu {
+    fn name(&self) -> &'static str {
+        "dense2-relu"
+    }
+
+    fn cpu_fwd(
+        &self,
+        s1: &CpuStorage,
+        l1: &Layout,
+        s2: &CpuStorage,
+        l2: &Layout,
+        s3: &CpuStorage,
+        l3: &Layout,
+    ) -> Result<(CpuStorage, Shape)> {
+        let (k1, k2) = (self.k1, self.k2);
+        let rows = l1.shape().dims2()?.0;
+        let (out, _) = l3.shape().dims2()?;
+        let wb = f32_slice(s3, l3, self.name())?;
+        let product = |s: &CpuStorage, l: &Layout, from: usize, k: usize| -> Result<Vec<f32>> {
+            let w = CpuStorage::F32(Self::block(wb, out, from, k));
+            let wl = Layout::contiguous((out, k)).transpose(0, 1)?;
+            match s.matmul(&w, (1, rows, out, k), l, &wl)? {
+                CpuStorage::F32(z) => Ok(z),
+                _ => candle_core::bail!("dense2-relu: f32 tensors only"),
+            }
+        };
+        let (z1, z2) = rayon::join(|| product(s1, l1, 0, k1), || product(s2, l2, k1, k2));
+        let (mut z, z2) = (z1?, z2?);
+        let bias: Vec<f32> = (0..out).map(|o| wb[o * (k1 + k2 + 1) + k1 + k2]).collect();
+        z.par_chunks_mut(CHUNK_ROWS * out)
+            .zip(z2.par_chunks(CHUNK_ROWS * out))
+            .for_each(|(z, z2)| {
+                for (z, z2) in z.chunks_exact_mut(out).zip(z2.chunks_exact(out)) {
+                    for ((z, z2), b) in z.iter_mut().zip(z2).zip(&bias) {
+                        *z = (*z + z2 + b).max(0.0);
+                    }
+                }
+            });
+        Ok((CpuStorage::F32(z), Shape::from((rows, out))))
+    }
+
+    fn bwd(
+        &self,
+        x1: &Tensor,
+        x2: &Tensor,
+        wb: &Tensor,
+        res: &Tensor,
+        grad: &Tensor,
+    ) -> Result<(Option<Tensor>, Option<Tensor>, Option<Tensor>)> {
+        let (k1, k2) = (self.k1, self.k2);
+        let dz = grad.contiguous()?.apply_op2_no_bwd(res, &ReluMask)?;
+        let wb = wb.detach();
+        let w1 = wb.narrow(1, 0, k1)?.contiguous()?;
+        let w2 = wb.narrow(1, k1, k2)?.contiguous()?;
+        let dx = |x: &Tensor, w: &Tensor| -> Result<Option<Tensor>> {
+            if x.track_op() {
+                dz.matmul(w).map(Some)
+            } else {
+                Ok(None)
+            }
+        };
+        let dw = |x: &Tensor| dz.t().and_then(|t| t.matmul(&x.detach()));
+        let ((dx1, dx2), (dw1, dw2)) = rayon::join(
+            || rayon::join(|| dx(x1, &w1), || dx(x2, &w2)),
+            || rayon::join(|| dw(x1), || dw(x2)),
+        );
+        let db = dz.apply_op1_no_bwd(&GroupSum { groups: 1 })?.t()?;
+        let dwb = Tensor::cat(&[&dw1?, &dw2?, &db], 1)?;
+        Ok((dx1?, dx2?, Some(dwb)))
+    }
+}
+
+struct GroupMean {
+    groups: usize,
+}
+
+impl CustomOp1 for GroupMean {
+    fn name(&self) -> &'static str {
+        "group-mean"
+    }
+
+    fn cpu_fwd(&self, s: &CpuStorage, l: &Layout) -> Result<(CpuStorage, Shape)> {
+        let (rows, _) = l.shape().dims2()?;
+        let (sums, shape) = GroupSum {
+            groups: self.groups,
+        }
+        .cpu_fwd(s, l)?;
+        let CpuStorage::F32(mut sums) = sums else {
+            candle_core::bail!("group-mean: f32 tensors only");
+        };
+        let scale = (1.0 / (rows / self.groups) as f64) as f32;
+        for v in &mut sums {
+            *v *= scale;
+        }
+        Ok((CpuStorage::F32(sums), shape))
+    }
+
+    fn bwd(&self, arg: &Tensor, _res: &Tensor, grad: &Tensor) -> Result<Option<Tensor>> {
+        let (rows, _) = arg.dims2()?;
+        Ok(Some(grad.contiguous()?.apply_op1_no_bwd(&GroupSpread {
+            per_group: rows / self.groups,
+        })?))
+    }
+}
+
+/// Each group's row of (G, C) divided by `per_group`, repeated over its rows: (G·per_group, C).
+struct GroupSpread {
+    per_group: usize,
+}
+
+impl CustomOp1 for GroupSpread {
+    fn name(&self) -> &'static str {
+        "group-spread"
+    }
+
+    fn cpu_fwd(&self, s: &CpuStorage, l: &Layout) -> Result<(CpuStorage, Shape)> {
+        let g = f32_slice(s, l, self.name())?;
+        let (groups, c) = l.shape().dims2()?;
+        let scale = (1.0 / self.per_group as f64) as f32;
+        let mut out = vec![0f32; groups * self.per_group * c];
+        out.par_chunks_mut(self.per_group * c)
+            .zip(g.par_chunks(c))
+            .for_each(|(o, g)| {
+                let row: Vec<f32> = g.iter().map(|v| v * scale).collect();
+                for o in o.chunks_exact_mut(c) {
+                    o.copy_from_slice(&row);
+                }
+            });
+        Ok((
+            CpuStorage::F32(out),
+            Shape::from((groups * self.per_group, c)),
+        ))
     }
 }
 
@@ -377,6 +586,51 @@ mod tests {
             let what = format!("rows {rows} groups {groups}");
             assert_gradients_close(&fused, &plain, &[&x, &w, &b], 1e-5, &what);
         }
+    }
+
+    /// The two-input layer: candle's two products, sum, bias and relu; with and without a bias,
+    /// and with an input that tracks no gradient (its gradient is skipped, the others agree).
+    #[test]
+    fn dense2_relu_matches_candle_ops() {
+        let x1 = random((1300, 5), 7);
+        let x2 = random((1300, 9), 8);
+        let w1 = random((6, 5), 9);
+        let w2 = random((6, 9), 10);
+        let b = Var::from_tensor(&random((1, 6), 11).as_tensor().squeeze(0).unwrap()).unwrap();
+        for bias in [Some(b.as_tensor()), None] {
+            let fused = dense2_relu(&x1, &x2, &w1, &w2, bias).unwrap();
+            let mut z = (x1.matmul(&w1.t().unwrap()).unwrap()
+                + x2.matmul(&w2.t().unwrap()).unwrap())
+            .unwrap();
+            if let Some(b) = bias {
+                z = z.broadcast_add(&b.unsqueeze(0).unwrap()).unwrap();
+            }
+            let plain = z.relu().unwrap();
+            assert!(max_diff(&fused, &plain) < 1e-5);
+            let mut wrt = vec![
+                x1.as_tensor(),
+                x2.as_tensor(),
+                w1.as_tensor(),
+                w2.as_tensor(),
+            ];
+            wrt.extend(bias);
+            assert_gradients_close(&fused, &plain, &wrt, 1e-5, "dense2_relu");
+        }
+        let data = x2.as_tensor().detach();
+        let g = weighted_sum(&dense2_relu(&x1, &data, &w1, &w2, None).unwrap())
+            .backward()
+            .unwrap();
+        assert!(g.get(&data).is_none() && g.get(&x1).is_some() && g.get(&w2).is_some());
+    }
+
+    #[test]
+    fn group_mean_matches_candle_mean() {
+        let x = random((1000, 5), 3);
+        let fused = group_mean(&x, 4).unwrap();
+        let plain = x.reshape((4, 250, 5)).unwrap().mean(1).unwrap();
+        assert!(max_diff(&fused, &plain) < 1e-6);
+        assert_gradients_close(&fused, &plain, &[x.as_tensor()], 1e-6, "group_mean");
+        assert!(group_mean(&x, 3).is_err());
     }
 
     #[test]

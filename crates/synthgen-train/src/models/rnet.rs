@@ -15,6 +15,7 @@ use candle_nn::{conv2d, Conv2dConfig, VarBuilder};
 pub use crate::quat::quaternion_to_matrix;
 use synthgen_nn::conv::conv_bias_relu;
 use synthgen_nn::dense::{dense as linear, dense_no_bias as linear_no_bias, Dense as Linear};
+use synthgen_nn::fused::group_mean;
 use synthgen_nn::im2col::Window;
 
 /// Default side of the square RGB crop, pixels.
@@ -125,7 +126,6 @@ pub struct RotationBranch {
     r1_global: Linear,
     r2: Linear,
     r3: Linear,
-    width: usize,
 }
 
 /// Per pixel quaternions (B, N, 4), unit, (w, x, y, z), and confidences (B, N) in (0, 1).
@@ -145,7 +145,6 @@ impl RotationBranch {
             r1_global: linear_no_bias(width, 128, vb.pp("r1_global"))?,
             r2: linear(128, 64, vb.pp("r2"))?,
             r3: linear(64, 5, vb.pp("r3"))?,
-            width,
         })
     }
 
@@ -163,9 +162,12 @@ impl RotationBranch {
         let (_, h, w, c) = fmap.dims4()?;
         let flat = fmap.reshape((b * h * w, c))?;
         let colour = flat.index_select(pixels, 0)?; // (B·N, C)
-        let fused = (self.fuse_c.forward(&colour)? + self.fuse_p.forward(point_feat)?)?.relu()?;
+                                                    // relu(W_c e + b_c + W_p f), one node.
+        let fused = self
+            .fuse_c
+            .forward_relu_with(&colour, &self.fuse_p, point_feat)?;
         let fused = self.fuse2.forward_relu(&fused)?; // (B·N, width)
-        let global = fused.reshape((b, n, self.width))?.mean(1)?; // (B, width)
+        let global = group_mean(&fused, b)?; // (B, width)
         let hg = self.r1_global.forward(&global)?; // (B, 128)
         let h = self.r1_point.forward_relu_grouped(&fused, Some(&hg))?; // (B·N, 128)
         let h = self.r2.forward_relu(&h)?;
