@@ -11,6 +11,7 @@ use std::process::ExitCode;
 use clap::Parser;
 use synthgen_core::Progress;
 
+pub mod alloc;
 pub mod cli;
 pub mod commands;
 pub mod config;

@@ -7,5 +7,6 @@ use std::process::ExitCode;
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 fn main() -> ExitCode {
+    synthgen_cli::alloc::keep_freed_memory();
     synthgen_cli::main()
 }
