@@ -23,6 +23,7 @@ use mimalloc as _;
 const MI_OPTION_PURGE_DELAY: c_int = 15;
 
 extern "C" {
+    #[cfg(test)]
     fn mi_option_get(option: c_int) -> c_long;
     fn mi_option_set(option: c_int, value: c_long);
 }
@@ -36,15 +37,15 @@ pub fn keep_freed_memory() {
     }
 }
 
-/// The purge delay mimalloc uses now, in milliseconds (-1: never).
-pub fn purge_delay_ms() -> i64 {
-    // SAFETY: reading an option has no precondition.
-    unsafe { mi_option_get(MI_OPTION_PURGE_DELAY) as i64 }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The purge delay mimalloc uses now, in milliseconds (-1: never).
+    fn purge_delay_ms() -> i64 {
+        // SAFETY: reading an option has no precondition.
+        unsafe { mi_option_get(MI_OPTION_PURGE_DELAY) as i64 }
+    }
 
     #[test]
     #[allow(clippy::print_stderr)]

@@ -162,7 +162,8 @@ impl RotationBranch {
         let (_, h, w, c) = fmap.dims4()?;
         let flat = fmap.reshape((b * h * w, c))?;
         let colour = flat.index_select(pixels, 0)?; // (B·N, C)
-                                                    // relu(W_c e + b_c + W_p f), one node.
+
+        // relu(W_c e + b_c + W_p f), one node.
         let fused = self
             .fuse_c
             .forward_relu_with(&colour, &self.fuse_p, point_feat)?;
