@@ -16,7 +16,9 @@ mod sensor;
 mod sim2real;
 mod train;
 pub use budget::TrainBudgetArgs;
-pub use detector::{DetectorCommand, DetectorRunArgs, DetectorTrainArgs};
+pub use detector::{
+    BboxTypeArg, DetectorCommand, DetectorEvalArgs, DetectorRunArgs, DetectorTrainArgs,
+};
 pub use experiment::{ExperimentCommand, ExperimentMixArgs};
 pub use model::{ModelAlignArgs, ModelCommand};
 pub use rgb::ExperimentRgbArgs;

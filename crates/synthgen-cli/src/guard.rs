@@ -163,6 +163,13 @@ pub fn paths(command: &Command) -> CommandPaths {
             p.input("dataset", &a.data);
             p.output("--out", &a.out);
         }
+        Command::Detector(DetectorCommand::Eval(a)) => {
+            p.input("--detections", &a.detections);
+            p.input("dataset", &a.data);
+            p.input_opt("--targets", &a.targets);
+            p.output_opt("--out", &a.out);
+            p.output_opt("--gt-out", &a.gt_out);
+        }
         Command::Experiment(ExperimentCommand::Mix(a)) => {
             p.input_opt("--real", &a.real);
             p.input_opt("--synth", &a.synth);

@@ -2,7 +2,8 @@
 //! COCO's result format): a JSON list of `{"scene_id", "image_id", "category_id", "score",
 //! "bbox": [x, y, width, height], "time"}`, the box in pixels with the object covering
 //! `x..x + width` (COCO's convention; one pixel more than `scene_gt_info`'s `bbox_visib`,
-//! whose last pixel is `x + w`). Other fields (a `segmentation`) are ignored.
+//! whose last pixel is `x + w`), and, where the detector gives one, `"segmentation"`: the
+//! visible mask as COCO RLE (`{"size": [h, w], "counts": ...}`, compressed or a list).
 //!
 //! `synthgen detect` writes them; `synthgen eval --detections` crops the RGB models' input
 //! from them instead of the GT boxes ([`Detections::box_for`]).
@@ -12,6 +13,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use synthgen_formats::coco::Rle;
 use synthgen_formats::identity::{FramesKey, ObjectIdentity};
 use synthgen_train::data::CropBoxes;
 use synthgen_train::{Error, Result};
@@ -29,6 +31,9 @@ pub struct Detection {
     /// Seconds the detector took for the image (−1 unknown).
     #[serde(default = "unknown_time")]
     pub time: f64,
+    /// The visible mask, when the detector gives one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub segmentation: Option<Rle>,
 }
 
 fn unknown_time() -> f64 {
@@ -56,6 +61,7 @@ impl Detection {
                 b[3] as f64 + 1.0,
             ],
             time: -1.0,
+            segmentation: None,
         }
     }
 }
@@ -276,7 +282,7 @@ mod tests {
         std::fs::write(
             &path,
             r#"[{"scene_id": 2, "image_id": 3, "category_id": 5, "score": 0.4, "bbox": [10, 20, 30, 40], "time": 0.1},
-                {"scene_id": 2, "image_id": 3, "category_id": 5, "score": 0.9, "bbox": [11, 21, 31, 41], "segmentation": {"counts": "x"}}]"#,
+                {"scene_id": 2, "image_id": 3, "category_id": 5, "score": 0.9, "bbox": [11, 21, 31, 41], "segmentation": {"size": [2, 3], "counts": [1, 2, 3]}}]"#,
         )
         .unwrap();
         let d = read_detections(&path).unwrap();
@@ -292,6 +298,12 @@ mod tests {
         let gt = Detection::from_bop_box(2, 3, 5, [10, 20, 29, 39]);
         assert_eq!(gt.bop_box(), [10.0, 20.0, 29.0, 39.0]);
 
+        assert_eq!(d[1].segmentation.as_ref().map(|m| m.area()), Some(2));
+        assert_eq!(d[0].segmentation, None);
+        // A mask whose runs do not fill its size is named with its entry.
+        std::fs::write(&path, r#"[{"scene_id": 2, "image_id": 3, "category_id": 5, "score": 1, "bbox": [1, 2, 3, 4], "segmentation": {"size": [2, 3], "counts": [1, 2]}}]"#).unwrap();
+        let e = read_detections(&path).unwrap_err().to_string();
+        assert!(e.contains("entry 0") && e.contains("cover 3 pixels"), "{e}");
         std::fs::write(&path, r#"[{"scene_id": 2, "image_id": 3, "category_id": 5, "score": 1, "bbox": [1, 2, 0, 4]}]"#).unwrap();
         let e = read_detections(&path).unwrap_err().to_string();
         assert!(e.contains("entry 0") && e.contains("det.json"), "{e}");
@@ -318,6 +330,7 @@ mod tests {
             score: 0.5,
             bbox,
             time: -1.0,
+            segmentation: None,
         };
         let list = vec![
             d(2, 3, 5, [10.0, 20.0, 30.0, 40.0]),

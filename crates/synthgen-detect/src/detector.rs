@@ -909,6 +909,7 @@ pub fn detect_frames(
                     score,
                     bbox,
                     time,
+                    segmentation: None,
                 })
                 .collect();
             let gt = frame_boxes(f, &det.cfg.classes, det.cfg.min_visib_fract)?;

@@ -16,6 +16,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod coco_eval;
 pub mod detections;
 pub mod detector;
 pub mod net;

@@ -103,6 +103,194 @@ pub fn rle_decode(counts: &[u32], width: usize, height: usize) -> Vec<u8> {
     out
 }
 
+/// pycocotools' `rleFrString`, the inverse of [`rle_to_string`]; None when the string is
+/// not one (a character outside `0`..`o`, a count cut short, a negative run).
+pub fn rle_from_string(s: &str) -> Option<Vec<u32>> {
+    let bytes = s.as_bytes();
+    let mut counts: Vec<u32> = Vec::new();
+    let mut p = 0;
+    while p < bytes.len() {
+        let mut x: i64 = 0;
+        let mut k = 0;
+        loop {
+            let b = *bytes.get(p)?;
+            if !(48..48 + 64).contains(&b) || k > 12 {
+                return None;
+            }
+            let c = i64::from(b - 48);
+            x |= (c & 0x1f) << (5 * k);
+            p += 1;
+            k += 1;
+            if c & 0x20 == 0 {
+                if c & 0x10 != 0 {
+                    x |= -1i64 << (5 * k);
+                }
+                break;
+            }
+        }
+        if counts.len() > 2 {
+            x += i64::from(counts[counts.len() - 2]);
+        }
+        counts.push(u32::try_from(x).ok()?);
+    }
+    Some(counts)
+}
+
+/// A binary mask as COCO's run-length encoding: `size` is `[height, width]`, `counts` the
+/// run lengths in column-major order starting with a run of zeros. Read from either COCO
+/// form (`"counts"` a string, pycocotools' compressed one, or a list of integers); written
+/// compressed, as `pycocotools.mask.encode` writes it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Rle {
+    pub height: u32,
+    pub width: u32,
+    pub counts: Vec<u32>,
+}
+
+impl Rle {
+    /// The RLE of a row-major mask (non-zero = set).
+    pub fn from_mask(mask: &[u8], width: u32, height: u32) -> Rle {
+        Rle {
+            height,
+            width,
+            counts: rle_counts(mask, width as usize, height as usize),
+        }
+    }
+
+    /// The row-major 0/1 mask.
+    pub fn decode(&self) -> Vec<u8> {
+        rle_decode(&self.counts, self.width as usize, self.height as usize)
+    }
+
+    /// Set pixels.
+    pub fn area(&self) -> u64 {
+        self.counts
+            .iter()
+            .skip(1)
+            .step_by(2)
+            .map(|&c| u64::from(c))
+            .sum()
+    }
+
+    /// Why the counts do not describe a `height` x `width` mask, if they do not.
+    pub fn check(&self) -> std::result::Result<(), String> {
+        let total: u64 = self.counts.iter().map(|&c| u64::from(c)).sum();
+        let pixels = u64::from(self.height) * u64::from(self.width);
+        if total != pixels {
+            return Err(format!(
+                "its runs cover {total} pixels, not the {} x {} = {pixels} of its size",
+                self.height, self.width
+            ));
+        }
+        Ok(())
+    }
+
+    /// pycocotools' `toBbox`: `[x, y, width, height]` of the set pixels (the last column
+    /// `x + width - 1`), zeros when none is set.
+    pub fn bbox(&self) -> [f64; 4] {
+        let h = u64::from(self.height.max(1));
+        let (mut xs, mut xe, mut ys, mut ye) = (u64::MAX, 0u64, u64::MAX, 0u64);
+        let mut start = 0u64;
+        for (j, &c) in self.counts.iter().enumerate() {
+            let end = start + u64::from(c);
+            if j % 2 == 1 && c > 0 {
+                let (first, last) = (start, end - 1);
+                let (x0, y0, x1, y1) = (first / h, first % h, last / h, last % h);
+                xs = xs.min(x0);
+                xe = xe.max(x1);
+                if x1 > x0 {
+                    ys = 0;
+                    ye = h - 1;
+                } else {
+                    ys = ys.min(y0);
+                    ye = ye.max(y1);
+                }
+            }
+            start = end;
+        }
+        if xs == u64::MAX {
+            return [0.0; 4];
+        }
+        [
+            xs as f64,
+            ys as f64,
+            (xe - xs + 1) as f64,
+            (ye - ys + 1) as f64,
+        ]
+    }
+
+    /// Pixels set in both (same size assumed; the shorter run list ends the count).
+    pub fn intersection(&self, other: &Rle) -> u64 {
+        let (a, b) = (&self.counts, &other.counts);
+        let (mut i, mut j) = (0, 0);
+        let (mut ra, mut rb) = (
+            a.first().copied().unwrap_or(0),
+            b.first().copied().unwrap_or(0),
+        );
+        let mut total = 0u64;
+        while i < a.len() && j < b.len() {
+            let step = ra.min(rb);
+            if i % 2 == 1 && j % 2 == 1 {
+                total += u64::from(step);
+            }
+            ra -= step;
+            rb -= step;
+            while ra == 0 && i < a.len() {
+                i += 1;
+                ra = a.get(i).copied().unwrap_or(0);
+            }
+            while rb == 0 && j < b.len() {
+                j += 1;
+                rb = b.get(j).copied().unwrap_or(0);
+            }
+        }
+        total
+    }
+}
+
+impl serde::Serialize for Rle {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let mut m = s.serialize_map(Some(2))?;
+        m.serialize_entry("size", &[self.height, self.width])?;
+        m.serialize_entry("counts", &rle_to_string(&self.counts))?;
+        m.end()
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for Rle {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Rle, D::Error> {
+        #[derive(serde::Deserialize)]
+        #[serde(untagged)]
+        enum Counts {
+            Compressed(String),
+            Runs(Vec<u32>),
+        }
+        #[derive(serde::Deserialize)]
+        struct Raw {
+            size: [u32; 2],
+            counts: Counts,
+        }
+        let raw = Raw::deserialize(d)?;
+        let counts = match raw.counts {
+            Counts::Runs(c) => c,
+            Counts::Compressed(s) => rle_from_string(&s).ok_or_else(|| {
+                serde::de::Error::custom(format!(
+                    "\"counts\" {:?} is not a COCO compressed RLE string",
+                    s.chars().take(24).collect::<String>()
+                ))
+            })?,
+        };
+        let rle = Rle {
+            height: raw.size[0],
+            width: raw.size[1],
+            counts,
+        };
+        rle.check().map_err(serde::de::Error::custom)?;
+        Ok(rle)
+    }
+}
+
 /// `rel` from `base` to `target` (both under one root), with `/` separators.
 fn relative(target: &Path, base: &Path) -> String {
     let t: Vec<Component> = target.components().collect();
@@ -319,6 +507,63 @@ mod tests {
         assert_eq!(rle_to_string(&[0, 2, 2, 1, 1]), "022OO");
         // A 100-long run needs two chars: 100 = 0b11_00100 → (4|0x20)+48, 3+48.
         assert_eq!(rle_to_string(&[100]), "T3");
+    }
+
+    #[test]
+    fn compressed_rle_reads_back_and_describes_its_mask() {
+        // A 4x3 mask (w 4, h 3) with an L and a lone pixel.
+        #[rustfmt::skip]
+        let m = [
+            1, 0, 0, 0,
+            1, 0, 0, 1,
+            1, 1, 0, 0,
+        ];
+        let rle = Rle::from_mask(&m, 4, 3);
+        assert_eq!(rle.area(), 5);
+        assert_eq!(rle.bbox(), [0.0, 0.0, 4.0, 3.0]);
+        assert_eq!(rle.decode(), m.to_vec());
+        let text = serde_json::to_string(&rle).unwrap();
+        let back: Rle = serde_json::from_str(&text).unwrap();
+        assert_eq!(back, rle);
+        // Runs of every size, including ones whose deltas are negative.
+        for counts in [
+            vec![0, 2, 2, 1, 1],
+            vec![100],
+            vec![5, 300, 2, 7000, 1, 1, 40000, 3, 0, 9],
+        ] {
+            assert_eq!(rle_from_string(&rle_to_string(&counts)), Some(counts));
+        }
+        // A box of one column and one row.
+        let mut one = vec![0u8; 12];
+        one[2 * 4 + 1] = 1;
+        assert_eq!(Rle::from_mask(&one, 4, 3).bbox(), [1.0, 2.0, 1.0, 1.0]);
+        assert_eq!(Rle::from_mask(&[0; 12], 4, 3).bbox(), [0.0; 4]);
+        // The list form reads too; counts that miss the size or a bad string are errors.
+        let list: Rle =
+            serde_json::from_str(r#"{"size": [3, 4], "counts": [0, 3, 2, 1, 6]}"#).unwrap();
+        assert_eq!(list.area(), 4);
+        let e = serde_json::from_str::<Rle>(r#"{"size": [3, 4], "counts": [0, 3]}"#).unwrap_err();
+        assert!(e.to_string().contains("cover 3 pixels"), "{e}");
+        assert!(serde_json::from_str::<Rle>(r#"{"size": [3, 4], "counts": "~~~"}"#).is_err());
+        assert_eq!(rle_from_string("22"), Some(vec![2, 2]));
+        // A continuation with nothing after it; a negative run.
+        assert_eq!(rle_from_string("o"), None);
+        assert_eq!(rle_from_string("2O"), None);
+    }
+
+    #[test]
+    fn intersections_count_shared_pixels() {
+        let a = [1u8, 1, 0, 1, 1, 0, 0, 1, 1, 1, 0, 0];
+        let b = [0u8, 1, 1, 1, 0, 0, 1, 1, 0, 1, 1, 0];
+        let (ra, rb) = (Rle::from_mask(&a, 4, 3), Rle::from_mask(&b, 4, 3));
+        let both = a
+            .iter()
+            .zip(&b)
+            .filter(|(x, y)| **x != 0 && **y != 0)
+            .count() as u64;
+        assert_eq!(ra.intersection(&rb), both);
+        assert_eq!(rb.intersection(&ra), both);
+        assert_eq!(ra.intersection(&ra), ra.area());
     }
 
     #[test]

@@ -30,6 +30,7 @@ pub mod align;
 pub mod annotate;
 pub mod convert;
 pub mod detect;
+pub mod detect_eval;
 pub mod eval;
 pub mod fit;
 pub mod merge;

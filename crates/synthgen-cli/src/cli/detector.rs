@@ -1,4 +1,4 @@
-//! Arguments of `synthgen detector train` and `synthgen detector run`.
+//! Arguments of `synthgen detector train`, `detector run` and `detector eval`.
 
 use std::path::PathBuf;
 
@@ -16,6 +16,10 @@ pub enum DetectorCommand {
     /// (JSON), with the recall per object where the frames have GT.
     #[command(after_long_help = DETECTOR_RUN_EXAMPLES)]
     Run(DetectorRunArgs),
+    /// Score a BOP detections file (ours or any detector's: CNOS, SAM-6D, GDRNPP) against a
+    /// dataset's GT as bop_toolkit's eval_bop22_coco.py does: box and mask AP, AP50, AP75, AR.
+    #[command(after_long_help = DETECTOR_EVAL_EXAMPLES)]
+    Eval(DetectorEvalArgs),
 }
 
 pub const DETECTOR_TRAIN_EXAMPLES: &str = "Examples:
@@ -47,6 +51,73 @@ of {\"scene_id\", \"image_id\", \"category_id\", \"score\", \"bbox\": [x, y, wid
 most --per-class of them. Where the frames have GT, a table of the recall per object: the
 share of visible boxes (visib_fract >= the training's) that the object's best detections,
 as many as it has instances, overlap at IoU >= 0.5.";
+
+pub const DETECTOR_EVAL_EXAMPLES: &str = "Examples:
+  # The LM-O photographs' detections, boxes (and masks where the file has them):
+  synthgen detector eval --detections det_lmo.json --data ../shared/data/lmo
+
+  # Compare with a BOP submission, modal boxes, scores and the GT written for pycocotools:
+  synthgen detector eval --detections cnos_lmo-test.json --data ../shared/data/lmo \\
+      --bbox-type modal --out scores.json --gt-out gt_coco.json
+
+Scored as bop_toolkit's scripts/eval_bop22_coco.py scores BOP's 2D detection and
+segmentation tasks (pycocotools' COCOeval): the images of the dataset's
+test_targets_bop19.json (or --targets FILE, or --all-frames), every GT instance with a
+visible pixel (the < 10 % visible ones too: pycocotools overwrites the \"ignore\" flag
+bop_toolkit writes for them), its visible mask as the mask and its full silhouette's bounds
+as the box (--bbox-type amodal, bop_toolkit's default). Masks come from the dataset, else are
+rendered from the GT poses and models as `synthgen annotate` does. Entries of other images are
+left out (and counted); segm scores the entries with a \"segmentation\" (COCO RLE).
+Prints AP (IoU 0.50:0.95), AP50, AP75, AP by size, AR at 1/10/100 detections, per object.";
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum BboxTypeArg {
+    /// The full silhouette's bounds (bop_toolkit's default).
+    Amodal,
+    /// The visible mask's bounds.
+    Modal,
+}
+
+#[derive(Debug, Args)]
+pub struct DetectorEvalArgs {
+    /// The detections (BOP 2023 default-detections format: a JSON list of {scene_id,
+    /// image_id, category_id, score, bbox, segmentation?}).
+    #[arg(long, value_name = "FILE")]
+    pub detections: PathBuf,
+
+    /// The dataset with the GT (BOP, Linemod or YCB-Video).
+    #[arg(long, value_name = "DIR")]
+    pub data: PathBuf,
+
+    /// The split (default: test, else the only split).
+    #[arg(long)]
+    pub split: Option<String>,
+
+    /// The images to score: a BOP targets file (default: the dataset's
+    /// test_targets_bop19.json when it has one, else every frame).
+    #[arg(long, value_name = "FILE", conflicts_with = "all_frames")]
+    pub targets: Option<PathBuf>,
+
+    /// Score every frame of the split, targets file or not.
+    #[arg(long)]
+    pub all_frames: bool,
+
+    /// The GT box the detections' boxes are compared with.
+    #[arg(long, value_enum, default_value_t = BboxTypeArg::Amodal)]
+    pub bbox_type: BboxTypeArg,
+
+    /// Write the scores as JSON (bop_toolkit's names: AP, AP50, ..., per object).
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+
+    /// Write the COCO GT the detections were scored against (pycocotools reads it).
+    #[arg(long, value_name = "FILE")]
+    pub gt_out: Option<PathBuf>,
+
+    /// Worker threads (default: all cores).
+    #[arg(long, short = 'j', value_parser = crate::cli::threads())]
+    pub jobs: Option<usize>,
+}
 
 #[derive(Debug, Args)]
 pub struct DetectorTrainArgs {

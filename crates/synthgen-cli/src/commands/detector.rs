@@ -1,11 +1,13 @@
-//! `synthgen detector train|run`: skins over `synthgen_jobs::detect` (flags → the request →
-//! the run; the recall table on stdout).
+//! `synthgen detector train|run|eval`: skins over `synthgen_jobs::detect` and
+//! `synthgen_jobs::detect_eval` (flags → the request → the run; the tables on stdout).
 
 use anyhow::Result;
 use synthgen_detect::detector::DetectorConfig;
 use synthgen_jobs::detect::{detect_run, train_detector_run, DetectRequest, DetectorTrainRequest};
 
-use crate::cli::{DetectorRunArgs, DetectorTrainArgs, DeviceArg};
+use synthgen_jobs::detect_eval::{detection_eval_run, BboxType, DetectionEvalRequest};
+
+use crate::cli::{BboxTypeArg, DetectorEvalArgs, DetectorRunArgs, DetectorTrainArgs, DeviceArg};
 use crate::commands::explicit_settings;
 use crate::{ExitStatus, Printer};
 
@@ -50,6 +52,44 @@ pub fn run_run(args: DetectorRunArgs, printer: &Printer) -> Result<ExitStatus> {
     };
     let (_, table, _) = detect_run(&request, printer)?;
     printer.data(&table)?;
+    Ok(ExitStatus::Success)
+}
+
+pub fn run_eval(args: DetectorEvalArgs, printer: &Printer) -> Result<ExitStatus> {
+    let request = DetectionEvalRequest {
+        data: args.data,
+        split: args.split,
+        detections: args.detections,
+        targets: args.targets,
+        all_frames: args.all_frames,
+        bbox_type: match args.bbox_type {
+            BboxTypeArg::Amodal => BboxType::Amodal,
+            BboxTypeArg::Modal => BboxType::Modal,
+        },
+        out: args.out,
+        gt_out: args.gt_out,
+        jobs: args.jobs,
+    };
+    let scores = detection_eval_run(&request, printer)?;
+    printer.data(format!(
+        "{} detections of {} images, {} GT instances ({} boxes{}):\n\n{}",
+        scores.scored,
+        scores.n_images,
+        scores.n_gt,
+        match scores.bbox_type {
+            BboxType::Amodal => "amodal",
+            BboxType::Modal => "modal",
+        },
+        if scores.images_with_rendered_masks > 0 {
+            format!(
+                "; masks of {} images rendered from the GT poses",
+                scores.images_with_rendered_masks
+            )
+        } else {
+            String::new()
+        },
+        scores.table()
+    ))?;
     Ok(ExitStatus::Success)
 }
 

@@ -15,6 +15,7 @@ mod coco;
 mod common;
 mod corpus;
 mod detector;
+mod detector_eval;
 mod errors;
 mod experiment;
 mod help;
