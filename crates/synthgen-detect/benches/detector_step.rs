@@ -72,13 +72,19 @@ fn targets(boxes: &[Vec<(usize, [f64; 4])>], input: [u32; 2], nc: usize) -> [Ten
 }
 
 fn detector(c: &mut Criterion) {
+    // Boxes only (the network benches/peers has in PyTorch), then with the mask branch.
+    detector_step(c, false);
+    detector_step(c, true);
+}
+
+fn detector_step(c: &mut Criterion, masks: bool) {
     let dev = Device::Cpu;
     let cfg = DetectorConfig::new("unused".into(), "train".into(), CLASSES.to_vec());
     let [iw, ih] = cfg.input;
     let nc = cfg.classes.len();
     let varmap = VarMap::new();
     let vb = synthgen_nn::init::seeded_var_builder(&varmap, cfg.seed, &dev);
-    let net = DetectorNet::new(nc, vb).unwrap();
+    let net = DetectorNet::new(nc, masks, vb).unwrap();
     let vars = varmap.all_vars();
     // To check against the peer's "params".
     let params: usize = vars.iter().map(|v| v.elem_count()).sum();
@@ -112,9 +118,30 @@ fn detector(c: &mut Criterion) {
         })
         .collect();
     let [heat, reg, centres] = targets(&boxes, cfg.input, nc);
-    c.bench_function("detector_step_16x160x120_c8", |b| {
+    // The boxes filled as masks, at half the input's size.
+    let mask_targets = masks.then(|| {
+        let (ow, oh) = ((iw / 2) as usize, (ih / 2) as usize);
+        let mut t = vec![0f32; cfg.batch * oh * ow * nc];
+        for (bi, list) in boxes.iter().enumerate() {
+            for &(k, [x0, y0, x1, y1]) in list {
+                for y in (y0 / 2.0) as usize..((y1 / 2.0) as usize).min(oh) {
+                    for x in (x0 / 2.0) as usize..((x1 / 2.0) as usize).min(ow) {
+                        t[((bi * oh + y) * ow + x) * nc + k] = 1.0;
+                    }
+                }
+            }
+        }
+        Tensor::from_vec(t, (cfg.batch, oh, ow, nc), &dev).unwrap()
+    });
+    let name = if masks {
+        "detector_step_masks_16x160x120_c8"
+    } else {
+        "detector_step_16x160x120_c8"
+    };
+    c.bench_function(name, |b| {
         b.iter(|| {
-            let loss = detector_loss(&net.forward(&x).unwrap(), &heat, &reg, &centres).unwrap();
+            let out = net.forward(&x).unwrap();
+            let loss = detector_loss(&out, &heat, &reg, &centres, mask_targets.as_ref()).unwrap();
             let value = loss.to_scalar::<f32>().unwrap();
             opt.backward_step(&loss).unwrap();
             value

@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 
 use synthgen_formats::coco::Rle;
 use synthgen_formats::identity::{FramesKey, ObjectIdentity};
-use synthgen_train::data::CropBoxes;
+use synthgen_train::data::{CropBoxes, CropMasks};
 use synthgen_train::{Error, Result};
 
 /// One detection.
@@ -79,6 +79,22 @@ pub fn crop_boxes(list: &[Detection]) -> CropBoxes {
         out.entry((d.scene_id, d.image_id, d.category_id))
             .or_default()
             .push(d.bop_box());
+    }
+    out
+}
+
+/// The masks of `list` as the depth models read their points from them: per (scene, image,
+/// object), best score first, the entries that have a mask ([`crop_boxes`]' order).
+pub fn crop_masks(list: &[Detection]) -> CropMasks {
+    let mut sorted: Vec<&Detection> = list.iter().filter(|d| d.segmentation.is_some()).collect();
+    sorted.sort_by(|a, b| b.score.total_cmp(&a.score));
+    let mut out = CropMasks::new();
+    for d in sorted {
+        if let Some(m) = &d.segmentation {
+            out.entry((d.scene_id, d.image_id, d.category_id))
+                .or_default()
+                .push(m.clone());
+        }
     }
     out
 }
@@ -170,13 +186,15 @@ pub struct JoinReport {
     pub unknown_objects: usize,
     /// Entries whose box misses the image or is larger than twice it.
     pub off_image: usize,
+    /// Entries whose mask is of another size than the images.
+    pub mask_size: usize,
     /// A few of the skipped entries, "entry N: why".
     pub examples: Vec<String>,
 }
 
 impl JoinReport {
     pub fn skipped(&self) -> usize {
-        self.other_frames + self.unknown_objects + self.off_image
+        self.other_frames + self.unknown_objects + self.off_image + self.mask_size
     }
 
     /// "12 of 40 entries skipped: 10 of images not in the split, 2 boxes off the image (entry 3: ...)".
@@ -191,6 +209,10 @@ impl JoinReport {
             (
                 self.off_image,
                 "with a box off the image or larger than twice it",
+            ),
+            (
+                self.mask_size,
+                "with a mask of another size than the images",
             ),
         ] {
             if n > 0 {
@@ -255,6 +277,17 @@ pub fn join_detections(
                 format!(
                     "entry {i}: the box {:?} does not fit the {}x{} image",
                     d.bbox, image_size[0], image_size[1]
+                )
+            }
+            _ if d
+                .segmentation
+                .as_ref()
+                .is_some_and(|m| [m.width, m.height] != image_size) =>
+            {
+                report.mask_size += 1;
+                format!(
+                    "entry {i}: the mask is not {}x{}, the images' size",
+                    image_size[0], image_size[1]
                 )
             }
             _ => {

@@ -24,6 +24,7 @@ use serde::{Deserialize, Serialize};
 use synthgen_core::rng::splitmix64;
 use synthgen_core::Progress;
 use synthgen_formats::bop::read_rgb_sized;
+use synthgen_formats::coco::Rle;
 use synthgen_formats::identity::{frames_key, FramesKey, ObjectIdentity};
 use synthgen_formats::source::{FrameSource, SourceFrame};
 use synthgen_nn::optim::FusedAdamW;
@@ -70,6 +71,10 @@ pub struct DetectorConfig {
     /// on a dataset whose ids are other objects is refused (empty in configs written before).
     #[serde(default)]
     pub objects: Vec<ObjectIdentity>,
+    /// Whether the detector gives each detection's visible mask (a mask branch trained on
+    /// the visible masks); false in configs written before masks.
+    #[serde(default)]
+    pub masks: bool,
 }
 
 impl DetectorConfig {
@@ -90,6 +95,7 @@ impl DetectorConfig {
             data,
             split,
             objects: Vec::new(),
+            masks: true,
         }
     }
 
@@ -167,6 +173,8 @@ struct Frame {
     width: u32,
     height: u32,
     boxes: Vec<ClassBox>,
+    /// With masks: per stored pixel, 1 + the class index of the visible object, 0 for none.
+    labels: Option<Vec<u8>>,
 }
 
 /// Bilinear samples of `rgb` (`w × h`) over the window `[x0, y0, ww, wh]` (pixels) at
@@ -227,6 +235,38 @@ fn frame_boxes(frame: &SourceFrame, classes: &[u32], min: f64) -> Result<Vec<Cla
     Ok(out)
 }
 
+/// A frame's visible masks of `classes` as one label map at `w × h` (nearest pixel): 1 + the
+/// class index where an instance of it is visible, 0 elsewhere. An instance of a class
+/// without a visible mask is an error naming the frame.
+fn frame_labels(frame: &SourceFrame, classes: &[u32], w: u32, h: u32) -> Result<Vec<u8>> {
+    let mut labels = vec![0u8; (w * h) as usize];
+    for (gt_id, g) in frame.gt.iter().enumerate() {
+        let Some(class) = classes.iter().position(|&c| c == g.obj_id) else {
+            continue;
+        };
+        let Some(mask) = frame.masks_visib.get(gt_id).and_then(Option::as_ref) else {
+            return Err(Error::InvalidOption(format!(
+                "{} image {} has no visible mask for instance {gt_id} (object {}): a detector with masks trains on visible masks (synthgen render writes them, synthgen annotate computes them from poses); or train with --no-masks",
+                frame.rgb.display(),
+                frame.location.im_id,
+                g.obj_id
+            )));
+        };
+        let m = mask.read()?;
+        let (mw, mh) = (m.width as usize, m.height as usize);
+        for y in 0..h as usize {
+            let sy = ((y * 2 + 1) * mh / (2 * h as usize)).min(mh - 1);
+            for x in 0..w as usize {
+                let sx = ((x * 2 + 1) * mw / (2 * w as usize)).min(mw - 1);
+                if m.data[sy * mw + sx] != 0 {
+                    labels[y * w as usize + x] = class as u8 + 1;
+                }
+            }
+        }
+    }
+    Ok(labels)
+}
+
 fn load_frames(
     ds: &dyn FrameSource,
     cfg: &DetectorConfig,
@@ -250,6 +290,11 @@ fn load_frames(
                 h,
             );
             let boxes = frame_boxes(f, &cfg.classes, cfg.min_visib_fract)?;
+            let labels = if cfg.masks {
+                Some(frame_labels(f, &cfg.classes, w, h)?)
+            } else {
+                None
+            };
             progress.advance(1);
             Ok(Frame {
                 scene_id: f.location.scene_id,
@@ -260,6 +305,7 @@ fn load_frames(
                 width: img.width,
                 height: img.height,
                 boxes,
+                labels,
             })
         })
         .collect();
@@ -272,10 +318,12 @@ fn normalized(rgb: &[u8]) -> impl Iterator<Item = f32> + '_ {
     rgb.iter().map(|&x| (f32::from(x) / 255.0 - 0.5) / 0.25)
 }
 
-/// One sample: the input's colour and its boxes in input pixels.
+/// One sample: the input's colour, its boxes in input pixels and, with masks, its label map
+/// at half the input's size (nearest pixel of the frame's).
 struct Sample {
     rgb: Vec<u8>,
     boxes: Vec<ClassBox>,
+    labels: Option<Vec<u8>>,
 }
 
 /// A training window of `f` (seeded), or the whole frame (`rng` None).
@@ -317,10 +365,44 @@ fn sample_of(f: &Frame, cfg: &DetectorConfig, rng: Option<&mut ChaCha8Rng>) -> S
             boxes.push((c, clipped));
         }
     }
+    let labels = f.labels.as_ref().map(|l| {
+        let (ow, oh) = ((iw / 2) as usize, (ih / 2) as usize);
+        let mut out = vec![0u8; ow * oh];
+        for y in 0..oh {
+            let sy = window[1] + (y as f64 + 0.5) * window[3] / oh as f64;
+            let sy = (sy.floor().max(0.0) as usize).min(f.h as usize - 1);
+            for x in 0..ow {
+                let sx = window[0] + (x as f64 + 0.5) * window[2] / ow as f64;
+                let sx = (sx.floor().max(0.0) as usize).min(f.w as usize - 1);
+                out[y * ow + x] = l[sy * f.w as usize + sx];
+            }
+        }
+        out
+    });
     if let Some(rng) = rng {
         synthgen_train::rgb_input::photometric_augment(&mut rgb, iw, ih, rng);
     }
-    Sample { rgb, boxes }
+    Sample { rgb, boxes, labels }
+}
+
+/// The mask targets of a batch (B, H/2, W/2, C): 1 where the class is visible; None when the
+/// samples have no label maps.
+fn mask_targets(samples: &[Sample], cfg: &DetectorConfig, dev: &Device) -> Result<Option<Tensor>> {
+    if !cfg.masks {
+        return Ok(None);
+    }
+    let [iw, ih] = cfg.input;
+    let (ow, oh, nc) = ((iw / 2) as usize, (ih / 2) as usize, cfg.classes.len());
+    let mut t = vec![0f32; samples.len() * oh * ow * nc];
+    for (bi, s) in samples.iter().enumerate() {
+        let Some(labels) = &s.labels else { continue };
+        for (p, &l) in labels.iter().enumerate() {
+            if l > 0 {
+                t[(bi * oh * ow + p) * nc + usize::from(l - 1)] = 1.0;
+            }
+        }
+    }
+    Ok(Some(Tensor::from_vec(t, (samples.len(), oh, ow, nc), dev)?))
 }
 
 /// The targets of a batch of samples: heatmaps (B, h, w, C), offset + log size (B, h, w, C,
@@ -404,7 +486,7 @@ impl Detector {
         // from the unseeded thread RNG).
         let vb =
             synthgen_nn::init::seeded_var_builder(&varmap, splitmix64(cfg.seed ^ 0xde7e), device);
-        let net = DetectorNet::new(cfg.classes.len(), vb)?;
+        let net = DetectorNet::new(cfg.classes.len(), cfg.masks, vb)?;
         Ok(Detector {
             cfg,
             varmap,
@@ -441,7 +523,7 @@ impl Detector {
 
     /// The detections of one frame's colour (`width × height` RGB): per class, the local
     /// maxima (3 × 3) of its heatmap scoring at least `min_score`, at most `per_class`, best
-    /// first.
+    /// first; with masks, each with its visible mask ([`instance_mask`]).
     pub fn detect_image(
         &self,
         rgb: &[u8],
@@ -449,7 +531,7 @@ impl Detector {
         height: u32,
         min_score: f64,
         per_class: usize,
-    ) -> Result<Vec<(u32, f64, [f64; 4])>> {
+    ) -> Result<Vec<Found>> {
         let [iw, ih] = self.cfg.input;
         let input = resample(
             rgb,
@@ -462,6 +544,15 @@ impl Detector {
         let x = input_tensor(&[&input], &self.cfg, &self.device)?;
         let out = self.forward(&x)?;
         let decoded = decode(&out, &self.cfg, min_score, per_class)?;
+        let probs: Option<(Vec<f32>, usize, usize)> = match &out.mask {
+            Some(m) => {
+                let (_, mh, mw, _) = m.dims4()?;
+                let p = candle_nn::ops::sigmoid(m)?.flatten_all()?.to_vec1()?;
+                Some((p, mw, mh))
+            }
+            None => None,
+        };
+        let nc = self.cfg.classes.len();
         let (sx, sy) = (
             f64::from(width) / f64::from(iw),
             f64::from(height) / f64::from(ih),
@@ -480,15 +571,56 @@ impl Detector {
                 ];
                 // A box that the frame's edges leave empty is no detection.
                 (b[2] > b[0] && b[3] > b[1]).then(|| {
-                    (
-                        self.cfg.classes[c],
-                        score,
-                        [b[0], b[1], b[2] - b[0], b[3] - b[1]],
-                    )
+                    let bbox = [b[0], b[1], b[2] - b[0], b[3] - b[1]];
+                    let mask = probs.as_ref().map(|(p, mw, mh)| {
+                        let at = |x: usize, y: usize| p[(y * mw + x) * nc + c];
+                        instance_mask(&at, *mw, *mh, bbox, width, height)
+                    });
+                    (self.cfg.classes[c], score, bbox, mask)
                 })
             })
             .collect())
     }
+}
+
+/// A detection: object id, score, `[x, y, width, height]` (frame pixels), and its visible
+/// mask when the detector gives masks.
+pub type Found = (u32, f64, [f64; 4], Option<Rle>);
+
+/// An instance's visible mask in a `width × height` frame: the pixels inside its box
+/// `[x, y, w, h]` where the class's mask probability (`prob(x, y)` on an `mw × mh` map over
+/// the frame, sampled bilinearly) is above one half.
+pub fn instance_mask(
+    prob: &dyn Fn(usize, usize) -> f32,
+    mw: usize,
+    mh: usize,
+    bbox: [f64; 4],
+    width: u32,
+    height: u32,
+) -> Rle {
+    let (w, h) = (width as usize, height as usize);
+    let mut mask = vec![0u8; w * h];
+    let x0 = (bbox[0].floor().max(0.0) as usize).min(w);
+    let y0 = (bbox[1].floor().max(0.0) as usize).min(h);
+    let x1 = ((bbox[0] + bbox[2]).ceil().max(0.0) as usize).min(w);
+    let y1 = ((bbox[1] + bbox[3]).ceil().max(0.0) as usize).min(h);
+    let (kx, ky) = (mw as f64 / w as f64, mh as f64 / h as f64);
+    for y in y0..y1 {
+        let v = ((y as f64 + 0.5) * ky - 0.5).clamp(0.0, (mh - 1) as f64);
+        let (vi, va) = (v.floor() as usize, (v - v.floor()) as f32);
+        let vj = (vi + 1).min(mh - 1);
+        for x in x0..x1 {
+            let u = ((x as f64 + 0.5) * kx - 0.5).clamp(0.0, (mw - 1) as f64);
+            let (ui, ua) = (u.floor() as usize, (u - u.floor()) as f32);
+            let uj = (ui + 1).min(mw - 1);
+            let top = prob(ui, vi) * (1.0 - ua) + prob(uj, vi) * ua;
+            let bot = prob(ui, vj) * (1.0 - ua) + prob(uj, vj) * ua;
+            if top * (1.0 - va) + bot * va > 0.5 {
+                mask[y * w + x] = 1;
+            }
+        }
+    }
+    Rle::from_mask(&mask, width, height)
 }
 
 /// Per batch item, the peaks of each class's heatmap as (class, score, [x0, y0, x1, y1] in
@@ -724,7 +856,8 @@ pub fn train_detector(
         let first_step = step;
         // The next batch's windows, augmentation and targets are made while the network runs
         // on this one; each batch's randomness is its step's, as without the overlap.
-        let prepare = |k: usize| -> Result<(Tensor, Tensor, Tensor, Tensor)> {
+        type Batch = (Tensor, Tensor, Tensor, Tensor, Option<Tensor>);
+        let prepare = |k: usize| -> Result<Batch> {
             let at = first_step + k;
             let samples: Vec<Sample> = batches[k]
                 .par_iter()
@@ -743,35 +876,40 @@ pub fn train_detector(
                 device,
             )?;
             let (heat, reg, centres) = targets(&samples, cfg, device)?;
-            Ok((x, heat, reg, centres))
+            let masks = mask_targets(&samples, cfg, device)?;
+            Ok((x, heat, reg, centres, masks))
         };
-        pipelined(batches.len(), prepare, |k, (x, heat, reg, centres)| {
-            lr = cfg.lr_at(step, total, epoch);
-            opt.set_learning_rate(lr);
-            let loss = detector_loss(&det.forward(&x)?, &heat, &reg, &centres)?;
-            let value = f64::from(loss.to_scalar::<f32>()?);
-            if !value.is_finite() {
-                return Err(Error::Diverged {
-                    value,
-                    epoch: epoch + 1,
-                    step: step + 1,
-                    kept: format!("the checkpoint of epoch {epoch} is kept"),
-                    path: out.to_path_buf(),
-                });
-            }
-            opt.backward_step(&loss)?;
-            sum += value * batches[k].len() as f64;
-            count += batches[k].len();
-            step += 1;
-            progress.set_message(&format!(
-                "epoch {}/{} loss {:.4}",
-                epoch + 1,
-                cfg.epochs,
-                sum / count as f64
-            ));
-            progress.advance(1);
-            Ok(())
-        })?;
+        pipelined(
+            batches.len(),
+            prepare,
+            |k, (x, heat, reg, centres, masks)| {
+                lr = cfg.lr_at(step, total, epoch);
+                opt.set_learning_rate(lr);
+                let loss = detector_loss(&det.forward(&x)?, &heat, &reg, &centres, masks.as_ref())?;
+                let value = f64::from(loss.to_scalar::<f32>()?);
+                if !value.is_finite() {
+                    return Err(Error::Diverged {
+                        value,
+                        epoch: epoch + 1,
+                        step: step + 1,
+                        kept: format!("the checkpoint of epoch {epoch} is kept"),
+                        path: out.to_path_buf(),
+                    });
+                }
+                opt.backward_step(&loss)?;
+                sum += value * batches[k].len() as f64;
+                count += batches[k].len();
+                step += 1;
+                progress.set_message(&format!(
+                    "epoch {}/{} loss {:.4}",
+                    epoch + 1,
+                    cfg.epochs,
+                    sum / count as f64
+                ));
+                progress.advance(1);
+                Ok(())
+            },
+        )?;
         progress.finish();
         let (val_loss, found, boxes) = validate(&det, &frames, &val)?;
         let m = DetectorEpoch {
@@ -853,9 +991,10 @@ fn validate(
             &det.device,
         )?;
         let (heat, reg, centres) = targets(&samples, cfg, &det.device)?;
+        let masks = mask_targets(&samples, cfg, &det.device)?;
         let out = det.forward(&x)?;
-        loss += f64::from(detector_loss(&out, &heat, &reg, &centres)?.to_scalar::<f32>()?)
-            * chunk.len() as f64;
+        let l = detector_loss(&out, &heat, &reg, &centres, masks.as_ref())?;
+        loss += f64::from(l.to_scalar::<f32>()?) * chunk.len() as f64;
         n += chunk.len();
         for (s, d) in samples.iter().zip(decode(&out, cfg, 0.0, 10)?) {
             found += recall_at_half(&s.boxes, &d);
@@ -902,20 +1041,20 @@ pub fn detect_frames(
             let time = t0.elapsed().as_secs_f64();
             let dets: Vec<Detection> = found
                 .iter()
-                .map(|&(obj, score, bbox)| Detection {
+                .map(|(obj, score, bbox, mask)| Detection {
                     scene_id: f.location.scene_id,
                     image_id: f.location.im_id,
-                    category_id: obj,
-                    score,
-                    bbox,
+                    category_id: *obj,
+                    score: *score,
+                    bbox: *bbox,
                     time,
-                    segmentation: None,
+                    segmentation: mask.clone(),
                 })
                 .collect();
             let gt = frame_boxes(f, &det.cfg.classes, det.cfg.min_visib_fract)?;
             let as_boxes: Vec<Peak> = found
                 .iter()
-                .filter_map(|&(obj, score, [x, y, w, h])| {
+                .filter_map(|&(obj, score, [x, y, w, h], _)| {
                     let c = det.cfg.classes.iter().position(|&id| id == obj)?;
                     Some((c, score, [x, y, x + w, y + h]))
                 })
@@ -963,11 +1102,78 @@ mod tests {
     }
 
     #[test]
+    fn masks_are_cut_from_the_class_map_by_the_box() {
+        // A 4x4 map over an 8x8 frame, the class on its left half's middle rows.
+        let prob = |x: usize, y: usize| {
+            if x < 2 && (1..3).contains(&y) {
+                0.9
+            } else {
+                0.1
+            }
+        };
+        let rle = instance_mask(&prob, 4, 4, [0.0, 0.0, 8.0, 8.0], 8, 8);
+        let m = rle.decode();
+        // Rows 2..6 (map rows 1..3 at twice the size), columns 0..4.
+        for y in 0..8 {
+            for x in 0..8 {
+                let want = x < 4 && (2..6).contains(&y);
+                assert_eq!(m[y * 8 + x] == 1, want, "({x}, {y})");
+            }
+        }
+        // Outside the box nothing, though the map says the class is there.
+        let cut = instance_mask(&prob, 4, 4, [2.0, 0.0, 6.0, 8.0], 8, 8);
+        assert_eq!(cut.area(), 8);
+        assert_eq!(cut.bbox(), [2.0, 2.0, 2.0, 4.0]);
+    }
+
+    #[test]
+    fn mask_targets_follow_the_labels_through_the_window() {
+        let mut cfg = cfg();
+        cfg.input = [16, 8];
+        // A 32x16 stored frame (twice the input): class 1 (label 2) on columns 8..16.
+        let mut labels = vec![0u8; 32 * 16];
+        for y in 0..16 {
+            for x in 8..16 {
+                labels[y * 32 + x] = 2;
+            }
+        }
+        let f = Frame {
+            scene_id: 0,
+            im_id: 0,
+            rgb: vec![0; 32 * 16 * 3],
+            w: 32,
+            h: 16,
+            width: 32,
+            height: 16,
+            boxes: vec![],
+            labels: Some(labels),
+        };
+        let s = sample_of(&f, &cfg, None);
+        // The whole frame at 8x4: columns 2..4 are the class.
+        let l = s.labels.as_ref().unwrap();
+        assert_eq!(l.len(), 32);
+        for (p, &v) in l.iter().enumerate() {
+            assert_eq!(v, if (2..4).contains(&(p % 8)) { 2 } else { 0 }, "{p}");
+        }
+        let t = mask_targets(std::slice::from_ref(&s), &cfg, &Device::Cpu)
+            .unwrap()
+            .unwrap();
+        assert_eq!(t.dims(), &[1, 4, 8, 2]);
+        let v: Vec<f32> = t.flatten_all().unwrap().to_vec1().unwrap();
+        // Class 1's channel, 8 pixels; class 0's none.
+        assert_eq!(v.iter().skip(1).step_by(2).sum::<f32>(), 8.0);
+        assert_eq!(v.iter().step_by(2).sum::<f32>(), 0.0);
+        cfg.masks = false;
+        assert!(mask_targets(&[s], &cfg, &Device::Cpu).unwrap().is_none());
+    }
+
+    #[test]
     fn the_targets_decode_back_to_their_boxes() {
         let cfg = cfg();
         let sample = Sample {
             rgb: vec![0; 64 * 48 * 3],
             boxes: vec![(1, [10.0, 6.0, 30.0, 22.0]), (0, [40.0, 20.0, 62.0, 46.0])],
+            labels: None,
         };
         let (heat, reg, centres) =
             targets(std::slice::from_ref(&sample), &cfg, &Device::Cpu).unwrap();
@@ -977,6 +1183,7 @@ mod tests {
         let out = DetOut {
             heat: logits,
             boxes: reg.clone(),
+            mask: None,
         };
         let found = decode(&out, &cfg, 0.5, 5).unwrap().remove(0);
         assert_eq!(found.len(), 2);

@@ -9,13 +9,13 @@ use std::sync::Arc;
 
 use anyhow::{Context, Result};
 use synthgen_detect::detections::{
-    crop_boxes, join_detections, provenance_path, read_detections, read_provenance,
+    crop_boxes, crop_masks, join_detections, provenance_path, read_detections, read_provenance,
 };
 use synthgen_formats::identity::{describe_mismatches, frames_key, mismatched_objects};
 use synthgen_formats::layout::open_source;
 use synthgen_formats::source::FrameSource;
 use synthgen_train::bop::{load_render_models, prepare_bop, BopOptions, BopReport, TargetsFrom};
-use synthgen_train::data::{load_source_instances, CropBoxes, DataOptions, Instance};
+use synthgen_train::data::{load_source_instances, CropBoxes, CropMasks, DataOptions, Instance};
 use synthgen_train::eval::{
     eval_objects, evaluate, load_eval_objects, pick_split, prediction_estimates, read_gt,
     score_predictions,
@@ -129,7 +129,7 @@ fn run_results(args: &EvalRequest, csv: &Path, printer: &Printer<'_>) -> Result<
     let ds = open_dataset(&args.data)?;
     let split = pick_split(ds.as_ref(), args.split.as_deref())?;
     let detected = detections_for(args, ds.as_ref(), &split, printer)?;
-    let detected = detected.as_ref();
+    let detected = detected.as_ref().map(|d| &d.boxes);
     let gts = read_gt(ds.as_ref(), &split, args.min_visib_fract)?;
     let results = read_results_csv(csv)?;
     let mut estimates = results.estimates;
@@ -299,7 +299,7 @@ fn detections_for(
     ds: &dyn FrameSource,
     split: &str,
     printer: &Printer<'_>,
-) -> Result<Option<Arc<CropBoxes>>> {
+) -> Result<Option<Detected>> {
     let Some(path) = &args.detections else {
         return Ok(None);
     };
@@ -384,7 +384,22 @@ fn detections_for(
     } else if report.skipped() > 0 {
         printer.warning(format!("{}: {}", path.display(), report.describe()));
     }
-    Ok(Some(Arc::new(crop_boxes(&kept))))
+    Ok(Some(Detected {
+        boxes: Arc::new(crop_boxes(&kept)),
+        masks: Arc::new(crop_masks(&kept)),
+        with_masks: kept.iter().filter(|d| d.segmentation.is_some()).count(),
+        entries: kept.len(),
+    }))
+}
+
+/// A detections file's entries of a split: boxes for the RGB models' crops, masks for the
+/// depth models' points.
+struct Detected {
+    boxes: Arc<CropBoxes>,
+    masks: Arc<CropMasks>,
+    /// Entries kept, and those of them with a mask.
+    with_masks: usize,
+    entries: usize,
 }
 
 fn run_checkpoint(args: &EvalRequest, ckpt: &Path, printer: &Printer<'_>) -> Result<()> {
@@ -415,15 +430,6 @@ fn run_checkpoint(args: &EvalRequest, ckpt: &Path, printer: &Printer<'_>) -> Res
             "save the results of a full or rgb checkpoint",
         ));
     }
-    if args.detections.is_some() && !cfg.model.is_rgb_only() {
-        return Err(user_error(
-            format!(
-                "--detections gives the RGB models their crops, and this is a {} checkpoint",
-                cfg.model.name()
-            ),
-            "evaluate an rgb or rgb-dense checkpoint with --detections",
-        ));
-    }
     let device = train::device(args.cuda)?;
     let model = load_model(ckpt, &cfg, &device)?;
     let ds = open_dataset(&args.data)?;
@@ -441,20 +447,44 @@ fn run_checkpoint(args: &EvalRequest, ckpt: &Path, printer: &Printer<'_>) -> Res
     }
     let split = pick_split(ds.as_ref(), args.split.as_deref())?;
     let detected = detections_for(args, ds.as_ref(), &split, printer)?;
-    let detected = detected.as_ref();
+    let rgb_only = cfg.model.is_rgb_only();
+    if detected
+        .as_ref()
+        .is_some_and(|d| !rgb_only && d.with_masks == 0 && d.entries > 0)
+    {
+        return Err(user_error(
+            format!(
+                "the depth models read each instance's points from its mask, and the detections in {} have none (\"segmentation\")",
+                args.detections.as_deref().unwrap_or(Path::new("")).display()
+            ),
+            "run a detector trained with masks (detector train without --no-masks), or score an rgb / rgb-dense checkpoint",
+        ));
+    }
     let opts = DataOptions {
         min_visib_fract: args.min_visib_fract,
         seed: args.seed,
         split: Some(split),
-        crop_boxes: detected.cloned(),
+        crop_boxes: detected
+            .as_ref()
+            .filter(|_| rgb_only)
+            .map(|d| d.boxes.clone()),
+        crop_masks: detected
+            .as_ref()
+            .filter(|_| !rgb_only)
+            .map(|d| d.masks.clone()),
         ..cfg.data_options()
     };
     let mut set = load_source_instances(ds.as_ref(), &opts, printer)
         .with_context(|| format!("cannot load {}", args.data.display()))?;
     if let Some(path) = &args.detections {
         printer.info(format!(
-            "{} instances cropped from the boxes of {}; {} without a detection of their object get no estimate (scored as misses)",
+            "{} instances {} {}; {} without a detection of their object get no estimate (scored as misses)",
             set.instances.len(),
+            if rgb_only {
+                "cropped from the boxes of"
+            } else {
+                "read from the masks of"
+            },
             path.display(),
             set.skipped_undetected
         ));
@@ -519,7 +549,7 @@ fn run_checkpoint(args: &EvalRequest, ckpt: &Path, printer: &Printer<'_>) -> Res
             &set.split,
             &estimates,
             opts,
-            detected,
+            detected.as_ref().map(|d| &d.boxes),
             printer,
         )?;
         for (p, e) in preds.iter_mut().zip(&estimates) {

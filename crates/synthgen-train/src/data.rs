@@ -50,7 +50,16 @@ pub struct DataOptions {
     /// Boxes the RGB models' crops come from instead of the GT visible boxes (a detector's);
     /// an instance without one is left out (counted in `skipped_undetected`).
     pub crop_boxes: Option<std::sync::Arc<CropBoxes>>,
+    /// Masks the instances' pixels come from instead of the GT visible masks (a detector's:
+    /// the depth models without GT masks); an instance without one is left out (counted in
+    /// `skipped_undetected`).
+    pub crop_masks: Option<std::sync::Arc<CropMasks>>,
 }
+
+/// Per (scene, image, object), visible masks of the frame's size, best first, as
+/// [`CropBoxes`]: the `k`-th instance of an object in an image reads its pixels from the
+/// `k`-th mask.
+pub type CropMasks = BTreeMap<(u32, u32, u32), Vec<synthgen_formats::coco::Rle>>;
 
 /// Per (scene, image, object), boxes `[x, y, w, h]` read as `bbox_visib` (last pixel
 /// `x + w`), best first: the `k`-th instance of an object in an image (in GT order, among
@@ -98,6 +107,7 @@ impl Default for DataOptions {
             split: None,
             augment: Augment::default(),
             crop_boxes: None,
+            crop_masks: None,
         }
     }
 }
@@ -251,9 +261,28 @@ fn load_frame(frame: &SourceFrame, size: [u32; 2], opts: &DataOptions) -> Result
     } else {
         None
     };
-    // Per object, the instances met so far: the rank of its crop box.
+    // Per object, the instances met so far: the rank of its crop box, and of its mask.
     let mut rank: BTreeMap<u32, usize> = BTreeMap::new();
+    let mut mask_rank: BTreeMap<u32, usize> = BTreeMap::new();
     for gt_id in wanted {
+        let detected_mask = match &opts.crop_masks {
+            Some(masks) => {
+                let obj_id = gts[gt_id].obj_id;
+                let r = mask_rank.entry(obj_id).or_insert(0);
+                *r += 1;
+                match masks
+                    .get(&(scene_id, im_id, obj_id))
+                    .and_then(|v| v.get(*r - 1))
+                {
+                    Some(m) => Some(m),
+                    None => {
+                        out.push(Outcome::Undetected);
+                        continue;
+                    }
+                }
+            }
+            None => None,
+        };
         let detected = match &opts.crop_boxes {
             Some(boxes) => {
                 let obj_id = gts[gt_id].obj_id;
@@ -286,9 +315,17 @@ fn load_frame(frame: &SourceFrame, size: [u32; 2], opts: &DataOptions) -> Result
             }
             _ => None,
         };
-        let (mask, mask_path) = match (mask_ref, box_only) {
-            (Some(m), _) => (m.read()?, m.path().to_path_buf()),
-            (None, Some((i, img))) => {
+        let (mask, mask_path) = match (detected_mask, mask_ref, box_only) {
+            (Some(m), _, _) => {
+                let plane = synthgen_formats::bop::Plane {
+                    width: m.width,
+                    height: m.height,
+                    data: m.decode().into_iter().map(|v| v * 255).collect(),
+                };
+                (plane, frame.rgb.clone())
+            }
+            (None, Some(m), _) => (m.read()?, m.path().to_path_buf()),
+            (None, None, Some((i, img))) => {
                 if (i.px_count_visib as usize) < opts.min_pixels.max(1) {
                     out.push(Outcome::FewPixels);
                     continue;
@@ -309,7 +346,7 @@ fn load_frame(frame: &SourceFrame, size: [u32; 2], opts: &DataOptions) -> Result
                 };
                 (plane, frame.rgb.clone())
             }
-            (None, None) => {
+            (None, None, None) => {
                 out.push(Outcome::FewPixels);
                 continue;
             }

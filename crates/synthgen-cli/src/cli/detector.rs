@@ -159,6 +159,11 @@ pub struct DetectorTrainArgs {
     #[arg(long, default_value_t = 0.1)]
     pub val_fraction: f64,
 
+    /// Boxes only: no mask branch (by default the detector also learns each object's
+    /// visible mask and gives every detection its mask as COCO RLE).
+    #[arg(long)]
+    pub no_masks: bool,
+
     /// Instances less visible than this are not boxes to find.
     #[arg(long, default_value_t = 0.1)]
     pub min_visib_fract: f64,

@@ -386,9 +386,11 @@ pub struct EvalArgs {
     pub visible_box: VisibleBoxArg,
 
     /// A detections file (BOP's format, as `synthgen detector run` writes it): an RGB
-    /// checkpoint's crops come from its boxes instead of the GT boxes (per image and object,
-    /// the best as many as the object has GT instances; an instance without one gets no
-    /// estimate and counts as a miss), and --visible-box detected reads them.
+    /// checkpoint's crops come from its boxes instead of the GT boxes, a depth checkpoint's
+    /// (tnet, rnet, full) points from its masks ("segmentation") instead of the GT masks (per
+    /// image and object, the best as many as the object has GT instances; an instance
+    /// without one gets no estimate and counts as a miss), and --visible-box detected reads
+    /// the boxes.
     #[arg(long, value_name = "FILE")]
     pub detections: Option<PathBuf>,
 

@@ -20,6 +20,7 @@ pub fn run_train(args: DetectorTrainArgs, printer: &Printer) -> Result<ExitStatu
         seed: args.seed,
         val_fraction: args.val_fraction,
         min_visib_fract: args.min_visib_fract,
+        masks: !args.no_masks,
         ..DetectorConfig::new(
             args.data.clone().unwrap_or_default(),
             args.split.clone().unwrap_or_default(),
@@ -104,4 +105,5 @@ const SETTINGS: &[(&str, &str)] = &[
     ("seed", "seed"),
     ("val_fraction", "val_fraction"),
     ("min_visib_fract", "min_visib_fract"),
+    ("no_masks", "masks"),
 ];

@@ -167,3 +167,115 @@ fn bad_detections_and_outputs_are_refused_by_name() {
         .unwrap()
         .all(|e| e.unwrap().file_name() != "gt.json"));
 }
+
+#[test]
+fn a_trained_detector_gives_masks_that_score_and_none_without_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let data = two_class_set(d, "set", "6", "7");
+    for (run_name, extra) in [("det", &[][..]), ("boxes", &["--no-masks"][..])] {
+        let out = d.join(run_name);
+        let o = run(synthgen()
+            .args(["-q", "detector", "train", "--data"])
+            .arg(&data)
+            .args(["--input", "64x48", "--epochs", "2", "--batch", "3", "--out"])
+            .arg(&out)
+            .args(extra));
+        assert!(o.status.success(), "{}", stderr(&o));
+        let cfg = json_file(&out.join("config.json"));
+        assert_eq!(cfg["masks"], extra.is_empty());
+        let dets = d.join(format!("{run_name}.json"));
+        let o = run(synthgen()
+            .args(["-q", "detector", "run", "--checkpoint"])
+            .arg(&out)
+            .arg("--data")
+            .arg(&data)
+            .args(["--min-score", "0.0", "--per-class", "3", "--out"])
+            .arg(&dets));
+        assert!(o.status.success(), "{}", stderr(&o));
+        let list = json_file(&dets);
+        let list = list.as_array().unwrap();
+        assert!(!list.is_empty());
+        for e in list {
+            if extra.is_empty() {
+                // The frame's size, as COCO RLE reads it; inside the detection's box.
+                let rle: Rle = serde_json::from_value(e["segmentation"].clone()).unwrap();
+                assert_eq!((rle.width, rle.height), (320, 240));
+                let (b, m) = (e["bbox"].as_array().unwrap(), rle.bbox());
+                if rle.area() > 0 {
+                    assert!(
+                        m[0] + 1.0 >= b[0].as_f64().unwrap()
+                            && m[1] + 1.0 >= b[1].as_f64().unwrap()
+                    );
+                    assert!(m[0] + m[2] <= b[0].as_f64().unwrap() + b[2].as_f64().unwrap() + 1.0);
+                }
+            } else {
+                assert!(e.get("segmentation").is_none(), "{e}");
+            }
+        }
+        let scores = d.join(format!("{run_name}_scores.json"));
+        let o = detector_eval(&data, &dets, &["--out", scores.to_str().unwrap()]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let s = json_file(&scores);
+        let ap = s["bbox"]["stats"]["AP"].as_f64().unwrap();
+        assert!((0.0..=1.0).contains(&ap), "{s}");
+        assert_eq!(s["segm"].is_null(), !extra.is_empty(), "{s}");
+    }
+}
+
+#[test]
+fn the_depth_models_read_their_points_from_the_detections_masks() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let data = two_class_set(d, "set", "6", "8");
+    let run_dir = d.join("tnet");
+    let o = run(synthgen()
+        .args(["-q", "train", "--model", "tnet", "--epochs", "1", "--data"])
+        .arg(&data)
+        .arg("--out")
+        .arg(&run_dir));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let eval = |dets: Option<&Path>, json: &str| {
+        let mut c = synthgen();
+        c.args(["-q", "eval", "--checkpoint"])
+            .arg(run_dir.join("model.safetensors"))
+            .arg("--data")
+            .arg(&data)
+            .arg("--json")
+            .arg(d.join(json));
+        if let Some(p) = dets {
+            c.arg("--detections").arg(p);
+        }
+        run(&mut c)
+    };
+    let o = eval(None, "gt.json");
+    assert!(o.status.success(), "{}", stderr(&o));
+    // The GT's own visible masks as detections: the same points, the same scores.
+    let dets = d.join("dets.json");
+    std::fs::write(&dets, gt_as_detections(&data, 0, false).to_string()).unwrap();
+    let o = eval(Some(&dets), "det.json");
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (gt, det) = (
+        json_file(&d.join("gt.json")),
+        json_file(&d.join("det.json")),
+    );
+    assert_eq!(gt["all"]["n"], 12, "{gt}");
+    assert_eq!(gt, det);
+    // Object 9 without detections: its instances are misses.
+    std::fs::write(&dets, gt_as_detections(&data, 9, false).to_string()).unwrap();
+    let o = eval(Some(&dets), "det9.json");
+    assert!(o.status.success(), "{}", stderr(&o));
+    let det9 = json_file(&d.join("det9.json"));
+    assert_eq!(det9["8"], gt["8"]);
+    assert_ne!(det9["9"], gt["9"], "{det9}");
+    // Boxes without masks tell a depth model nothing: refused.
+    let mut boxes_only = gt_as_detections(&data, 0, false);
+    for e in boxes_only.as_array_mut().unwrap() {
+        e.as_object_mut().unwrap().remove("segmentation");
+    }
+    std::fs::write(&dets, boxes_only.to_string()).unwrap();
+    refused(
+        &eval(Some(&dets), "no.json"),
+        &["dets.json", "segmentation", "mask"],
+    );
+}
