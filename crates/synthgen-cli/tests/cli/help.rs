@@ -122,6 +122,11 @@ fn detector_run_help() {
 }
 
 #[test]
+fn detector_eval_help() {
+    check_snapshot("detector_eval_help.txt", &["detector", "eval", "--help"]);
+}
+
+#[test]
 fn model_align_help() {
     check_snapshot("model_align_help.txt", &["model", "align", "--help"]);
 }
