@@ -314,7 +314,48 @@ fn evaluate<'py>(
     Ok(d)
 }
 
+/// Scores a BOP detections file (boxes, and masks as COCO RLE where it has them) against a
+/// dataset's GT as bop_toolkit's `eval_bop22_coco.py` does, as `synthgen detector eval` does:
+/// the scores as `detector eval --out` writes them.
+#[pyfunction]
+#[pyo3(signature = (data, detections, *, split=None, targets=None, all_frames=false, bbox_type="amodal"))]
+fn evaluate_detections<'py>(
+    py: Python<'py>,
+    data: PathBuf,
+    detections: PathBuf,
+    split: Option<String>,
+    targets: Option<PathBuf>,
+    all_frames: bool,
+    bbox_type: &str,
+) -> PyResult<Bound<'py, PyAny>> {
+    use synthgen_jobs::detect_eval::{detection_eval_run, BboxType, DetectionEvalRequest};
+    let bbox_type = match bbox_type {
+        "amodal" => BboxType::Amodal,
+        "modal" => BboxType::Modal,
+        other => {
+            return Err(crate::errors::input_error(
+                format!("bbox_type must be \"amodal\" or \"modal\", not {other:?}"),
+                None,
+            ))
+        }
+    };
+    let request = DetectionEvalRequest {
+        data,
+        split,
+        detections,
+        targets,
+        all_frames,
+        bbox_type,
+        ..DetectionEvalRequest::default()
+    };
+    let scores = detached(py, || detection_eval_run(&request, &NoProgress))?;
+    let json = serde_json::to_string(&scores)
+        .map_err(|e| crate::errors::py_err(crate::errors::Kind::Internal, &e, None))?;
+    py.import("json")?.getattr("loads")?.call1((json,))
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(evaluate_detections, m)?)?;
     m.add_function(wrap_pyfunction!(render, m)?)?;
     m.add_function(wrap_pyfunction!(mix, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate, m)?)?;

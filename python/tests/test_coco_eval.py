@@ -219,3 +219,21 @@ def test_lmo_photographs_with_rendered_masks_score_as_cocoeval(tmp_path: Path) -
     assert {(im["scene_id"], im["im_id"]) for im in gt["images"]} == {
         (t["scene_id"], t["im_id"]) for t in targets
     }
+
+
+def test_evaluate_detections_equals_the_cli(tmp_path: Path, rendered: Path) -> None:
+    import synthgen
+
+    gt = compare(tmp_path, rendered, 4)
+    assert gt["annotations"]
+    ours = synthgen.evaluate_detections(rendered, tmp_path / "dets.json")
+    cli = json.loads((tmp_path / "s.json").read_text())
+    for key in ("bbox", "segm", "n_gt", "n_images", "entries", "other_images"):
+        assert ours[key] == cli[key], key
+    with pytest.raises(synthgen.InputError, match="bbox_type"):
+        synthgen.evaluate_detections(rendered, tmp_path / "dets.json", bbox_type="tight")
+    bad = tmp_path / "bad.json"
+    entry = {"scene_id": 0, "image_id": 0, "category_id": 8, "score": 1, "bbox": [1, 2, 0, 4]}
+    bad.write_text(json.dumps([entry]))
+    with pytest.raises(synthgen.InputError, match="entry 0"):
+        synthgen.evaluate_detections(rendered, bad)

@@ -16,7 +16,7 @@ import importlib
 from typing import Any
 
 from . import _native, experiment, metrics
-from ._commands import evaluate, mix, render
+from ._commands import evaluate, evaluate_detections, mix, render
 from ._dataset import Dataset, open_dataset
 from ._frame import Frame
 from ._generator import Generator
@@ -35,6 +35,7 @@ __all__ = [
     "ProgressBar",
     "__version__",
     "evaluate",
+    "evaluate_detections",
     "experiment",
     "metrics",
     "mix",

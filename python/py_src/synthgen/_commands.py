@@ -203,3 +203,39 @@ def evaluate(
         visib_gt_min=float(visib_gt_min),
         rotations=str(rotations),
     )
+
+
+def evaluate_detections(
+    data: PathLike,
+    detections: PathLike,
+    *,
+    split: Optional[str] = None,
+    targets: Optional[PathLike] = None,
+    all_frames: bool = False,
+    bbox_type: str = "amodal",
+) -> Dict[str, Any]:
+    """Scores a BOP detections file (a JSON list of ``scene_id``, ``image_id``,
+    ``category_id``, ``score``, ``bbox`` and, optionally, ``segmentation`` as COCO RLE) against
+    ``data``'s ground truth as bop_toolkit's ``eval_bop22_coco.py`` scores BOP's detection and
+    segmentation tasks, as ``synthgen detector eval`` does (docs/metrics.md).
+
+    ``targets`` is a BOP targets file choosing the images (default: ``data``'s
+    ``test_targets_bop19.json`` when it has one, else every frame; ``all_frames=True``: every
+    frame); ``bbox_type`` the GT box, ``"amodal"`` (bop_toolkit's default) or ``"modal"``.
+
+    Returns:
+        ``bbox`` and ``segm`` (None when no entry has a mask): ``stats`` with bop_toolkit's
+        names (``AP``, ``AP50``, ``AP75``, ``AP_small``, ..., ``AR100``, ...) and
+        ``objects`` (per object id as a string: ``AP``, ``AP50``, ``AP75``, ``AR100``,
+        ``n_gt``); ``n_images``, ``n_gt``, ``entries``, ``scored``, ``other_images``,
+        ``objects_without_gt``, ``without_mask``, ``images_with_rendered_masks``.
+    """
+    result: Dict[str, Any] = _native.evaluate_detections(
+        os.fspath(data),
+        os.fspath(detections),
+        split=split,
+        targets=None if targets is None else os.fspath(targets),
+        all_frames=bool(all_frames),
+        bbox_type=str(bbox_type),
+    )
+    return result

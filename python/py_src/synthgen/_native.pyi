@@ -133,6 +133,16 @@ def evaluate(
     rotations: str = "as_stored",
 ) -> Dict[str, Any]: ...
 
+def evaluate_detections(
+    data: _Path,
+    detections: _Path,
+    *,
+    split: Optional[str] = None,
+    targets: Optional[_Path] = None,
+    all_frames: bool = False,
+    bbox_type: str = "amodal",
+) -> Dict[str, Any]: ...
+
 ADD_THRESHOLD_FRACTION: float
 TE_THRESHOLD_M: float
 RE_THRESHOLD_DEG: float
