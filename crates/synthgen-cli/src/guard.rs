@@ -169,6 +169,7 @@ pub fn paths(command: &Command) -> CommandPaths {
             p.input_opt("--targets", &a.targets);
             p.output_opt("--out", &a.out);
             p.output_opt("--gt-out", &a.gt_out);
+            p.output_opt("--draw", &a.draw);
         }
         Command::Experiment(ExperimentCommand::Mix(a)) => {
             p.input_opt("--real", &a.real);

@@ -65,6 +65,9 @@ pub struct DetectionEvalRequest {
     pub out: Option<PathBuf>,
     /// Write the COCO GT scored against here (pycocotools' `COCO(...)` reads it).
     pub gt_out: Option<PathBuf>,
+    /// Draw this many scored images (spread over them) into this folder: the GT's visible
+    /// masks and boxes against each object's best detection ([`draw_frames`]).
+    pub draw: Option<(PathBuf, usize)>,
     pub jobs: Option<usize>,
 }
 
@@ -396,7 +399,12 @@ pub fn detection_eval_run(
         ("dataset", req.data.as_path()),
         ("detections", req.detections.as_path()),
     ];
-    for out in req.out.iter().chain(&req.gt_out) {
+    for out in req
+        .out
+        .iter()
+        .chain(&req.gt_out)
+        .chain(req.draw.as_ref().map(|(d, _)| d))
+    {
         check_apart(out, &inputs)?;
     }
     if let (Some(a), Some(b)) = (&req.out, &req.gt_out) {
@@ -574,7 +582,113 @@ pub fn detection_eval_run(
         write_json(path, &serde_json::to_value(&scores)?)?;
         log.info(format!("wrote the scores to {}", path.display()));
     }
+    if let Some((dir, count)) = &req.draw {
+        let n = draw_frames(dir, *count, &frames, &gt, &dts)?;
+        log.info(format!(
+            "drew {n} images into {} (green: mask and GT agree, red: the detection only, blue: the GT only; GT boxes blue, detections' red)",
+            dir.display()
+        ));
+    }
     Ok(scores)
+}
+
+/// Draws `count` of the scored images (spread evenly) into `dir` as
+/// `SCENE_IMAGE.png`: per object with GT there, the GT's visible mask against the object's
+/// best detection's mask (`mask_overlay`: green both, red the detection only, blue the GT
+/// only), the GT box in blue and the detection's box in red with its object id and score;
+/// best detections of objects without GT there in red too. Returns how many were drawn.
+pub fn draw_frames(
+    dir: &Path,
+    count: usize,
+    frames: &[SourceFrame],
+    gt: &CocoGt,
+    dts: &[DtInstance],
+) -> Result<usize> {
+    use synthgen_formats::annotate::mask_overlay;
+    use synthgen_formats::bop::image::read_rgb;
+    const BLUE: [u8; 3] = [40, 110, 255];
+    const RED: [u8; 3] = [235, 40, 40];
+    if count == 0 || frames.is_empty() {
+        return Ok(0);
+    }
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let step = frames.len().div_ceil(count).max(1);
+    let mut drawn = 0;
+    for (image, f) in frames.iter().enumerate().step_by(step).take(count) {
+        let img = read_rgb(&f.rgb)?;
+        if (img.width, img.height) != (gt.width, gt.height) {
+            anyhow::bail!(
+                "{} is {}x{}, not the camera's {}x{}",
+                f.rgb.display(),
+                img.width,
+                img.height,
+                gt.width,
+                gt.height
+            );
+        }
+        let here: Vec<&GtInstance> = gt.instances.iter().filter(|g| g.image == image).collect();
+        // The best detection of each object in the image.
+        let mut best: BTreeMap<u32, &DtInstance> = BTreeMap::new();
+        for d in dts.iter().filter(|d| d.image == image) {
+            let e = best.entry(d.category).or_insert(d);
+            if d.score > e.score {
+                *e = d;
+            }
+        }
+        let mask_of = |d: Option<&&DtInstance>| {
+            d.and_then(|d| d.segmentation.as_ref())
+                .map(Rle::decode)
+                .unwrap_or_default()
+        };
+        let mut ours: Vec<Vec<u8>> = here
+            .iter()
+            .map(|g| mask_of(best.get(&g.category)))
+            .collect();
+        let mut theirs: Vec<Option<Vec<u8>>> = here
+            .iter()
+            .map(|g| g.segmentation.as_ref().map(Rle::decode))
+            .collect();
+        for (obj, d) in &best {
+            if !here.iter().any(|g| g.category == *obj) {
+                ours.push(mask_of(Some(d)));
+                theirs.push(None);
+            }
+        }
+        let mut c = mask_overlay(&img, &ours, &theirs);
+        let rect = |c: &mut synthgen_formats::draw::Canvas, b: [f64; 4], col| {
+            let [x, y, w, h] = b;
+            let (x1, y1) = (x + w - 1.0, y + h - 1.0);
+            c.line((x, y), (x1, y), col, 2);
+            c.line((x1, y), (x1, y1), col, 2);
+            c.line((x1, y1), (x, y1), col, 2);
+            c.line((x, y1), (x, y), col, 2);
+        };
+        for g in &here {
+            rect(&mut c, g.bbox, BLUE);
+            c.text(
+                g.bbox[0] as i64 + 3,
+                g.bbox[1] as i64 + 3,
+                &g.category.to_string(),
+                2,
+                BLUE,
+            );
+        }
+        for (obj, d) in &best {
+            rect(&mut c, d.bbox, RED);
+            let y = (d.bbox[1] + d.bbox[3]) as i64 - 14;
+            c.text(
+                d.bbox[0] as i64 + 3,
+                y,
+                &format!("{obj} {:.2}", d.score),
+                2,
+                RED,
+            );
+        }
+        let (scene, im) = gt.images[image];
+        c.write_png(&dir.join(format!("{scene:06}_{im:06}.png")))?;
+        drawn += 1;
+    }
+    Ok(drawn)
 }
 
 fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {

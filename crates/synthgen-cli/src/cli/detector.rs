@@ -60,6 +60,9 @@ pub const DETECTOR_EVAL_EXAMPLES: &str = "Examples:
   synthgen detector eval --detections cnos_lmo-test.json --data ../shared/data/lmo \\
       --bbox-type modal --out scores.json --gt-out gt_coco.json
 
+  # Look at them: 8 photographs, GT masks against the detections' (green agree):
+  synthgen detector eval --detections det_lmo.json --data ../shared/data/lmo --draw pictures
+
 Scored as bop_toolkit's scripts/eval_bop22_coco.py scores BOP's 2D detection and
 segmentation tasks (pycocotools' COCOeval): the images of the dataset's
 test_targets_bop19.json (or --targets FILE, or --all-frames), every GT instance with a
@@ -113,6 +116,16 @@ pub struct DetectorEvalArgs {
     /// Write the COCO GT the detections were scored against (pycocotools reads it).
     #[arg(long, value_name = "FILE")]
     pub gt_out: Option<PathBuf>,
+
+    /// Draw scored images into this folder (SCENE_IMAGE.png): each object's GT visible mask
+    /// against its best detection's (green both, red the detection only, blue the GT only),
+    /// GT boxes blue, detections' boxes red with object and score.
+    #[arg(long, value_name = "DIR")]
+    pub draw: Option<PathBuf>,
+
+    /// How many images --draw draws, spread over the scored ones.
+    #[arg(long, default_value_t = 8, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=10_000))]
+    pub draw_count: usize,
 
     /// Worker threads (default: all cores).
     #[arg(long, short = 'j', value_parser = crate::cli::threads())]

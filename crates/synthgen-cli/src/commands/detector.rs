@@ -69,6 +69,7 @@ pub fn run_eval(args: DetectorEvalArgs, printer: &Printer) -> Result<ExitStatus>
         },
         out: args.out,
         gt_out: args.gt_out,
+        draw: args.draw.map(|d| (d, args.draw_count)),
         jobs: args.jobs,
     };
     let scores = detection_eval_run(&request, printer)?;

@@ -57,8 +57,25 @@ fn the_gt_as_detections_scores_one_and_a_missing_object_zero() {
     let data = two_class_set(d, "set", "4", "5");
     let dets = d.join("dets.json");
     std::fs::write(&dets, gt_as_detections(&data, 0, false).to_string()).unwrap();
-    let o = detector_eval(&data, &dets, &["--out", d.join("s.json").to_str().unwrap()]);
+    let pictures = d.join("pictures");
+    let o = detector_eval(
+        &data,
+        &dets,
+        &[
+            "--out",
+            d.join("s.json").to_str().unwrap(),
+            "--draw",
+            pictures.to_str().unwrap(),
+            "--draw-count",
+            "2",
+        ],
+    );
     assert!(o.status.success(), "{}", stderr(&o));
+    // Two of the four frames, drawn at the frames' size.
+    let drawn: Vec<_> = std::fs::read_dir(&pictures).unwrap().collect();
+    assert_eq!(drawn.len(), 2);
+    let png = synthgen_formats::bop::image::read_rgb(&pictures.join("000000_000000.png")).unwrap();
+    assert_eq!((png.width, png.height), (320, 240));
     let table = String::from_utf8_lossy(&o.stdout).to_string();
     assert!(table.contains("| AP | 1.000 | 1.000 |"), "{table}");
     let s = json_file(&d.join("s.json"));
@@ -152,6 +169,14 @@ fn bad_detections_and_outputs_are_refused_by_name() {
             &["--gt-out", data.join("gt.json").to_str().unwrap()],
         ),
         &["--gt-out"],
+    );
+    refused(
+        &detector_eval(
+            &data,
+            &dets,
+            &["--draw", data.join("pics").to_str().unwrap()],
+        ),
+        &["--draw"],
     );
     let targets = d.join("targets.json");
     std::fs::write(
