@@ -133,6 +133,9 @@ pub struct DetectionScores {
     pub objects_without_gt: usize,
     /// Scored entries without a mask (left out of `segm`, as bop_toolkit leaves them).
     pub without_mask: usize,
+    /// Scored entries whose box lies wholly off the image (false positives, as bop_toolkit
+    /// scores them; counted so that they are not a silent score).
+    pub off_image: usize,
     pub bbox: ScoreSet,
     /// None when no entry has a mask.
     pub segm: Option<ScoreSet>,
@@ -492,7 +495,7 @@ pub fn detection_eval_run(
         gt.images.iter().enumerate().map(|(i, &k)| (k, i)).collect();
     let gt_objects: BTreeSet<u32> = gt.instances.iter().map(|g| g.category).collect();
     let mut dts = Vec::with_capacity(list.len());
-    let (mut other_images, mut objects_without_gt) = (0, 0);
+    let (mut other_images, mut objects_without_gt, mut off_image) = (0, 0, 0);
     for (i, d) in list.iter().enumerate() {
         let Some(&image) = index.get(&(d.scene_id, d.image_id)) else {
             other_images += 1;
@@ -514,6 +517,10 @@ pub fn detection_eval_run(
             }
         }
         objects_without_gt += usize::from(!gt_objects.contains(&d.category_id));
+        let [x, y, w, h] = d.bbox;
+        off_image += usize::from(
+            x + w <= 0.0 || y + h <= 0.0 || x >= f64::from(size.0) || y >= f64::from(size.1),
+        );
         dts.push(DtInstance {
             image,
             category: d.category_id,
@@ -529,6 +536,14 @@ pub fn detection_eval_run(
             list.len(),
             req.data.display(),
             if targets_path.is_some() { " or not targets" } else { "" }
+        ));
+    }
+    if off_image > 0 {
+        log.warning(format!(
+            "{off_image} detections in {} have a box wholly off the {}x{} images: scored as false positives, as bop_toolkit scores them",
+            req.detections.display(),
+            size.0,
+            size.1
         ));
     }
     let bbox = evaluate(&gt.instances, &dts, gt.images.len(), IouType::Bbox)
@@ -571,6 +586,7 @@ pub fn detection_eval_run(
         other_images,
         objects_without_gt,
         without_mask,
+        off_image,
         bbox: ScoreSet::of(&bbox),
         segm: segm.as_ref().map(ScoreSet::of),
     };

@@ -156,6 +156,21 @@ fn bad_detections_and_outputs_are_refused_by_name() {
     )
     .unwrap();
     refused(&detector_eval(&data, &dets, &[]), &["dets.json"]);
+    // A box off the image is scored (a false positive, as bop_toolkit) and counted, not silent.
+    std::fs::write(
+        &dets,
+        r#"[{"scene_id": 0, "image_id": 0, "category_id": 8, "score": 0.5, "bbox": [900, 20, 30, 40]}]"#,
+    )
+    .unwrap();
+    let out = d.join("off.json");
+    let o = detector_eval(&data, &dets, &["--out", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("1 detections in") && stderr(&o).contains("off the 320x240"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(json_file(&out)["off_image"], 1);
     // Outputs onto the inputs; a targets file of other frames.
     std::fs::write(&dets, "[]").unwrap();
     refused(
