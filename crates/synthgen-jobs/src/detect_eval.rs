@@ -722,6 +722,80 @@ mod tests {
     use super::*;
 
     #[test]
+    fn the_report_block_has_the_issues_keys() {
+        use synthgen_detect::coco_eval::evaluate;
+        let mask = |x0: usize| {
+            let mut m = vec![0u8; 16 * 8];
+            for y in 2..6 {
+                for x in x0..x0 + 4 {
+                    m[y * 16 + x] = 1;
+                }
+            }
+            Rle::from_mask(&m, 16, 8)
+        };
+        let gts = vec![GtInstance {
+            image: 0,
+            category: 3,
+            bbox: [2.0, 2.0, 4.0, 4.0],
+            area: 16.0,
+            iscrowd: false,
+            segmentation: Some(mask(2)),
+        }];
+        let dts = vec![DtInstance {
+            image: 0,
+            category: 3,
+            score: 0.9,
+            bbox: [2.0, 2.0, 4.0, 4.0],
+            area: 16.0,
+            segmentation: Some(mask(3)),
+        }];
+        let bbox = evaluate(&gts, &dts, 1, IouType::Bbox).unwrap();
+        let segm = evaluate(&gts, &dts, 1, IouType::Segm).unwrap();
+        let scores = DetectionScores {
+            detections: "d.json".into(),
+            dataset: "data".into(),
+            split: "test".into(),
+            bbox_type: BboxType::Amodal,
+            targets: None,
+            n_images: 1,
+            n_gt: 1,
+            images_with_rendered_masks: 0,
+            entries: 1,
+            scored: 1,
+            other_images: 0,
+            objects_without_gt: 0,
+            without_mask: 0,
+            off_image: 0,
+            bbox: ScoreSet::of(&bbox),
+            segm: Some(ScoreSet::of(&segm)),
+        };
+        let block = scores.report_block();
+        for key in [
+            "n_gt",
+            "bbox_ap",
+            "bbox_ap50",
+            "segm_ap",
+            "segm_ap50",
+            "objects",
+        ] {
+            assert!(block.get(key).is_some(), "{key} missing: {block}");
+        }
+        // The box is exact; the mask is one column off (IoU 12/20 = 0.6): AP50 1, AP 0.3.
+        assert!((block["bbox_ap"].as_f64().unwrap() - 1.0).abs() < 1e-9);
+        assert!((block["segm_ap50"].as_f64().unwrap() - 1.0).abs() < 1e-9);
+        assert!(
+            (block["segm_ap"].as_f64().unwrap() - 0.3).abs() < 1e-9,
+            "{block}"
+        );
+        assert_eq!(block["objects"]["3"]["n_gt"], 1.0);
+        assert!(
+            scores.table().contains("| AP | 1.000 | 0.300 |"),
+            "{}",
+            scores.table()
+        );
+    }
+
+    #[test]
     fn coco_boxes_of_masks_include_the_last_pixel() {
         let mut m = vec![0u8; 20];
         m[5 + 2] = 255; // (2, 1)
