@@ -15,6 +15,16 @@ LMO_MODELS = SHARED / "data" / "lmo" / "models"
 YCBV_REAL = SHARED / "data" / "ycbv_real"
 
 
+def synthgen_exe() -> Path:
+    """The CLI binary (SYNTHGEN_BIN, else cargo's debug build), or a skip saying how to get it."""
+    exe = Path(os.environ.get("SYNTHGEN_BIN", REPO / "target" / "debug" / "synthgen"))
+    if not exe.is_file():
+        pytest.skip(
+            f"no synthgen binary at {exe} (cargo build -p synthgen-cli, or set SYNTHGEN_BIN)"
+        )
+    return exe
+
+
 def need(path: Path) -> Path:
     """`path`, or a skip with the reason (a failure under SYNTHGEN_REQUIRE_SHARED=1, as in CI)."""
     if not path.exists():

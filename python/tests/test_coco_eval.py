@@ -18,7 +18,7 @@ from typing import Any, Dict, List, Tuple
 import numpy as np
 import pytest
 
-from .conftest import REPO, SHARED, need
+from .conftest import SHARED, need, synthgen_exe
 
 try:
     from PIL import Image
@@ -35,20 +35,11 @@ except ImportError:  # pragma: no cover - depends on the machine
     )
 
 
-def exe() -> Path:
-    path = Path(os.environ.get("SYNTHGEN_BIN", REPO / "target" / "debug" / "synthgen"))
-    if not path.is_file():
-        pytest.skip(
-            f"no synthgen binary at {path} (cargo build -p synthgen-cli, or set SYNTHGEN_BIN)"
-        )
-    return path
-
-
 def synthgen_eval(
     data: Path, detections: Path, out: Path, gt_out: Path, *extra: str
 ) -> Dict[str, Any]:
     subprocess.run(
-        [str(exe()), "-q", "detector", "eval", "--data", str(data)]
+        [str(synthgen_exe()), "-q", "detector", "eval", "--data", str(data)]
         + ["--detections", str(detections), "--out", str(out), "--gt-out", str(gt_out)]
         + list(extra),
         check=True,

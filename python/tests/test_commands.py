@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import io
 import json
-import os
 import subprocess
 from pathlib import Path
 
@@ -12,7 +11,7 @@ import numpy as np
 import pytest
 import synthgen
 
-from .conftest import REPO
+from .conftest import REPO, synthgen_exe
 
 
 def results_csv(ds: synthgen.Dataset, path: Path, offset_m: float = 0.0) -> None:
@@ -101,11 +100,7 @@ def test_evaluate_rotations_as_stored_or_nearest(tmp_path: Path, rendered: Path)
 
 
 def test_evaluate_equals_the_cli(tmp_path: Path, rendered: Path) -> None:
-    exe = Path(os.environ.get("SYNTHGEN_BIN", REPO / "target" / "debug" / "synthgen"))
-    if not exe.is_file():
-        pytest.skip(
-            f"no synthgen binary at {exe} (cargo build -p synthgen-cli, or set SYNTHGEN_BIN)"
-        )
+    exe = synthgen_exe()
     ds = synthgen.open_dataset(rendered)
     csv = tmp_path / "off.csv"
     results_csv(ds, csv, offset_m=0.03)
@@ -140,11 +135,7 @@ def test_evaluate_bop_gt_is_perfect_and_equals_the_cli(
     for err in ("vsd", "mssd", "mspd"):
         assert bop[err]["recall_per_threshold"] == [1.0] * 10
     assert synthgen.evaluate(rendered, csv)["bop"] is None
-    exe = Path(os.environ.get("SYNTHGEN_BIN", REPO / "target" / "debug" / "synthgen"))
-    if not exe.is_file():
-        pytest.skip(
-            f"no synthgen binary at {exe} (cargo build -p synthgen-cli, or set SYNTHGEN_BIN)"
-        )
+    exe = synthgen_exe()
     off = tmp_path / "off.csv"
     results_csv(ds, off, offset_m=0.01)
     ours = synthgen.evaluate(rendered, off, bop=True)["bop"]

@@ -66,16 +66,21 @@ impl Detection {
     }
 }
 
+/// `list` best score first (ties in file order).
+fn best_first<'a>(list: impl Iterator<Item = &'a Detection>) -> Vec<&'a Detection> {
+    let mut sorted: Vec<&Detection> = list.collect();
+    sorted.sort_by(|a, b| b.score.total_cmp(&a.score));
+    sorted
+}
+
 /// The boxes of `list` as the RGB models' crops and the refinement read them: per (scene,
 /// image, object), best score first, as `bbox_visib` reads ([`Detection::bop_box`]). The
 /// `rank`-th instance of an object in an image is cropped from its `rank`-th box (BOP's
 /// localization task knows how many instances each image shows; which detection goes with
 /// which instance does not matter, the estimates are matched to the GT when scored).
 pub fn crop_boxes(list: &[Detection]) -> CropBoxes {
-    let mut sorted: Vec<&Detection> = list.iter().collect();
-    sorted.sort_by(|a, b| b.score.total_cmp(&a.score));
     let mut out = CropBoxes::new();
-    for d in sorted {
+    for d in best_first(list.iter()) {
         out.entry((d.scene_id, d.image_id, d.category_id))
             .or_default()
             .push(d.bop_box());
@@ -86,10 +91,8 @@ pub fn crop_boxes(list: &[Detection]) -> CropBoxes {
 /// The masks of `list` as the depth models read their points from them: per (scene, image,
 /// object), best score first, the entries that have a mask ([`crop_boxes`]' order).
 pub fn crop_masks(list: &[Detection]) -> CropMasks {
-    let mut sorted: Vec<&Detection> = list.iter().filter(|d| d.segmentation.is_some()).collect();
-    sorted.sort_by(|a, b| b.score.total_cmp(&a.score));
     let mut out = CropMasks::new();
-    for d in sorted {
+    for d in best_first(list.iter()) {
         if let Some(m) = &d.segmentation {
             out.entry((d.scene_id, d.image_id, d.category_id))
                 .or_default()

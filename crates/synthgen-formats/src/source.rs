@@ -49,6 +49,22 @@ impl MaskRef {
             }
         }
     }
+
+    /// [`MaskRef::read`], with a mask of another size than the camera's `w` x `h` an error
+    /// naming its file.
+    pub fn read_sized(&self, w: u32, h: u32) -> Result<Plane<u8>> {
+        let plane = self.read()?;
+        if (plane.width, plane.height) != (w, h) {
+            return Err(Error::malformed(
+                self.path(),
+                format!(
+                    "mask is {}x{} but the camera is {w}x{h}",
+                    plane.width, plane.height
+                ),
+            ));
+        }
+        Ok(plane)
+    }
 }
 
 /// Where a frame lives in its dataset.

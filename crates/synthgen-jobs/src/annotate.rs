@@ -275,18 +275,7 @@ impl FrameStep<'_> {
         let mut theirs = Vec::with_capacity(f.gt.len());
         for (gt_id, (g, a)) in f.gt.iter().zip(&ann.objects).enumerate() {
             let old = match f.masks_visib.get(gt_id).and_then(Option::as_ref) {
-                Some(m) => {
-                    let plane = m.read()?;
-                    if (plane.width, plane.height) != (w, h) {
-                        anyhow::bail!(
-                            "mask is {}x{} but the camera is {w}x{h}: {}",
-                            plane.width,
-                            plane.height,
-                            m.path().display()
-                        );
-                    }
-                    Some(plane.data)
-                }
+                Some(m) => Some(m.read_sized(w, h)?.data),
                 None => None,
             };
             if let Some(old) = &old {

@@ -272,12 +272,7 @@ pub fn coco_gt(
         .par_iter()
         .enumerate()
         .map(|(image, f)| {
-            let needs = |i: usize| {
-                f.masks_visib.get(i).and_then(Option::as_ref).is_none()
-                    || (bbox_type == BboxType::Amodal
-                        && f.masks.get(i).and_then(Option::as_ref).is_none())
-            };
-            let rendered = if (0..f.gt.len()).any(needs) {
+            let rendered = if lacks_masks(f, bbox_type) {
                 let r = renderer.with_context(|| {
                     format!(
                         "{}/{:06} image {} has no masks and no models to render them from",
@@ -292,18 +287,7 @@ pub fn coco_gt(
                         computed: Option<&Vec<u8>>|
              -> Result<Option<Vec<u8>>> {
                 match (m, computed) {
-                    (Some(m), _) => {
-                        let plane = m.read()?;
-                        if (plane.width, plane.height) != (w, h) {
-                            anyhow::bail!(
-                                "mask is {}x{} but the camera is {w}x{h}: {}",
-                                plane.width,
-                                plane.height,
-                                m.path().display()
-                            );
-                        }
-                        Ok(Some(plane.data))
-                    }
+                    (Some(m), _) => Ok(Some(m.read_sized(w, h)?.data)),
                     (None, Some(c)) => Ok(Some(c.clone())),
                     (None, None) => Ok(None),
                 }
@@ -371,6 +355,15 @@ pub fn coco_gt(
         }
     }
     Ok(gt)
+}
+
+/// Whether a frame lacks a mask the GT needs (a visible one; with amodal boxes, a full one):
+/// its masks are then rendered.
+fn lacks_masks(f: &SourceFrame, bbox_type: BboxType) -> bool {
+    (0..f.gt.len()).any(|i| {
+        f.masks_visib.get(i).and_then(Option::as_ref).is_none()
+            || (bbox_type == BboxType::Amodal && f.masks.get(i).and_then(Option::as_ref).is_none())
+    })
 }
 
 /// The (scene, image) pairs a BOP targets file names.
@@ -465,13 +458,7 @@ pub fn detection_eval_run(
     let size = (cam.width, cam.height);
     let lacking: Vec<SourceFrame> = frames
         .iter()
-        .filter(|f| {
-            (0..f.gt.len()).any(|i| {
-                f.masks_visib.get(i).and_then(Option::as_ref).is_none()
-                    || (req.bbox_type == BboxType::Amodal
-                        && f.masks.get(i).and_then(Option::as_ref).is_none())
-            })
-        })
+        .filter(|f| lacks_masks(f, req.bbox_type))
         .cloned()
         .collect();
     let renderer = if lacking.is_empty() {

@@ -217,6 +217,18 @@ enum Outcome {
     Undetected,
 }
 
+/// The detection (box or mask) for the next instance of `key`'s object in its image: the
+/// `k`-th of `detections[key]` for the object's `k`-th instance met (`rank` counts them).
+fn ranked<'a, T>(
+    detections: &'a BTreeMap<(u32, u32, u32), Vec<T>>,
+    rank: &mut BTreeMap<u32, usize>,
+    key: (u32, u32, u32),
+) -> Option<&'a T> {
+    let r = rank.entry(key.2).or_insert(0);
+    *r += 1;
+    detections.get(&key).and_then(|v| v.get(*r - 1))
+}
+
 fn load_frame(frame: &SourceFrame, size: [u32; 2], opts: &DataOptions) -> Result<Vec<Outcome>> {
     let gts = &frame.gt;
     if gts.is_empty() {
@@ -261,44 +273,29 @@ fn load_frame(frame: &SourceFrame, size: [u32; 2], opts: &DataOptions) -> Result
     } else {
         None
     };
-    // Per object, the instances met so far: the rank of its crop box, and of its mask.
+    // Per object, the instances met so far: the rank of its crop box and of its mask.
     let mut rank: BTreeMap<u32, usize> = BTreeMap::new();
     let mut mask_rank: BTreeMap<u32, usize> = BTreeMap::new();
     for gt_id in wanted {
+        let key = (scene_id, im_id, gts[gt_id].obj_id);
         let detected_mask = match &opts.crop_masks {
-            Some(masks) => {
-                let obj_id = gts[gt_id].obj_id;
-                let r = mask_rank.entry(obj_id).or_insert(0);
-                *r += 1;
-                match masks
-                    .get(&(scene_id, im_id, obj_id))
-                    .and_then(|v| v.get(*r - 1))
-                {
-                    Some(m) => Some(m),
-                    None => {
-                        out.push(Outcome::Undetected);
-                        continue;
-                    }
+            Some(masks) => match ranked(masks, &mut mask_rank, key) {
+                Some(m) => Some(m),
+                None => {
+                    out.push(Outcome::Undetected);
+                    continue;
                 }
-            }
+            },
             None => None,
         };
         let detected = match &opts.crop_boxes {
-            Some(boxes) => {
-                let obj_id = gts[gt_id].obj_id;
-                let r = rank.entry(obj_id).or_insert(0);
-                *r += 1;
-                match boxes
-                    .get(&(scene_id, im_id, obj_id))
-                    .and_then(|v| v.get(*r - 1))
-                {
-                    Some(b) => Some(*b),
-                    None => {
-                        out.push(Outcome::Undetected);
-                        continue;
-                    }
+            Some(boxes) => match ranked(boxes, &mut rank, key) {
+                Some(b) => Some(*b),
+                None => {
+                    out.push(Outcome::Undetected);
+                    continue;
                 }
-            }
+            },
             None => None,
         };
         // No visible mask (a Linemod object without a folder entry for the frame): no

@@ -180,19 +180,7 @@ pub(crate) fn measure_frame(
     let mut visib: Vec<Option<Vec<u8>>> = Vec::with_capacity(frame.gt.len());
     for m in &frame.masks_visib {
         visib.push(match m {
-            Some(m) => {
-                let plane = m.read()?;
-                if (plane.width, plane.height) != (w, h) {
-                    return Err(Error::malformed(
-                        m.path(),
-                        format!(
-                            "mask is {}x{} but the camera is {w}x{h}",
-                            plane.width, plane.height
-                        ),
-                    ));
-                }
-                Some(plane.data)
-            }
+            Some(m) => Some(m.read_sized(w, h)?.data),
             None => None,
         });
     }
