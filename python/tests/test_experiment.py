@@ -66,3 +66,18 @@ def test_bad_options_are_input_errors(tmp_path: Path) -> None:
         )
     with pytest.raises(synthgen.InputError, match="unknown experiment"):
         synthgen._native.run_experiment("table", "{}")
+
+
+def test_sim2real_refuses_a_detector_folder_without_a_detector(
+    tmp_path: Path, ycbv_real: Path
+) -> None:
+    # Issue 52: refused before anything is fitted or written.
+    with pytest.raises(synthgen.InputError, match="no detector there"):
+        synthgen.experiment.sim2real(
+            test=ycbv_real,
+            fit=ycbv_real,
+            test_scenes=[2],
+            detector=tmp_path / "nowhere",
+            out=tmp_path / "o",
+        )
+    assert not (tmp_path / "o").exists()

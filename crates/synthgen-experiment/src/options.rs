@@ -62,6 +62,30 @@ impl Sim2realModel {
     }
 }
 
+/// Where `experiment sim2real` gets the detector whose boxes and masks the pose rows read
+/// for the report's `no_gt` scores (`--detector`; JSON: `"train"`, `"none"` or a folder).
+#[derive(Debug, Clone, PartialEq, Eq, Default, Deserialize)]
+#[serde(from = "String")]
+pub enum DetectorChoice {
+    /// Trained on the experiment's own synthetic frames (its main set).
+    #[default]
+    Train,
+    /// No detector: no `no_gt` scores.
+    None,
+    /// A trained detector's run folder (`synthgen detector train --out`).
+    Run(PathBuf),
+}
+
+impl From<String> for DetectorChoice {
+    fn from(s: String) -> DetectorChoice {
+        match s.as_str() {
+            "train" => DetectorChoice::Train,
+            "none" => DetectorChoice::None,
+            _ => DetectorChoice::Run(PathBuf::from(s)),
+        }
+    }
+}
+
 /// How `experiment sim2real` finishes a depth model's centre on the real depth.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -224,7 +248,7 @@ pub struct Sim2realOptions {
     pub frames: Option<usize>,
     /// A scene file instead of a scene fit (RGB models).
     pub scene: Option<PathBuf>,
-    /// Replacement meshes per object (RGB models; `model align --scans` writes them).
+    /// Replacement meshes per object in every synthetic set (`model align --scans` writes them).
     pub models: Option<PathBuf>,
     /// Frames of the Cycles rows (RGB models). [default: 200; 4 with quick]
     pub cycles_frames: Option<usize>,
@@ -255,6 +279,10 @@ pub struct Sim2realOptions {
     pub rows: Vec<String>,
     /// Share of a set's frames that may fail to render (left out).
     pub max_failed_fraction: f64,
+    /// The detector of the `no_gt` scores.
+    pub detector: DetectorChoice,
+    /// Epochs of a detector trained here. [default: 30; 2 with quick]
+    pub detector_epochs: Option<usize>,
     pub quick: bool,
     pub out: PathBuf,
     pub force: bool,
@@ -288,6 +316,8 @@ impl Default for Sim2realOptions {
             seed: 0,
             rows: Vec::new(),
             max_failed_fraction: 0.01,
+            detector: DetectorChoice::Train,
+            detector_epochs: None,
             quick: false,
             out: PathBuf::from("runs/sim2real"),
             force: false,

@@ -149,6 +149,8 @@ def sim2real(
     seed: int = 0,
     rows: Sequence[str] = (),
     max_failed_fraction: float = 0.01,
+    detector: Optional[PathLike] = "train",
+    detector_epochs: Optional[int] = None,
     quick: bool = False,
     out: PathLike = "runs/sim2real",
     force: bool = False,
@@ -177,12 +179,17 @@ def sim2real(
             to its instance's GT visible box (as ``synthgen eval --visible-box gt``), ``"none"``
             does not.
         rows: only these rows.
+        detector: the detector of the scores from raw frames (``report["no_gt"]`` and
+            ``report["detection"]``): ``"train"`` (trained on the main row's synthetic frames,
+            ``detector_epochs`` epochs), a folder ``synthgen detector train`` wrote, or
+            ``None`` / ``"none"`` (no scores from raw frames).
         progress: as for :func:`synthgen.render`.
 
     Returns:
         ``out``, ``markdown`` (``report.md``), ``report`` (``report.json``).
     """
     o = _path(out) or "runs/sim2real"
+    det = "none" if detector is None else os.fspath(detector)
     md = _run(
         "sim2real",
         dict(
@@ -208,6 +215,8 @@ def sim2real(
             seed=int(seed),
             rows=[str(r) for r in rows],
             max_failed_fraction=float(max_failed_fraction),
+            detector=det,
+            detector_epochs=detector_epochs,
             quick=quick,
             out=o,
             force=force,

@@ -100,6 +100,11 @@ Steps (each kept on a re-run with the same options; an interrupted one is redone
               with no sensor model, with the D455 model (+ the ablation variants)
   rows/NAME/  a model trained on one set (all test objects in one model), row.json with its
               errors on the real test frames, overall and per object
+  detector/   a detector (boxes + instance masks) trained on the main row's set (--detector);
+              detections.json its detections on the test frames (BOP format, no GT read),
+              detection_scores.json their bop_toolkit COCO scores over the test scenes'
+              images (detection_targets.json), detection_pictures/ a few of them drawn;
+              rows/<main row>/no_gt.json the main row's model from these detections
 Rows of the report: the fitted synthetic set (the result), no sensor, D455, the naive
 baseline (the centre = the mean of the masked real depth points: no training), a model
 trained on real frames only (the --fit frames outside the test scenes, as many steps as
@@ -108,7 +113,9 @@ the synthetic rows), and with --ablation one row per knob.
 Output (in --out): report.md (printed), report.json ({\"all\", \"objects\", \"baselines\"}),
 plot.png (mean centre error per row), experiment.json (the settings). The RGB models:
 report.json ({\"all\", \"objects\", \"scenes\", \"rows\"}: AR_MSPD, AR_MSSD, 5cm5°, ADD(-S),
-medians; the main row is synth_realistic), rows/NAME/results.csv (BOP results format).";
+medians; the main row is synth_realistic), rows/NAME/results.csv (BOP results format).
+Both add \"detection\" (bbox/segm AP, AP50 per object) and \"no_gt\" (the main row's scores
+with no GT box or mask anywhere at test time: crops or points from the detections).";
 
 #[derive(Debug, Args)]
 pub struct ExperimentSim2realArgs {
@@ -142,10 +149,11 @@ pub struct ExperimentSim2realArgs {
     #[arg(long, value_name = "FILE")]
     pub scene: Option<PathBuf>,
 
-    /// RGB models: render each test object from the one mesh in DIR/<its name>/ (e.g. the
-    /// textured scans aligned by `synthgen model align --scans`) instead of the dataset's
-    /// model; objects without a folder keep the dataset's. With --refine views, the
-    /// refinement compares the real images with these meshes' colours too.
+    /// Render each test object from the one mesh in DIR/<its name>/ (e.g. the textured scans
+    /// aligned by `synthgen model align --scans`) instead of the dataset's model, in every
+    /// synthetic set (the detector trained here learns their colours); objects without a
+    /// folder keep the dataset's. RGB models with --refine views: the refinement compares
+    /// the real images with these meshes' colours too.
     #[arg(long, value_name = "DIR")]
     pub models: Option<PathBuf>,
 
@@ -242,6 +250,17 @@ pub struct ExperimentSim2realArgs {
     /// again and then placed with fewer objects first.
     #[arg(long, value_name = "FRACTION", default_value_t = 0.01)]
     pub max_failed_fraction: f64,
+
+    /// The detector of the scores from raw frames (report.json's "no_gt" and "detection"):
+    /// `train` (one trained on the main row's synthetic frames, into OUT/detector), a folder
+    /// `synthgen detector train --out` wrote, or `none` (no scores from raw frames). Its
+    /// detections on the test frames go to OUT/detections.json (BOP's detections format).
+    #[arg(long, value_name = "train|none|DIR", default_value = "train")]
+    pub detector: String,
+
+    /// Epochs of the detector trained here. [default: 30; 2 with --quick]
+    #[arg(long, value_name = "N", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=10000))]
+    pub detector_epochs: Option<usize>,
 
     /// Small and fast, to check the pipeline: the --quick defaults above, synthetic sets at a
     /// quarter of the camera's resolution.

@@ -111,6 +111,8 @@ pub fn sim2real_options(a: ExperimentSim2realArgs) -> Sim2realOptions {
         seed: a.seed,
         rows: a.rows,
         max_failed_fraction: a.max_failed_fraction,
+        detector: a.detector.into(),
+        detector_epochs: a.detector_epochs,
         quick: a.quick,
         out: a.out,
         force: a.force,

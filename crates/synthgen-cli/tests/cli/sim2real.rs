@@ -125,6 +125,44 @@ fn quick_sim2real_on_real_frames_reports_every_row_and_resumes() {
         "{md}"
     );
 
+    // Issue 52: a detector trained on synth_fitted's frames, its detections on the test
+    // dataset's frames (no GT read) scored over scene 2's images, and the main row from them.
+    assert!(out.join("detector/model.safetensors").is_file());
+    let det = &r["detection"];
+    assert_eq!(det["n_gt"], 120, "{det}");
+    for k in ["bbox_ap", "bbox_ap50", "segm_ap", "segm_ap50"] {
+        let v = det[k]
+            .as_f64()
+            .unwrap_or_else(|| panic!("detection.{k}: {det}"));
+        assert!((0.0..=1.0).contains(&v), "{k} {v}");
+    }
+    assert_eq!(det["objects"].as_object().unwrap().len(), 6, "{det}");
+    let targets: Value =
+        serde_json::from_slice(&std::fs::read(out.join("detection_targets.json")).unwrap())
+            .unwrap();
+    let targets = targets.as_array().unwrap();
+    assert!(!targets.is_empty() && targets.iter().all(|t| t["scene_id"] == 2));
+    let no_gt = &r["no_gt_row"];
+    assert_eq!(no_gt["n_gt"], 120, "{no_gt}");
+    assert!(no_gt["detected"].as_u64().unwrap() <= 120, "{no_gt}");
+    assert_eq!(r["no_gt"], no_gt["all"]);
+    assert!(out.join("rows/synth_fitted/no_gt.json").is_file());
+    // The detections score the same through `detector eval` on the same targets.
+    let scores = dir.path().join("det_scores.json");
+    let o = run(synthgen()
+        .args(["detector", "eval", "-q", "--detections"])
+        .arg(out.join("detections.json"))
+        .arg("--data")
+        .arg(&real)
+        .arg("--targets")
+        .arg(out.join("detection_targets.json"))
+        .arg("--out")
+        .arg(&scores));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e: Value = serde_json::from_slice(&std::fs::read(&scores).unwrap()).unwrap();
+    assert_eq!(e["bbox"]["stats"]["AP"], det["bbox_ap"], "{e}");
+    assert_eq!(e["bbox"]["stats"]["AP50"], det["bbox_ap50"], "{e}");
+
     assert_eq!(settings["unseen_up"], "any");
     // --quick trains one model per row; the default is an ensemble of 3.
     assert_eq!(settings["ensemble"], 1);
@@ -154,6 +192,56 @@ fn quick_sim2real_on_real_frames_reports_every_row_and_resumes() {
         &["--test-scenes", "1", "--frames", "24"],
     );
     refused(&o, &["other settings"]);
+
+    // --detector DIR: the detector trained above, not trained again; its detections are
+    // the same entries.
+    let out2 = dir.path().join("s2r_given");
+    let o = sim2real(
+        &real,
+        &real,
+        &out2,
+        &[
+            "--test-scenes",
+            "2",
+            "--frames",
+            "24",
+            "--unseen-up",
+            "any",
+            "--rows",
+            "synth_fitted",
+            "--detector",
+            out.join("detector").to_str().unwrap(),
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!out2.join("detector").exists());
+    let read = |p: &Path| -> Value { serde_json::from_slice(&std::fs::read(p).unwrap()).unwrap() };
+    // (Each entry's `time` is the frame's wall time: everything else is equal.)
+    let timeless = |p: &Path| -> Vec<Value> {
+        let mut v = read(p);
+        let list = v.as_array_mut().unwrap();
+        for d in list.iter_mut() {
+            d.as_object_mut().unwrap().remove("time");
+        }
+        list.clone()
+    };
+    let (a, b) = (
+        timeless(&out2.join("detections.json")),
+        timeless(&out.join("detections.json")),
+    );
+    assert!(
+        !a.is_empty() && a == b,
+        "{} vs {} entries",
+        a.len(),
+        b.len()
+    );
+    let r3 = read(&out2.join("report.json"));
+    assert!(
+        r3["detector"]["key"]["trained_on"].is_null(),
+        "{}",
+        r3["detector"]
+    );
+    assert_eq!(r3["detection"], r["detection"]);
 }
 
 #[test]
@@ -301,6 +389,26 @@ fn sim2real_refuses_what_cannot_be_measured() {
     std::fs::remove_dir_all(bop.join("train/000000/depth")).unwrap();
     let o = sim2real(&real, &bop, &d.join("f"), &["--test-scenes", "0"]);
     refused(&o, &["has no depth images"]);
+    // Issue 52: a --detector folder without a detector, before anything is fitted.
+    let o = sim2real(
+        &real,
+        &real,
+        &d.join("g"),
+        &[
+            "--test-scenes",
+            "2",
+            "--detector",
+            d.join("nowhere").to_str().unwrap(),
+        ],
+    );
+    refused(
+        &o,
+        &["--detector", "no detector there", "model.safetensors"],
+    );
+    assert!(
+        !d.join("g").join("fit").exists(),
+        "nothing fitted before the refusal"
+    );
     // Issue 26: a copy of the test frames as --fit: the fits would see the test frames.
     let twin = d.join("twin");
     copy_dir(&real, &twin, &[]);
@@ -336,6 +444,8 @@ fn quick_sim2real_on_objects_the_fit_never_saw() {
             "synth_fitted",
             "--refine",
             "none",
+            "--detector",
+            "none",
         ],
     );
     let e = stderr(&o);
@@ -358,6 +468,9 @@ fn quick_sim2real_on_objects_the_fit_never_saw() {
     // --refine none: the network's centres, no naive_icp row.
     assert_eq!(rows, ["synth_fitted", "naive_centroid"]);
     assert!(r["rows"][0]["before_refine"].is_null());
+    // --detector none: no scores from raw frames, nothing detected.
+    assert!(r["detection"].is_null() && r["no_gt"].is_null(), "{r}");
+    assert!(!out.join("detections.json").exists() && !out.join("detector").exists());
     assert!(
         r["notes"].as_array().unwrap().iter().any(|n| n
             .as_str()
@@ -478,6 +591,48 @@ fn quick_rgb_dense_sim2real_on_real_lmo_photographs() {
         "eval --results {a} vs the report's {b}"
     );
     assert!(out.join("rows/naive_box/results.csv").is_file());
+    // Issue 52: the main row from raw frames, its crops and the refinement's box from the
+    // detector trained on synth_realistic's frames; `eval --results` scores its estimates
+    // the same, and `detector eval` its detections.
+    let det = &r["detection"];
+    assert_eq!(det["n_gt"], 640, "{det}");
+    assert_eq!(det["objects"].as_object().unwrap().len(), 8, "{det}");
+    let no_gt = &r["no_gt_row"];
+    assert_eq!(r["no_gt"]["n"], 627, "{no_gt}");
+    assert!(no_gt["detected"].as_u64().unwrap() <= 627, "{no_gt}");
+    assert!(
+        no_gt["before_refine"]["ar_mspd"].as_f64().is_some(),
+        "{no_gt}"
+    );
+    let o = run(synthgen()
+        .args(["eval", "-q", "--results"])
+        .arg(out.join("rows/synth_realistic/results_no_gt.csv"))
+        .arg("--data")
+        .arg(&lmo)
+        .args(["--bop", "--json"])
+        .arg(&json));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let (a, b) = (
+        e["bop"]["mspd"]["mean_recall"].as_f64().unwrap(),
+        r["no_gt"]["ar_mspd"].as_f64().unwrap(),
+    );
+    assert!((a - b).abs() < 0.005, "eval --results {a} vs no_gt {b}");
+    let scores = dir.path().join("det_scores.json");
+    let o = run(synthgen()
+        .args(["detector", "eval", "-q", "--detections"])
+        .arg(out.join("detections.json"))
+        .arg("--data")
+        .arg(&lmo)
+        .arg("--out")
+        .arg(&scores));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e: Value = serde_json::from_slice(&std::fs::read(&scores).unwrap()).unwrap();
+    assert_eq!(e["segm"]["stats"]["AP"], det["segm_ap"], "{e}");
+    assert!(
+        md.contains("## From raw frames") && md.contains("| detected (no GT) |"),
+        "{md}"
+    );
     let o = go();
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("(0 computed now)"), "{}", stderr(&o));
@@ -591,7 +746,7 @@ fn rgb_sim2real_fits_the_scene_and_takes_replacement_models() {
                 "--visible-box",
                 "detected",
             ],
-            vec!["--visible-box detected", "GT boxes", "--detections"],
+            vec!["--visible-box detected", "GT boxes", "no_gt"],
         ),
     ] {
         let mut args = vec!["--test-scenes", "0"];

@@ -6,6 +6,7 @@
 //! centroid and a model trained on real frames. Every step is kept once done (a marker or
 //! `row.json`, written last), so a re-run with the same options resumes.
 
+mod detect;
 mod report;
 mod rgb;
 mod rows;
@@ -230,7 +231,6 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
     };
     for (set, flag) in [
         (args.scene.is_some(), "--scene"),
-        (args.models.is_some(), "--models"),
         (args.cycles_frames.is_some(), "--cycles-frames"),
         (args.visible_box != VisibleBoxes::None, "--visible-box"),
     ] {
@@ -303,7 +303,12 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
             ));
         }
     }
-    let objects = test_objects(test_src.as_ref(), fit_src.as_ref(), &test_frames)?;
+    detect::check_choice(&args.detector, test_src.as_ref())?;
+    let mut objects = test_objects(test_src.as_ref(), fit_src.as_ref(), &test_frames)?;
+    let mut model_notes = Vec::new();
+    if let Some(dir) = &args.models {
+        rgb::replace_models(test_src.as_ref(), dir, &mut objects, &mut model_notes)?;
+    }
     refuse_shared_frames(
         &test_frames,
         &fit_frames,
@@ -392,7 +397,7 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
         test_src.camera().width,
         test_src.camera().height,
     );
-    let mut notes = Vec::new();
+    let mut notes = model_notes;
     let mut base = base_scene(
         &settings.objects,
         settings.unseen_up,
@@ -460,6 +465,7 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
         }
     };
     let mut synth_steps = None;
+    let mut main_computed = false;
     for (v, dir) in &sets {
         let record = match rows::read_record(&out, v.name) {
             Some(r) => r,
@@ -488,6 +494,7 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
                     "{}: mean centre error {:.2} cm on the real test frames",
                     v.name, r.all.mean_centre_error_cm
                 ));
+                main_computed |= v.name == report::MAIN_ROW;
                 r
             }
         };
@@ -547,6 +554,68 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
         }
     }
 
+    // From raw frames: the main row's points from the detector's masks.
+    let main_set = sets
+        .iter()
+        .find(|(v, _)| v.name == report::MAIN_ROW)
+        .map(|(_, d)| d.clone());
+    let mut detection = None;
+    let mut no_gt = None;
+    match main_set {
+        Some(set) => {
+            let plan = detect::DetectorPlan {
+                choice: &args.detector,
+                train_set: &set,
+                classes: settings.objects.iter().map(|o| o.obj_id).collect(),
+                epochs: args
+                    .detector_epochs
+                    .unwrap_or(if args.quick { 2 } else { 30 }),
+                seed: settings.seed,
+                test: &test_dir,
+                test_scenes: &settings.test_scenes,
+                test_frames: &test_frames,
+                jobs: args.jobs,
+            };
+            if let Some((det, fresh)) = detect::ensure_detections(&out, &plan, printer)? {
+                let path = crate::settings::row_dir(&out, report::MAIN_ROW).join(rows::NO_GT_FILE);
+                let earlier = std::fs::read_to_string(&path)
+                    .ok()
+                    .and_then(|t| serde_json::from_str::<rows::NoGtRecord>(&t).ok())
+                    .filter(|r| !fresh && !main_computed && r.detector == det.key.detector);
+                let row = match earlier {
+                    Some(r) => r,
+                    None => {
+                        computed += 1;
+                        rows::no_gt_row(
+                            &settings,
+                            &out,
+                            report::MAIN_ROW,
+                            test_src.as_ref(),
+                            &test,
+                            &det.key.detector,
+                            printer,
+                        )?
+                    }
+                };
+                printer.info(format!(
+                    "{} from raw frames: mean centre error {:.2} cm on the {} of {} instances detected",
+                    report::MAIN_ROW,
+                    row.all.mean_centre_error_cm,
+                    row.detected,
+                    row.n_gt
+                ));
+                detection = Some(det);
+                no_gt = Some(row);
+            }
+        }
+        None if args.detector != crate::options::DetectorChoice::None => notes.push(format!(
+            "no_gt skipped: the scores from raw frames are {}'s, and this run has no {} row",
+            report::MAIN_ROW,
+            report::MAIN_ROW
+        )),
+        None => {}
+    }
+
     // Rows an earlier run finished stay in the report when this run asks for others.
     for name in &names {
         let ablation_off = ablation_rows.contains(name);
@@ -572,7 +641,8 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
         .iter()
         .map(|(v, dir)| (v.uses_set.unwrap_or(v.name).to_string(), failed_frames(dir)))
         .collect();
-    let rep = report::Report::new(&settings, records, timing, notes, skipped);
+    let mut rep = report::Report::new(&settings, records, timing, notes, skipped);
+    rep.set_no_gt(detection, no_gt);
     rep.write(&out)?;
     let md = rep.markdown();
     printer.info(format!(
@@ -774,7 +844,7 @@ fn check_settings(out: &Path, settings: &Settings, force: bool) -> Result<()> {
         settings,
         &[("--fit", &settings.fit), ("--test", &settings.test)],
         force,
-        &["rows", "sources", "fit", TIMING_FILE],
+        &[&["rows", "sources", "fit", TIMING_FILE], detect::STALE].concat(),
         true,
     )
 }

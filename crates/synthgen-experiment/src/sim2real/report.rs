@@ -9,7 +9,8 @@ use serde::{Deserialize, Serialize};
 use synthgen_formats::draw::Canvas;
 use synthgen_formats::io::atomic_write;
 
-use super::rows::{Metrics, RowRecord, NAIVE, NAIVE_ICP};
+use super::detect::DetectorRecord;
+use super::rows::{Metrics, NoGtRecord, RowRecord, NAIVE, NAIVE_ICP};
 use super::{Settings, REAL_ONLY};
 
 /// The row whose numbers are the result (`all`, `objects`); the others are baselines.
@@ -64,6 +65,15 @@ pub struct Report {
     pub settings: Settings,
     pub timing: Timing,
     pub notes: Vec<String>,
+    /// The detections on the test frames, scored as bop_toolkit scores them (issue 52).
+    pub detection: Option<serde_json::Value>,
+    /// The main row from raw frames: its points from the detections' masks (errors over
+    /// the detected instances; `no_gt_row` says how many of the GT instances those are).
+    pub no_gt: Option<Metrics>,
+    pub no_gt_objects: Option<BTreeMap<String, Metrics>>,
+    pub no_gt_scenes: Option<BTreeMap<String, Metrics>>,
+    pub no_gt_row: Option<NoGtRecord>,
+    pub detector: Option<DetectorRecord>,
 }
 
 impl Report {
@@ -121,7 +131,23 @@ impl Report {
             settings: settings.clone(),
             timing,
             notes,
+            detection: None,
+            no_gt: None,
+            no_gt_objects: None,
+            no_gt_scenes: None,
+            no_gt_row: None,
+            detector: None,
         }
+    }
+
+    /// The detector's record and the main row from its detections.
+    pub fn set_no_gt(&mut self, det: Option<DetectorRecord>, row: Option<NoGtRecord>) {
+        self.detection = det.as_ref().map(|d| d.detection.clone());
+        self.no_gt = row.as_ref().map(|r| r.all.clone());
+        self.no_gt_objects = row.as_ref().map(|r| r.objects.clone());
+        self.no_gt_scenes = row.as_ref().map(|r| r.scenes.clone());
+        self.no_gt_row = row;
+        self.detector = det;
     }
 
     pub fn write(&self, out: &Path) -> Result<()> {
@@ -283,6 +309,42 @@ impl Report {
             join(&t.rows_s),
             t.this_run_s
         );
+        if let (Some(d), Some(r)) = (&self.detector, &self.no_gt_row) {
+            o += &super::detect::markdown(d);
+            let main = self.rows.iter().find(|x| x.name == MAIN_ROW);
+            let _ = write!(
+                o,
+                "\n{MAIN_ROW} from raw frames (no GT mask anywhere: each instance's points from the detector's mask of its object in its image, best first{}; {} of {} GT instances got one, the others are misses):\n\n| masks | n | mean centre error cm | median cm |\n|---|---:|---:|---:|\n| detected (no GT) | {} | {} | {} |\n",
+                if s.refine == crate::options::Refine::Icp { ", then ICP as the row" } else { "" },
+                r.detected,
+                r.n_gt,
+                r.all.n,
+                cm2(r.all.mean_centre_error_cm),
+                cm2(r.all.median_centre_error_cm)
+            );
+            if let Some(m) = main {
+                let _ = writeln!(
+                    o,
+                    "| GT visible masks | {} | {:.2} | {:.2} |",
+                    m.all.n, m.all.mean_centre_error_cm, m.all.median_centre_error_cm
+                );
+            }
+            o += "\nPer object (mean centre error cm):\n\n| object | GT | detected | no GT | GT masks |\n|---|---:|---:|---:|---:|\n";
+            let mut ids: Vec<&String> = r.objects_detected.keys().collect();
+            ids.sort_by_key(|k| (k.parse::<u64>().unwrap_or(u64::MAX), (*k).clone()));
+            for k in ids {
+                let [n, found] = r.objects_detected[k];
+                let cm = |m: Option<&Metrics>| {
+                    m.map_or("–".to_string(), |m| cm2(m.mean_centre_error_cm))
+                };
+                let _ = writeln!(
+                    o,
+                    "| {k} | {n} | {found} | {} | {} |",
+                    cm(r.objects.get(k)),
+                    cm(main.and_then(|m| m.objects.get(k)))
+                );
+            }
+        }
         for n in &self.notes {
             let _ = writeln!(o, "\nNote: {n}");
         }
@@ -379,5 +441,14 @@ fn row_table(
             }
         }
         let _ = writeln!(o);
+    }
+}
+
+/// A centre error in cm with two digits, "–" where there is none (no instance).
+fn cm2(v: f64) -> String {
+    if v.is_finite() {
+        format!("{v:.2}")
+    } else {
+        "–".to_string()
     }
 }

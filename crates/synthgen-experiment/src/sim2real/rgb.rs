@@ -169,6 +169,31 @@ pub struct RgbRow {
     pub refined_in_box: Option<usize>,
 }
 
+/// `rows/<main row>/no_gt.json`: the main row's model from raw frames (issue 52), each
+/// instance's crop from the detector's box of its object in its image (BOP's localization
+/// protocol: the objects and their counts per image are known, not where they are), with the
+/// refinement kept to that box; instances without a detection are misses.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NoGtRow {
+    pub row: String,
+    /// The detector's run folder.
+    pub detector: PathBuf,
+    /// GT instances (visible fraction >= 0.1) given a detection's crop.
+    pub detected: usize,
+    pub all: Scores,
+    pub objects: BTreeMap<String, Scores>,
+    pub scenes: BTreeMap<String, Scores>,
+    /// With `--refine edges|views`: the scores before the refinement.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub before_refine: Option<Scores>,
+    pub seconds: f64,
+}
+
+/// The file of [`NoGtRow`] in the main row's folder.
+pub const NO_GT_FILE: &str = "no_gt.json";
+/// The main row's estimates from raw frames, as a BOP results CSV.
+pub const NO_GT_RESULTS_FILE: &str = "results_no_gt.csv";
+
 /// The real test frames, loaded once: instances with their GT visible boxes, the GT, the
 /// objects' models and the BOP setup (targets in the test scenes).
 struct TestSet {
@@ -261,8 +286,8 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
     }
     if args.visible_box == VisibleBoxes::Detected {
         return Err(user_error(
-            "--visible-box detected: the experiment crops and refines with GT boxes",
-            "use --visible-box gt here; for detections, `synthgen detector run` then `synthgen eval --detections FILE --visible-box detected`",
+            "--visible-box detected: the experiment's rows crop and refine with GT boxes, and its no_gt scores with the detections already",
+            "use --visible-box gt (the rows with GT boxes; the no_gt scores keep to the detections' boxes either way)",
         ));
     }
     if args.visible_box != VisibleBoxes::None
@@ -333,6 +358,7 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
         }
         None => None,
     };
+    super::detect::check_choice(&args.detector, test_src.as_ref())?;
     let fit_ref = fit_src.as_deref().unwrap_or(test_src.as_ref());
     let mut objects = super::test_objects(test_src.as_ref(), fit_ref, &test_frames)?;
     let mut notes = Vec::new();
@@ -384,7 +410,7 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
         &settings,
         &inputs,
         args.force,
-        &["rows", "sources", "fit"],
+        &[&["rows", "sources", "fit"], super::detect::STALE].concat(),
         true,
     )?;
     printer.info(format!(
@@ -516,6 +542,7 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
     ));
     let mut rows: Vec<RgbRow> = Vec::new();
     let mut computed = 0;
+    let mut main_computed = false;
     for (row, n, dir) in &sets {
         if !wanted(row.name) {
             continue;
@@ -539,6 +566,7 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
                     printer,
                 )?;
                 printer.info(format!("{}: {}", row.name, summary(&r.all)));
+                main_computed |= row.name == MAIN_ROW;
                 r
             }
         };
@@ -607,16 +635,76 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
         }
     }
     rows.sort_by_key(|r| names.iter().position(|n| *n == r.name));
+
+    // 4. From raw frames: the detector's boxes instead of the GT boxes.
+    let main_set = sets
+        .iter()
+        .find(|(r, _, _)| r.name == MAIN_ROW)
+        .map(|(_, _, d)| d.clone());
+    let mut detection = None;
+    let mut no_gt = None;
+    match (&main_set, rows.iter().any(|r| r.name == MAIN_ROW)) {
+        (Some(set), true) => {
+            let plan = super::detect::DetectorPlan {
+                choice: &args.detector,
+                train_set: set,
+                classes: settings.objects.iter().map(|o| o.obj_id).collect(),
+                epochs: args
+                    .detector_epochs
+                    .unwrap_or(if args.quick { 2 } else { 30 }),
+                seed: settings.seed,
+                test: &test_dir,
+                test_scenes: &settings.test_scenes,
+                test_frames: &test_frames,
+                jobs: args.jobs,
+            };
+            if let Some((det, fresh)) = super::detect::ensure_detections(&out, &plan, printer)? {
+                let path = row_dir(&out, MAIN_ROW).join(NO_GT_FILE);
+                let earlier = std::fs::read_to_string(&path)
+                    .ok()
+                    .and_then(|t| serde_json::from_str::<NoGtRow>(&t).ok())
+                    .filter(|r| !fresh && !main_computed && r.detector == det.key.detector);
+                let row = match earlier {
+                    Some(r) => r,
+                    None => {
+                        computed += 1;
+                        no_gt_row(
+                            &settings,
+                            &out,
+                            test_src.as_ref(),
+                            &test,
+                            &det.key.detector,
+                            printer,
+                        )?
+                    }
+                };
+                printer.info(format!("{MAIN_ROW} from raw frames: {}", summary(&row.all)));
+                detection = Some(det);
+                no_gt = Some(row);
+            }
+        }
+        _ if args.detector != crate::options::DetectorChoice::None => notes.push(format!(
+            "no_gt skipped: the scores from raw frames are {MAIN_ROW}'s, and this run has no {MAIN_ROW} row"
+        )),
+        _ => {}
+    }
     let skipped: BTreeMap<String, Vec<u64>> = sets
         .iter()
         .map(|(row, _, dir)| (row.name.to_string(), super::failed_frames(dir)))
         .collect();
-    let report = report_json(&settings, &rows, &notes, &skipped);
+    let report = report_json(
+        &settings,
+        &rows,
+        &notes,
+        &skipped,
+        detection.as_ref(),
+        no_gt.as_ref(),
+    );
     atomic_write(
         &out.join("report.json"),
         (serde_json::to_string_pretty(&report)? + "\n").as_bytes(),
     )?;
-    let md = markdown(&settings, &rows, &notes);
+    let md = markdown(&settings, &rows, &notes, detection.as_ref(), no_gt.as_ref());
     atomic_write(&out.join("report.md"), md.as_bytes())?;
     printer.info(format!(
         "{} rows ({computed} computed now) in {:.0} s; wrote report.md and report.json in {}",
@@ -629,7 +717,7 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
 
 /// `--models DIR`: each test object with a folder `DIR/<its name>/` holding one mesh is
 /// rendered from that mesh (units decided per file).
-fn replace_models(
+pub(super) fn replace_models(
     test: &dyn FrameSource,
     dir: &Path,
     objects: &mut [TestObject],
@@ -883,6 +971,97 @@ fn train_row(
     Ok(record)
 }
 
+/// The main row's model on the test frames with no GT box: each GT instance's crop from the
+/// detections of its object in its image (best first), the refinement kept to that box;
+/// writes [`NO_GT_RESULTS_FILE`] and [`NO_GT_FILE`].
+fn no_gt_row(
+    s: &RgbSettings,
+    out: &Path,
+    test_src: &dyn FrameSource,
+    test: &TestSet,
+    detector: &Path,
+    printer: &Log,
+) -> Result<NoGtRow> {
+    let t0 = Instant::now();
+    let dir = row_dir(out, MAIN_ROW);
+    let detections = out.join(super::detect::DETECTIONS_FILE);
+    let list = synthgen_detect::detections::read_detections(&detections)?;
+    let frames = test_src.frames(std::slice::from_ref(&test.split))?;
+    let shown: BTreeMap<(u32, u32), Option<BTreeSet<u32>>> = frames
+        .iter()
+        .map(|f| {
+            (
+                (f.location.scene_id, f.location.im_id),
+                Some(f.object_set().into_iter().collect()),
+            )
+        })
+        .collect();
+    let cam = test_src.camera();
+    let (kept, report) =
+        synthgen_detect::detections::join_detections(&list, &shown, [cam.width, cam.height]);
+    if report.skipped() > 0 {
+        printer.info(format!("{}: {}", detections.display(), report.describe()));
+    }
+    let boxes = std::sync::Arc::new(synthgen_detect::detections::crop_boxes(&kept));
+    let opts = DataOptions {
+        dense_targets: false,
+        split: None,
+        crop_boxes: Some(boxes.clone()),
+        ..train_config(s, test_src.root(), String::new()).data_options()
+    };
+    let keep = |scene: u32| s.test_scenes.is_empty() || s.test_scenes.contains(&scene);
+    let set = load_source_instances(test_src, &opts, &NoProgress).with_context(|| {
+        format!(
+            "cannot load the test frames of {}",
+            test_src.root().display()
+        )
+    })?;
+    let classes: BTreeSet<u32> = s.objects.iter().map(|o| o.obj_id).collect();
+    let tested: Vec<&Instance> = set
+        .instances
+        .iter()
+        .filter(|i| keep(i.scene_id) && classes.contains(&i.obj_id))
+        .collect();
+    let run_dir = dir.join("train");
+    let cfg: TrainConfig =
+        train::read_run_config(&run_dir.join(train::CONFIG_FILE), train::RunKind::Pose)?;
+    let device = train::device(false)?;
+    let net = load_model(&run_dir.join(MODEL_FILE), &cfg, &device)?;
+    let preds = net.predict(&tested, Some(&test.objects), PREDICT_BATCH)?;
+    let mut estimates = prediction_estimates(&preds, tested.iter().copied());
+    let mut before_refine = None;
+    if let Some(ro) = &s.refine_options {
+        before_refine = Some(score(&estimates, test)?.0);
+        let (refined, _) = refine_estimates(
+            test_src,
+            &test.split,
+            &estimates,
+            ro,
+            s.colour_models.as_deref(),
+            BoxSource::Detected(&boxes),
+            &NoProgress,
+        )?;
+        estimates = refined;
+    }
+    write_results_csv(&dir.join(NO_GT_RESULTS_FILE), &estimates)?;
+    let (all, objects, scenes) = score(&estimates, test)?;
+    let record = NoGtRow {
+        row: MAIN_ROW.to_string(),
+        detector: detector.to_path_buf(),
+        detected: tested.len(),
+        all,
+        objects,
+        scenes,
+        before_refine,
+        seconds: t0.elapsed().as_secs_f64(),
+    };
+    atomic_write(
+        &dir.join(NO_GT_FILE),
+        (serde_json::to_string_pretty(&record)? + "\n").as_bytes(),
+    )?;
+    Ok(record)
+}
+
 /// The naive box baseline: per object the mean allocentric rotation and centre + Tz target
 /// of the main row's training instances, read back through each test box.
 fn naive_row(s: &RgbSettings, out: &Path, main_set: &Path, test: &TestSet) -> Result<RgbRow> {
@@ -1017,11 +1196,19 @@ fn report_json(
     rows: &[RgbRow],
     notes: &[String],
     skipped: &BTreeMap<String, Vec<u64>>,
+    detection: Option<&super::detect::DetectorRecord>,
+    no_gt: Option<&NoGtRow>,
 ) -> serde_json::Value {
     let main = rows.iter().find(|r| r.name == MAIN_ROW);
     serde_json::json!({
         "model": s.model,
         "gt_boxes": true,
+        "detection": detection.map(|d| &d.detection),
+        "no_gt": no_gt.map(|r| &r.all),
+        "no_gt_objects": no_gt.map(|r| &r.objects),
+        "no_gt_scenes": no_gt.map(|r| &r.scenes),
+        "no_gt_row": no_gt,
+        "detector": detection,
         "refine": s.refine,
         "main_row": MAIN_ROW,
         "all": main.map(|r| &r.all),
@@ -1034,7 +1221,13 @@ fn report_json(
     })
 }
 
-fn markdown(s: &RgbSettings, rows: &[RgbRow], notes: &[String]) -> String {
+fn markdown(
+    s: &RgbSettings,
+    rows: &[RgbRow],
+    notes: &[String],
+    detection: Option<&super::detect::DetectorRecord>,
+    no_gt: Option<&NoGtRow>,
+) -> String {
     let mut md = format!(
         "# sim2real, {} (trained on synthetic frames only; scored on the real test frames with their GT visible boxes, no detector)\n\n",
         s.model
@@ -1123,6 +1316,42 @@ fn markdown(s: &RgbSettings, rows: &[RgbRow], notes: &[String]) -> String {
                 let _ = write!(md, " {cell} |");
             }
             md += "\n";
+        }
+    }
+    if let (Some(d), Some(r)) = (detection, no_gt) {
+        let main = rows.iter().find(|x| x.name == MAIN_ROW);
+        md += &super::detect::markdown(d);
+        let _ = write!(
+            md,
+            "\n{MAIN_ROW} from raw frames (no GT box anywhere: each instance's crop{} from the detection of its object in its image, best first; {} of {} GT instances got one, the others are misses):\n\n| boxes | AR_MSPD | AR_MSSD | 5cm5° | ADD(-S) | median E_re | median E_te |\n|---|---:|---:|---:|---:|---:|---:|\n",
+            if s.refine_options.is_some() { " and the refinement's box" } else { "" },
+            r.detected,
+            r.all.n
+        );
+        let line = |name: &str, v: &Scores| {
+            format!(
+                "| {name} | {} | {} | {:.1}% | {:.1}% | {} | {} |\n",
+                opt(v.ar_mspd, 3),
+                opt(v.ar_mssd, 3),
+                100.0 * v.acc_5cm5deg,
+                100.0 * v.add_s_acc,
+                v.median_re_deg.map_or("–".into(), |x| format!("{x:.0}°")),
+                v.median_te_cm.map_or("–".into(), |x| format!("{x:.1} cm")),
+            )
+        };
+        md += &line("detected (no GT)", &r.all);
+        if let Some(m) = main {
+            md += &line("GT visible boxes", &m.all);
+        }
+        md += "\nAR_MSPD per object, from raw frames and with GT boxes:\n\n| object | n | no GT | GT boxes |\n|---|---:|---:|---:|\n";
+        let mut ids: Vec<&String> = r.objects.keys().collect();
+        ids.sort_by_key(|k| (k.parse::<u64>().unwrap_or(u64::MAX), (*k).clone()));
+        for k in ids {
+            let v = &r.objects[k];
+            let gt = main
+                .and_then(|m| m.objects.get(k))
+                .map_or("–".into(), |x| opt(x.ar_mspd, 3));
+            let _ = writeln!(md, "| {k} | {} | {} | {gt} |", v.n, opt(v.ar_mspd, 3));
         }
     }
     if !notes.is_empty() {

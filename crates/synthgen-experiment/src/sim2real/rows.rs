@@ -39,7 +39,10 @@ const LOSS_POINTS: usize = 100;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Metrics {
     pub n: usize,
+    /// NaN (JSON null) over no instance.
+    #[serde(deserialize_with = "nan_if_null")]
     pub mean_centre_error_cm: f64,
+    #[serde(deserialize_with = "nan_if_null")]
     pub median_centre_error_cm: f64,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub add_s_acc: Option<f64>,
@@ -49,6 +52,11 @@ pub struct Metrics {
     pub mean_te_cm: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mean_re_deg: Option<f64>,
+}
+
+/// An f64 that JSON wrote as null (serde_json writes NaN so) read back as NaN.
+fn nan_if_null<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
 }
 
 /// `row.json`.
@@ -595,4 +603,159 @@ fn score(
         }
     }
     Ok((all, objects, scenes))
+}
+
+/// `rows/<main row>/no_gt.json`: the main row's model(s) from raw frames (issue 52), each
+/// instance's points from the detector's mask of its object in its image (BOP's localization
+/// protocol: the objects and their counts per image are known, not where they are), refined
+/// as the row is; instances without a detection are misses, counted in `detected`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NoGtRecord {
+    pub row: String,
+    /// The detector's run folder.
+    pub detector: PathBuf,
+    /// The GT test instances the row is scored on with GT masks, and of them those a
+    /// detection's mask gave enough depth readings (the others are misses).
+    pub n_gt: usize,
+    pub detected: usize,
+    /// Errors over the detected instances.
+    pub all: Metrics,
+    pub objects: BTreeMap<String, Metrics>,
+    pub scenes: BTreeMap<String, Metrics>,
+    /// Per object: GT instances and those detected.
+    pub objects_detected: BTreeMap<String, [usize; 2]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub before_refine: Option<Metrics>,
+    pub seconds: f64,
+}
+
+/// The file of [`NoGtRecord`] in the main row's folder.
+pub const NO_GT_FILE: &str = "no_gt.json";
+
+/// The main row's trained model(s) (every ensemble member, their centres averaged) on the
+/// test frames' instances (of the test scenes) with their points from the experiment's
+/// detections (masks and boxes), refined as the row is, scored on the test scenes; written to [`NO_GT_FILE`].
+pub fn no_gt_row(
+    s: &Settings,
+    out: &Path,
+    row: &str,
+    test_src: &dyn FrameSource,
+    test: &TestSet,
+    detector: &Path,
+    printer: &Log,
+) -> Result<NoGtRecord> {
+    let t0 = Instant::now();
+    let scenes = &s.test_scenes;
+    let detections = &out.join(super::detect::DETECTIONS_FILE);
+    let list = synthgen_detect::detections::read_detections(detections)?;
+    let frames = test_src.frames(&[])?;
+    let shown: BTreeMap<(u32, u32), Option<BTreeSet<u32>>> = frames
+        .iter()
+        .map(|f| {
+            (
+                (f.location.scene_id, f.location.im_id),
+                Some(f.object_set().into_iter().collect()),
+            )
+        })
+        .collect();
+    let cam = test_src.camera();
+    let (kept, report) =
+        synthgen_detect::detections::join_detections(&list, &shown, [cam.width, cam.height]);
+    if report.skipped() > 0 {
+        printer.info(format!("{}: {}", detections.display(), report.describe()));
+    }
+    if !kept.iter().any(|d| d.segmentation.is_some()) && !kept.is_empty() {
+        anyhow::bail!(
+            "the detections in {} have no masks: the depth models read each instance's points from its mask (train the detector with masks)",
+            detections.display()
+        );
+    }
+    let opts = DataOptions {
+        crop_boxes: Some(std::sync::Arc::new(
+            synthgen_detect::detections::crop_boxes(&kept),
+        )),
+        crop_masks: Some(std::sync::Arc::new(
+            synthgen_detect::detections::crop_masks(&kept),
+        )),
+        ..data_options(s, s.seed, None)
+    };
+    let set = load_source_instances(test_src, &opts, &NoProgress).with_context(|| {
+        format!(
+            "cannot load the test frames of {}",
+            test_src.root().display()
+        )
+    })?;
+    let keep = |scene: u32| scenes.is_empty() || scenes.contains(&scene);
+    let tested: Vec<&Instance> = set.instances.iter().filter(|i| keep(i.scene_id)).collect();
+    let dir = row_dir(out, row);
+    let device = train::device(false)?;
+    let mut sums: Vec<[f64; 3]> = vec![[0.0; 3]; tested.len()];
+    let mut preds = Vec::new();
+    let mut members = 0usize;
+    for k in 0.. {
+        let run_dir = if k == 0 {
+            dir.join("train")
+        } else {
+            dir.join(format!("train_{k}"))
+        };
+        if !run_dir.join(MODEL_FILE).is_file() {
+            break;
+        }
+        let cfg: TrainConfig =
+            train::read_run_config(&run_dir.join(train::CONFIG_FILE), train::RunKind::Pose)?;
+        let net = load_model(&run_dir.join(MODEL_FILE), &cfg, &device)?;
+        preds = net.predict(&tested, test.objects.as_ref(), 64)?;
+        for (sum, p) in sums.iter_mut().zip(&preds) {
+            if let Some(c) = p.centre_m {
+                for (a, v) in sum.iter_mut().zip(c) {
+                    *a += f64::from(v);
+                }
+            }
+        }
+        members += 1;
+    }
+    if members == 0 {
+        anyhow::bail!("no trained model in {}", dir.display());
+    }
+    if members > 1 {
+        for (p, sum) in preds.iter_mut().zip(&sums) {
+            p.centre_m = Some(sum.map(|v| (v / members as f64) as f32));
+        }
+    }
+    let before_refine = match refine_centres(&tested, &mut preds, test) {
+        Some((before, _)) => {
+            let unrefined: Vec<Prediction> = preds
+                .iter()
+                .zip(before)
+                .map(|(p, c)| Prediction { centre_m: c, ..*p })
+                .collect();
+            Some(score(&tested, &unrefined, test)?.0)
+        }
+        None => None,
+    };
+    let (all, objects, scenes_m) = score(&tested, &preds, test)?;
+    let mut objects_detected: BTreeMap<String, [usize; 2]> = BTreeMap::new();
+    for i in &test.instances {
+        objects_detected.entry(i.obj_id.to_string()).or_default()[0] += 1;
+    }
+    for i in &tested {
+        objects_detected.entry(i.obj_id.to_string()).or_default()[1] += 1;
+    }
+    let record = NoGtRecord {
+        row: row.to_string(),
+        detector: detector.to_path_buf(),
+        n_gt: test.instances.len(),
+        detected: tested.len(),
+        all,
+        objects,
+        scenes: scenes_m,
+        objects_detected,
+        before_refine,
+        seconds: t0.elapsed().as_secs_f64(),
+    };
+    atomic_write(
+        &dir.join(NO_GT_FILE),
+        (serde_json::to_string_pretty(&record)? + "\n").as_bytes(),
+    )?;
+    Ok(record)
 }
