@@ -599,11 +599,17 @@ pub fn instance_mask(
     height: u32,
 ) -> Rle {
     let (w, h) = (width as usize, height as usize);
-    let mut mask = vec![0u8; w * h];
     let x0 = (bbox[0].floor().max(0.0) as usize).min(w);
     let y0 = (bbox[1].floor().max(0.0) as usize).min(h);
-    let x1 = ((bbox[0] + bbox[2]).ceil().max(0.0) as usize).min(w);
-    let y1 = ((bbox[1] + bbox[3]).ceil().max(0.0) as usize).min(h);
+    let x1 = ((bbox[0] + bbox[2]).ceil().max(0.0) as usize)
+        .min(w)
+        .max(x0);
+    let y1 = ((bbox[1] + bbox[3]).ceil().max(0.0) as usize)
+        .min(h)
+        .max(y0);
+    // Only the box's pixels are set: the mask is made (and run-length coded) over it.
+    let bw = x1 - x0;
+    let mut mask = vec![0u8; bw * (y1 - y0)];
     let (kx, ky) = (mw as f64 / w as f64, mh as f64 / h as f64);
     for y in y0..y1 {
         let v = ((y as f64 + 0.5) * ky - 0.5).clamp(0.0, (mh - 1) as f64);
@@ -616,11 +622,16 @@ pub fn instance_mask(
             let top = prob(ui, vi) * (1.0 - ua) + prob(uj, vi) * ua;
             let bot = prob(ui, vj) * (1.0 - ua) + prob(uj, vj) * ua;
             if top * (1.0 - va) + bot * va > 0.5 {
-                mask[y * w + x] = 1;
+                mask[(y - y0) * bw + (x - x0)] = 1;
             }
         }
     }
-    Rle::from_mask(&mask, width, height)
+    Rle::from_window(
+        &mask,
+        [x0, y0, bw, y1 - y0].map(|v| v as u32),
+        width,
+        height,
+    )
 }
 
 /// Per batch item, the peaks of each class's heatmap as (class, score, [x0, y0, x1, y1] in

@@ -157,6 +157,47 @@ impl Rle {
         }
     }
 
+    /// The RLE of a `width × height` mask that is zero outside the window `[x0, x0 + ww) ×
+    /// [y0, y0 + wh)` and `window` (row-major, `ww × wh`, non-zero = set) inside it: the same
+    /// counts as [`Rle::from_mask`] of the whole mask, in time of the window, not the frame.
+    /// The window must lie inside the mask.
+    pub fn from_window(window: &[u8], [x0, y0, ww, wh]: [u32; 4], width: u32, height: u32) -> Rle {
+        debug_assert!(x0 + ww <= width && y0 + wh <= height);
+        debug_assert_eq!(window.len(), (ww * wh) as usize);
+        let h = u64::from(height);
+        let mut counts: Vec<u32> = Vec::new();
+        // The value of the open run, its length, and the column-major index after it.
+        let (mut value, mut run, mut pos) = (0u8, 0u64, 0u64);
+        let mut push = |v: u8, n: u64, value: &mut u8, run: &mut u64| {
+            if n == 0 {
+                return;
+            }
+            if v != *value {
+                counts.push(*run as u32);
+                *value = v;
+                *run = 0;
+            }
+            *run += n;
+        };
+        for x in 0..ww {
+            let col = u64::from(x0 + x) * h;
+            for y in 0..wh {
+                let idx = col + u64::from(y0 + y);
+                push(0, idx - pos, &mut value, &mut run);
+                let v = u8::from(window[(y * ww + x) as usize] != 0);
+                push(v, 1, &mut value, &mut run);
+                pos = idx + 1;
+            }
+        }
+        push(0, h * u64::from(width) - pos, &mut value, &mut run);
+        counts.push(run as u32);
+        Rle {
+            height,
+            width,
+            counts,
+        }
+    }
+
     /// The row-major 0/1 mask.
     pub fn decode(&self) -> Vec<u8> {
         rle_decode(&self.counts, self.width as usize, self.height as usize)
@@ -497,6 +538,43 @@ mod tests {
         assert_eq!(c, vec![0, 2, 2, 1, 1]);
         assert_eq!(rle_decode(&c, 3, 2), vec![1, 0, 1, 1, 0, 0]);
         assert_eq!(rle_counts(&[0; 4], 2, 2), vec![4]);
+    }
+
+    #[test]
+    fn a_window_gives_the_counts_of_the_whole_mask() {
+        // Deterministic pseudo-random windows and contents (an LCG), edges and corners too.
+        let mut state = 12345u64;
+        let mut next = |n: u32| {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((state >> 33) % u64::from(n.max(1))) as u32
+        };
+        for case in 0..300 {
+            let (w, h) = (1 + next(13), 1 + next(11));
+            let (x0, y0) = (next(w), next(h));
+            let (ww, wh) = (next(w - x0 + 1), next(h - y0 + 1));
+            let window: Vec<u8> = (0..ww * wh)
+                .map(|_| {
+                    if case % 7 == 0 {
+                        1
+                    } else {
+                        (next(3) == 0) as u8
+                    }
+                })
+                .collect();
+            let mut full = vec![0u8; (w * h) as usize];
+            for y in 0..wh {
+                for x in 0..ww {
+                    full[((y0 + y) * w + x0 + x) as usize] = window[(y * ww + x) as usize];
+                }
+            }
+            assert_eq!(
+                Rle::from_window(&window, [x0, y0, ww, wh], w, h),
+                Rle::from_mask(&full, w, h),
+                "case {case}: {w}x{h}, window {x0},{y0} {ww}x{wh}"
+            );
+        }
     }
 
     #[test]
