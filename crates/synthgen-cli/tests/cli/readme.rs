@@ -9,8 +9,8 @@
 //!
 //! The rewrite to small sizes, and nothing else:
 //! - `--frames N` renders at most [`FRAMES`] frames;
-//! - `--epochs N` trains 1 epoch, and `train` / `detector train` without `--epochs` get
-//!   `--epochs 1`;
+//! - `--epochs N` and `--detector-epochs N` train 1 epoch, and `train` / `detector train`
+//!   without `--epochs` get `--epochs 1`;
 //! - `../shared/data/lmo` holds the first [`LMO_PHOTOS`] of its 82 photographs (the README's
 //!   `--refine views` takes ~15 minutes on all of them); the rest of `../shared/data` is the
 //!   real one (linked).
@@ -262,7 +262,7 @@ fn shrink(mut args: Vec<String>) -> Vec<String> {
                 let n: u64 = args[i + 1].parse().expect("--frames N");
                 args[i + 1] = n.min(FRAMES).to_string();
             }
-            "--epochs" => args[i + 1] = "1".to_string(),
+            "--epochs" | "--detector-epochs" => args[i + 1] = "1".to_string(),
             _ => {}
         }
         i += 1;
