@@ -196,24 +196,42 @@ fn quick_sim2real_on_real_frames_reports_every_row_and_resumes() {
     // --detector DIR: the detector trained above, not trained again; its detections are
     // the same entries.
     let out2 = dir.path().join("s2r_given");
-    let o = sim2real(
-        &real,
-        &real,
-        &out2,
-        &[
-            "--test-scenes",
-            "2",
-            "--frames",
-            "24",
-            "--unseen-up",
-            "any",
-            "--rows",
-            "synth_fitted",
-            "--detector",
-            out.join("detector").to_str().unwrap(),
-        ],
-    );
+    let given = out.join("detector");
+    let given_args = [
+        "--test-scenes",
+        "2",
+        "--frames",
+        "24",
+        "--unseen-up",
+        "any",
+        "--rows",
+        "synth_fitted",
+        "--detector",
+        given.to_str().unwrap(),
+    ];
+    let o = sim2real(&real, &real, &out2, &given_args);
     assert!(o.status.success(), "{}", stderr(&o));
+    // Again: the detections are reused; with the detector trained again in its folder (a
+    // newer checkpoint), they are made again.
+    let o = sim2real(&real, &real, &out2, &given_args);
+    assert!(
+        stderr(&o).contains("reusing the detections"),
+        "{}",
+        stderr(&o)
+    );
+    std::fs::File::options()
+        .write(true)
+        .open(given.join("model.safetensors"))
+        .unwrap()
+        .set_modified(std::time::SystemTime::now() + std::time::Duration::from_secs(5))
+        .unwrap();
+    let o = sim2real(&real, &real, &out2, &given_args);
+    let e = stderr(&o);
+    assert!(o.status.success(), "{e}");
+    assert!(
+        e.contains("detecting the test objects") && !e.contains("reusing the detections"),
+        "{e}"
+    );
     assert!(!out2.join("detector").exists());
     let read = |p: &Path| -> Value { serde_json::from_slice(&std::fs::read(p).unwrap()).unwrap() };
     // (Each entry's `time` is the frame's wall time: everything else is equal.)

@@ -63,6 +63,10 @@ pub struct DetectorKey {
     pub seed: u64,
     pub test: PathBuf,
     pub test_scenes: Vec<u32>,
+    /// A detector given: its checkpoint's size and modification time (seconds), so that one
+    /// trained again in the same folder is run again.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub checkpoint: Option<[u64; 2]>,
 }
 
 /// `detector.json`: the detector, its detections on the test frames and their scores.
@@ -160,6 +164,9 @@ pub fn ensure_detections(
         seed: plan.seed,
         test: resolve(plan.test),
         test_scenes: plan.test_scenes.to_vec(),
+        checkpoint: (!trained_here)
+            .then(|| stamp(&detector.join(synthgen_train::train::MODEL_FILE)))
+            .flatten(),
     };
     let record_path = out.join(RECORD_FILE);
     if let Some(r) = std::fs::read_to_string(&record_path)
@@ -245,6 +252,17 @@ pub fn ensure_detections(
         (serde_json::to_string_pretty(&record)? + "\n").as_bytes(),
     )?;
     Ok(Some((record, true)))
+}
+
+/// A file's size and modification time (seconds since the epoch), if it reads.
+fn stamp(path: &Path) -> Option<[u64; 2]> {
+    let m = std::fs::metadata(path).ok()?;
+    let t = m
+        .modified()
+        .ok()?
+        .duration_since(std::time::UNIX_EPOCH)
+        .ok()?;
+    Some([m.len(), t.as_secs()])
 }
 
 /// Trains the detector into `dir` on the plan's synthetic set (resuming an unfinished
