@@ -265,6 +265,42 @@ fn stamp(path: &Path) -> Option<[u64; 2]> {
     Some([m.len(), t.as_secs()])
 }
 
+/// The experiment's detections ([`DETECTIONS_FILE`] in `out`) of the test dataset's frames of
+/// `splits` (all when empty), joined to them as `eval --detections` joins a file: entries of
+/// other images, of objects an image has no instance of, or with boxes or masks that do not
+/// fit the image are left out (the count said on `printer`).
+pub fn joined_detections(
+    out: &Path,
+    test: &dyn synthgen_formats::source::FrameSource,
+    splits: &[String],
+    printer: &Log,
+) -> Result<Vec<synthgen_detect::detections::Detection>> {
+    let path = out.join(DETECTIONS_FILE);
+    let list = synthgen_detect::detections::read_detections(&path)?;
+    let shown: BTreeMap<(u32, u32), Option<std::collections::BTreeSet<u32>>> = test
+        .frames(splits)?
+        .iter()
+        .map(|f| {
+            (
+                (f.location.scene_id, f.location.im_id),
+                Some(f.object_set().into_iter().collect()),
+            )
+        })
+        .collect();
+    let cam = test.camera();
+    let (kept, report) =
+        synthgen_detect::detections::join_detections(&list, &shown, [cam.width, cam.height]);
+    if report.skipped() > 0 {
+        printer.info(format!("{}: {}", path.display(), report.describe()));
+    }
+    Ok(kept)
+}
+
+/// Epochs of a detector trained here: `--detector-epochs`, else 30 (2 with `--quick`).
+pub fn epochs(given: Option<usize>, quick: bool) -> usize {
+    given.unwrap_or(if quick { 2 } else { 30 })
+}
+
 /// Trains the detector into `dir` on the plan's synthetic set (resuming an unfinished
 /// training of the same set there).
 fn train_detector(plan: &DetectorPlan, dir: &Path, printer: &Log) -> Result<()> {

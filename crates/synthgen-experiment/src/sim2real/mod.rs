@@ -567,9 +567,7 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
                 choice: &args.detector,
                 train_set: &set,
                 classes: settings.objects.iter().map(|o| o.obj_id).collect(),
-                epochs: args
-                    .detector_epochs
-                    .unwrap_or(if args.quick { 2 } else { 30 }),
+                epochs: detect::epochs(args.detector_epochs, args.quick),
                 seed: settings.seed,
                 test: &test_dir,
                 test_scenes: &settings.test_scenes,

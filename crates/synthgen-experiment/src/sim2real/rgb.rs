@@ -649,9 +649,7 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
                 choice: &args.detector,
                 train_set: set,
                 classes: settings.objects.iter().map(|o| o.obj_id).collect(),
-                epochs: args
-                    .detector_epochs
-                    .unwrap_or(if args.quick { 2 } else { 30 }),
+                epochs: super::detect::epochs(args.detector_epochs, args.quick),
                 seed: settings.seed,
                 test: &test_dir,
                 test_scenes: &settings.test_scenes,
@@ -984,24 +982,12 @@ fn no_gt_row(
 ) -> Result<NoGtRow> {
     let t0 = Instant::now();
     let dir = row_dir(out, MAIN_ROW);
-    let detections = out.join(super::detect::DETECTIONS_FILE);
-    let list = synthgen_detect::detections::read_detections(&detections)?;
-    let frames = test_src.frames(std::slice::from_ref(&test.split))?;
-    let shown: BTreeMap<(u32, u32), Option<BTreeSet<u32>>> = frames
-        .iter()
-        .map(|f| {
-            (
-                (f.location.scene_id, f.location.im_id),
-                Some(f.object_set().into_iter().collect()),
-            )
-        })
-        .collect();
-    let cam = test_src.camera();
-    let (kept, report) =
-        synthgen_detect::detections::join_detections(&list, &shown, [cam.width, cam.height]);
-    if report.skipped() > 0 {
-        printer.info(format!("{}: {}", detections.display(), report.describe()));
-    }
+    let kept = super::detect::joined_detections(
+        out,
+        test_src,
+        std::slice::from_ref(&test.split),
+        printer,
+    )?;
     let boxes = std::sync::Arc::new(synthgen_detect::detections::crop_boxes(&kept));
     let opts = DataOptions {
         dense_targets: false,

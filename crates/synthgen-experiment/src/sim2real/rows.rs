@@ -647,23 +647,7 @@ pub fn no_gt_row(
     let t0 = Instant::now();
     let scenes = &s.test_scenes;
     let detections = &out.join(super::detect::DETECTIONS_FILE);
-    let list = synthgen_detect::detections::read_detections(detections)?;
-    let frames = test_src.frames(&[])?;
-    let shown: BTreeMap<(u32, u32), Option<BTreeSet<u32>>> = frames
-        .iter()
-        .map(|f| {
-            (
-                (f.location.scene_id, f.location.im_id),
-                Some(f.object_set().into_iter().collect()),
-            )
-        })
-        .collect();
-    let cam = test_src.camera();
-    let (kept, report) =
-        synthgen_detect::detections::join_detections(&list, &shown, [cam.width, cam.height]);
-    if report.skipped() > 0 {
-        printer.info(format!("{}: {}", detections.display(), report.describe()));
-    }
+    let kept = super::detect::joined_detections(out, test_src, &[], printer)?;
     if !kept.iter().any(|d| d.segmentation.is_some()) && !kept.is_empty() {
         anyhow::bail!(
             "the detections in {} have no masks: the depth models read each instance's points from its mask (train the detector with masks)",
