@@ -423,6 +423,19 @@ fn sim2real_refuses_what_cannot_be_measured() {
         &o,
         &["--detector", "no detector there", "model.safetensors"],
     );
+    // Nor may the experiment write into the detector it is given.
+    let o = sim2real(
+        &real,
+        &real,
+        &d.join("det").join("s2r"),
+        &[
+            "--test-scenes",
+            "2",
+            "--detector",
+            d.join("det").to_str().unwrap(),
+        ],
+    );
+    refused(&o, &["lies inside", "--detector"]);
     assert!(
         !d.join("g").join("fit").exists(),
         "nothing fitted before the refusal"

@@ -270,10 +270,14 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
     synthgen_jobs::use_threads(args.jobs);
     let fit_dir = existing(&fit_arg, "fit")?;
     let test_dir = existing(&args.test, "test")?;
-    check_apart(
-        &out,
-        &[("--fit dataset", &fit_dir), ("--test dataset", &test_dir)],
-    )?;
+    let mut apart = vec![
+        ("--fit dataset", fit_dir.as_path()),
+        ("--test dataset", &test_dir),
+    ];
+    if let crate::options::DetectorChoice::Run(d) = &args.detector {
+        apart.push(("--detector", d.as_path()));
+    }
+    check_apart(&out, &apart)?;
     let fit_src = open_source(&fit_dir)
         .with_context(|| format!("cannot open the --fit dataset {}", fit_dir.display()))?;
     let test_src = open_source(&test_dir)

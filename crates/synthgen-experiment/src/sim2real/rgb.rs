@@ -327,6 +327,9 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
     if let Some(f) = &fit_dir {
         apart.push(("--fit dataset", f.as_path()));
     }
+    if let crate::options::DetectorChoice::Run(d) = &args.detector {
+        apart.push(("--detector", d.as_path()));
+    }
     check_apart(&out, &apart)?;
     let test_src = open_source(&test_dir)
         .with_context(|| format!("cannot open the --test dataset {}", test_dir.display()))?;
