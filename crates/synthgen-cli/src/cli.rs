@@ -9,6 +9,7 @@ mod budget;
 mod detector;
 mod experiment;
 mod model;
+mod predict;
 mod rgb;
 mod scale;
 mod scene;
@@ -21,6 +22,7 @@ pub use detector::{
 };
 pub use experiment::{ExperimentCommand, ExperimentMixArgs};
 pub use model::{ModelAlignArgs, ModelCommand};
+pub use predict::{PredictArgs, PREDICT_EXAMPLES};
 pub use rgb::ExperimentRgbArgs;
 pub use scale::{MergeArgs, Shard, MERGE_EXAMPLES};
 pub use scene::{SceneCommand, SceneFitArgs};
@@ -113,6 +115,10 @@ pub enum Command {
     /// detector, run it into BOP detections.
     #[command(subcommand)]
     Detector(DetectorCommand),
+    /// Poses from frames with no GT: the detector, then a pose model, on photographs (with
+    /// their camera's intrinsics) or a dataset's frames; BOP results and JSON lines.
+    #[command(after_long_help = PREDICT_EXAMPLES)]
+    Predict(Box<PredictArgs>),
     /// Run an experiment end to end: the mixing table, synthetic to real, the RGB model's table.
     ///
     /// `mix`: the real/synthetic mixing table (mix, train, evaluate per composition).

@@ -171,6 +171,24 @@ pub fn paths(command: &Command) -> CommandPaths {
             p.output_opt("--gt-out", &a.gt_out);
             p.output_opt("--draw", &a.draw);
         }
+        Command::Predict(a) => {
+            if a.model.is_dir() {
+                p.input("--model", &a.model);
+            } else {
+                p.checkpoint(&a.model);
+            }
+            if a.detector.is_dir() {
+                p.input("--detector", &a.detector);
+            } else {
+                p.checkpoint(&a.detector);
+            }
+            p.input_opt("--images", &a.images);
+            p.input_opt("--camera", &a.camera);
+            p.input_opt("--depth", &a.depth);
+            p.input_opt("--data", &a.data);
+            p.output("--out", &a.out);
+            p.output_opt("--draw", &a.draw);
+        }
         Command::Experiment(ExperimentCommand::Mix(a)) => {
             p.input_opt("--real", &a.real);
             p.input_opt("--synth", &a.synth);

@@ -103,6 +103,7 @@ fn dispatch(command: cli::Command, printer: &Printer) -> anyhow::Result<ExitStat
         cli::Command::Detector(cli::DetectorCommand::Eval(args)) => {
             commands::detector::run_eval(args, printer)
         }
+        cli::Command::Predict(args) => commands::predict::run(*args, printer),
         cli::Command::Experiment(cli::ExperimentCommand::Mix(args)) => {
             commands::experiment::run_mix(args, printer)
         }

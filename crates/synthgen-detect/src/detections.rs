@@ -40,11 +40,17 @@ fn unknown_time() -> f64 {
     -1.0
 }
 
+/// A COCO box (`[x, y, width, height]`) as `scene_gt_info`'s `bbox_visib` reads (last pixel
+/// `x + w`): what the pose models' crops are made from.
+pub fn bop_box(bbox: [f64; 4]) -> [f64; 4] {
+    let [x, y, w, h] = bbox;
+    [x, y, (w - 1.0).max(0.0), (h - 1.0).max(0.0)]
+}
+
 impl Detection {
     /// The box as `scene_gt_info`'s `bbox_visib` reads (`[x, y, w, h]`, last pixel `x + w`).
     pub fn bop_box(&self) -> [f64; 4] {
-        let [x, y, w, h] = self.bbox;
-        [x, y, (w - 1.0).max(0.0), (h - 1.0).max(0.0)]
+        bop_box(self.bbox)
     }
 
     /// The detection of a GT box as `scene_gt_info` writes it (score 1).

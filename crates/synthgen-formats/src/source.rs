@@ -164,6 +164,15 @@ pub trait FrameSource: Send + Sync {
     fn annotation_frames(&self, splits: &[String]) -> Result<Vec<SourceFrame>> {
         self.frames(splits)
     }
+
+    /// The frames for readers of the images alone (`synthgen predict`): colour, depth and
+    /// camera, and no GT where the layout keeps it apart (BOP: `scene_gt*.json` are not read,
+    /// so a test split shipped without them, as BOP's challenge test sets are, is read;
+    /// YCB-Video's `-meta.mat` holds the intrinsics with the poses and is read whole, its
+    /// GT then ignored by the caller).
+    fn image_frames(&self, splits: &[String]) -> Result<Vec<SourceFrame>> {
+        self.frames(splits)
+    }
 }
 
 impl FrameSource for BopDataset {
@@ -192,23 +201,32 @@ impl FrameSource for BopDataset {
     }
 
     fn frames(&self, splits: &[String]) -> Result<Vec<SourceFrame>> {
-        self.bop_frames(splits, true)
+        self.bop_frames(splits, true, true)
     }
 
     fn annotation_frames(&self, splits: &[String]) -> Result<Vec<SourceFrame>> {
-        self.bop_frames(splits, false)
+        self.bop_frames(splits, false, true)
+    }
+
+    fn image_frames(&self, splits: &[String]) -> Result<Vec<SourceFrame>> {
+        self.bop_frames(splits, true, false)
     }
 }
 
 impl BopDataset {
-    fn bop_frames(&self, splits: &[String], need_rgb: bool) -> Result<Vec<SourceFrame>> {
+    fn bop_frames(
+        &self,
+        splits: &[String],
+        need_rgb: bool,
+        need_gt: bool,
+    ) -> Result<Vec<SourceFrame>> {
         let mut out = Vec::new();
         for split in &self.splits {
             if !splits.is_empty() && !splits.contains(split) {
                 continue;
             }
             for scene_id in self.scene_ids(split)? {
-                let scene = self.read_scene_with(split, scene_id, need_rgb)?;
+                let scene = self.read_scene_opts(split, scene_id, need_rgb, need_gt)?;
                 for im_id in scene.im_ids() {
                     let Some(camera) = scene.camera.get(&im_id) else {
                         continue;

@@ -17,6 +17,8 @@
 //!   YCB-Video and Linemod sets lack completed from their poses.
 //! - [`train`] — `synthgen train`: a training run in a run folder.
 //! - [`eval`] — `synthgen eval`: a results CSV or a checkpoint scored against a dataset.
+//! - [`predict`] — `synthgen predict`: the detector and a pose model on frames with no GT
+//!   (photographs with their intrinsics, or a dataset) into BOP results and JSON lines.
 //! - [`models`] — a dataset's object models in an `ObjectRenderer`, replacement meshes.
 //!
 //! Messages and progress go to the caller's `synthgen_core::Progress` (through [`Log`]);
@@ -36,6 +38,7 @@ pub mod fit;
 pub mod merge;
 pub mod mix;
 pub mod models;
+pub mod predict;
 pub mod render;
 pub mod replay;
 pub mod rgb_refine;

@@ -13,7 +13,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use synthgen_core::rng::splitmix64;
 use synthgen_core::{GtInfo, Pose, Progress};
-use synthgen_formats::bop::{read_depth_m, read_rgb_sized};
+use synthgen_formats::bop::{read_depth_m, read_rgb_sized, Plane, RgbImage};
 use synthgen_formats::layout::open_source;
 use synthgen_formats::source::{FrameSource, SourceFrame};
 
@@ -236,7 +236,6 @@ fn load_frame(frame: &SourceFrame, size: [u32; 2], opts: &DataOptions) -> Result
     }
     let (scene_id, im_id) = (frame.location.scene_id, frame.location.im_id);
     let cam = &frame.camera;
-    let [fx, _, cx, _, fy, cy, ..] = cam.cam_k;
     let infos: Option<&Vec<GtInfo>> = frame.gt_info.as_ref();
     let wanted: Vec<usize> = (0..gts.len())
         .filter(|&g| {
@@ -266,8 +265,6 @@ fn load_frame(frame: &SourceFrame, size: [u32; 2], opts: &DataOptions) -> Result
     } else {
         None
     };
-    // Without depth_points the depth is read for the dense targets only, never for the pixels.
-    let pixel_depth = depth.as_ref().filter(|_| opts.depth_points);
     let rgb = if opts.crop_size > 0 || opts.rgb_box > 0 {
         Some(read_rgb_sized(&frame.rgb, size)?)
     } else {
@@ -313,14 +310,7 @@ fn load_frame(frame: &SourceFrame, size: [u32; 2], opts: &DataOptions) -> Result
             _ => None,
         };
         let (mask, mask_path) = match (detected_mask, mask_ref, box_only) {
-            (Some(m), _, _) => {
-                let plane = synthgen_formats::bop::Plane {
-                    width: m.width,
-                    height: m.height,
-                    data: m.decode().into_iter().map(|v| v * 255).collect(),
-                };
-                (plane, frame.rgb.clone())
-            }
+            (Some(m), _, _) => (rle_plane(m), frame.rgb.clone()),
             (None, Some(m), _) => (m.read()?, m.path().to_path_buf()),
             (None, None, Some((i, img))) => {
                 if (i.px_count_visib as usize) < opts.min_pixels.max(1) {
@@ -329,18 +319,7 @@ fn load_frame(frame: &SourceFrame, size: [u32; 2], opts: &DataOptions) -> Result
                 }
                 // The box as the mask: only its bounding box is read, and no dense targets
                 // come from it (they need depth, which such a frame lacks).
-                let [x, y, bw, bh] = i.bbox_visib.map(|v| v.max(0) as u32);
-                let mut data = vec![0u8; (img.width * img.height) as usize];
-                for yy in y..(y + bh).min(img.height) {
-                    for xx in x..(x + bw).min(img.width) {
-                        data[(yy * img.width + xx) as usize] = 255;
-                    }
-                }
-                let plane = synthgen_formats::bop::Plane {
-                    width: img.width,
-                    height: img.height,
-                    data,
-                };
+                let plane = box_plane(img.width, img.height, i.bbox_visib.map(f64::from));
                 (plane, frame.rgb.clone())
             }
             (None, None, None) => {
@@ -348,151 +327,267 @@ fn load_frame(frame: &SourceFrame, size: [u32; 2], opts: &DataOptions) -> Result
                 continue;
             }
         };
-        let mask_path = mask_path.as_path();
-        if let Some(depth) = &depth {
-            if mask.width != depth.width || mask.height != depth.height {
-                return Err(Error::Malformed {
-                    what: "mask",
-                    message: format!(
-                        "size {}x{} differs from the depth image's {}x{}",
-                        mask.width, mask.height, depth.width, depth.height
-                    ),
-                    path: mask_path.to_path_buf(),
-                });
-            }
-        }
-        let w = mask.width as usize;
-        let mut in_mask: Vec<bool> = mask.data.iter().map(|&v| v > 0).collect();
-        if !opts.augment.is_none() {
-            let mut rng = instance_rng(opts.seed ^ AUGMENT_STREAM, scene_id, im_id, gt_id);
-            augment_mask(&mut in_mask, w, &opts.augment, &mut rng);
-        }
-        let valid: Vec<usize> = (0..in_mask.len())
-            .filter(|&i| in_mask[i] && pixel_depth.is_none_or(|d| d.data[i] > 0.0))
-            .collect();
-        if valid.len() < opts.min_pixels.max(1) {
-            out.push(Outcome::FewPixels);
-            continue;
-        }
-        // The sampled pixels (u, v, index) and their back-projected points; none without depth.
-        let (uv, points_m): (Vec<Pixel>, Vec<[f32; 3]>) = match pixel_depth {
-            Some(depth) => {
-                let mut rng = instance_rng(opts.seed, scene_id, im_id, gt_id);
-                let uv: Vec<Pixel> = sample_indices(&mut rng, valid.len(), opts.n_points)
-                    .iter()
-                    .map(|&k| {
-                        let i = valid[k];
-                        ((i % w) as f64, (i / w) as f64, i)
-                    })
-                    .collect();
-                let points = uv
-                    .iter()
-                    .map(|&(u, v, i)| {
-                        let z = f64::from(depth.data[i]);
-                        [
-                            ((u - cx) * z / fx) as f32,
-                            ((v - cy) * z / fy) as f32,
-                            z as f32,
-                        ]
-                    })
-                    .collect();
-                (uv, points)
-            }
-            None => (Vec::new(), Vec::new()),
-        };
-        // The detector's box; else bbox_visib when known, else the bounding box of the valid
-        // pixels.
-        let bbox = || {
-            if let Some(b) = detected {
-                return b;
-            }
+        let bbox_hint = detected.or_else(|| {
             infos
                 .and_then(|i| i.get(gt_id))
                 .map(|i| i.bbox_visib)
                 .filter(|b| b[2] > 0 && b[3] > 0)
                 .map(|b| b.map(f64::from))
-                .unwrap_or_else(|| {
-                    let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, 0.0f64, 0.0f64);
-                    for &i in &valid {
-                        let (u, v) = ((i % w) as f64, (i / w) as f64);
-                        (x0, y0, x1, y1) = (x0.min(u), y0.min(v), x1.max(u), y1.max(v));
-                    }
-                    [x0, y0, (x1 - x0).max(1.0), (y1 - y0).max(1.0)]
-                })
-        };
-        let region = match &rgb {
-            Some(img) if opts.rgb_box > 0 => {
-                let mut r = BoxRegion::from_image(
-                    &img.rgb,
-                    img.width,
-                    img.height,
-                    bbox(),
-                    opts.rgb_box,
-                    Pinhole::from_cam_k(&cam.cam_k),
-                );
-                if let (true, Some(d)) = (dense, &depth) {
-                    // The visible (unperturbed) mask's pixels, back-projected and taken to
-                    // the model frame.
-                    let obj_from_cam = gts[gt_id].cam_from_obj().inverse();
-                    let at = |x: usize, y: usize| {
-                        let i = y * w + x;
-                        let z = f64::from(d.data[i]);
-                        if mask.data[i] == 0 || z <= 0.0 || !z.is_finite() {
-                            return [f32::NAN; 3];
-                        }
-                        let c = synthgen_core::glam::DVec3::new(
-                            (x as f64 - cx) * z / fx,
-                            (y as f64 - cy) * z / fy,
-                            z,
-                        );
-                        obj_from_cam.transform_point(c).as_vec3().to_array()
-                    };
-                    let res = dense_target_res(opts.rgb_box);
-                    r.target = Some(CoordRegion::sample(
-                        at,
-                        mask.width,
-                        mask.height,
-                        &r.region,
-                        res,
-                    ));
-                }
-                Some(r)
-            }
-            _ => None,
-        };
-        let (crop_xy, crop_rgb) = match &rgb {
-            Some(img) if opts.crop_size > 0 => {
-                let bbox = bbox();
-                let s = f64::from(opts.crop_size);
-                let xy = uv
-                    .iter()
-                    .map(|&(u, v, _)| {
-                        [
-                            (((u - bbox[0]) / bbox[2]) * s).clamp(0.0, s - 1.0) as f32,
-                            (((v - bbox[1]) / bbox[3]) * s).clamp(0.0, s - 1.0) as f32,
-                        ]
-                    })
-                    .collect();
-                (
-                    xy,
-                    crop_resize(&img.rgb, img.width, img.height, bbox, opts.crop_size),
-                )
-            }
-            _ => (Vec::new(), Vec::new()),
-        };
-        out.push(Outcome::Instance(Box::new(Instance {
+        });
+        let pixels = FramePixels {
             scene_id,
             im_id,
-            gt_id,
-            obj_id: gts[gt_id].obj_id,
-            points_m,
-            crop_xy,
-            crop_rgb,
-            region,
-            pose: gts[gt_id].cam_from_obj(),
-        })));
+            cam_k: &cam.cam_k,
+            rgb: rgb.as_ref(),
+            depth: depth.as_ref(),
+        };
+        out.push(
+            match build_instance(
+                &pixels,
+                InstanceKey {
+                    gt_id,
+                    obj_id: gts[gt_id].obj_id,
+                },
+                &mask,
+                &mask_path,
+                bbox_hint,
+                Some(gts[gt_id].cam_from_obj()),
+                opts,
+            )? {
+                Some(i) => Outcome::Instance(Box::new(i)),
+                None => Outcome::FewPixels,
+            },
+        );
     }
     Ok(out)
+}
+
+/// A COCO RLE mask as a mask image (0 or 255).
+fn rle_plane(m: &synthgen_formats::coco::Rle) -> Plane<u8> {
+    Plane {
+        width: m.width,
+        height: m.height,
+        data: m.decode().into_iter().map(|v| v * 255).collect(),
+    }
+}
+
+/// A `width × height` mask image of the pixels of box `[x, y, w, h]` (whole pixels from
+/// `floor(x)` to `floor(x) + floor(w)`, as `bbox_visib`'s, clipped to the image).
+fn box_plane(width: u32, height: u32, b: [f64; 4]) -> Plane<u8> {
+    let [x, y, bw, bh] = b.map(|v| v.max(0.0) as u32);
+    let mut data = vec![0u8; (width * height) as usize];
+    for yy in y..y.saturating_add(bh).min(height) {
+        for xx in x..x.saturating_add(bw).min(width) {
+            data[(yy * width + xx) as usize] = 255;
+        }
+    }
+    Plane {
+        width,
+        height,
+        data,
+    }
+}
+
+/// The instance a detection gives, in a frame with no GT: its pixels are the detection's mask
+/// where it has one, else its box `[x, y, w, h]` (the RGB models read only the colour around
+/// the box); the RGB models' region and crops come from the box. None when fewer than
+/// `min_pixels` pixels are valid. The instance's pose is the identity (unknown).
+pub fn detection_instance(
+    f: &FramePixels<'_>,
+    key: InstanceKey,
+    bbox: [f64; 4],
+    mask: Option<&synthgen_formats::coco::Rle>,
+    source: &Path,
+    opts: &DataOptions,
+) -> Result<Option<Instance>> {
+    let plane = match mask {
+        Some(m) => rle_plane(m),
+        None => {
+            let (w, h) = f
+                .rgb
+                .map(|i| (i.width, i.height))
+                .or(f.depth.map(|d| (d.width, d.height)))
+                .ok_or_else(|| Error::InvalidOption("a frame needs its colour or depth".into()))?;
+            box_plane(w, h, bbox)
+        }
+    };
+    build_instance(f, key, &plane, source, Some(bbox), None, opts)
+}
+
+/// A frame's images and camera, as the instances of it are made from them.
+pub struct FramePixels<'a> {
+    pub scene_id: u32,
+    pub im_id: u32,
+    /// The camera matrix, row-major (BOP's `cam_K`).
+    pub cam_k: &'a [f64; 9],
+    /// The colour, when the model reads it (crops, regions).
+    pub rgb: Option<&'a RgbImage>,
+    /// The depth in metres, when the model reads it (points; the dense targets).
+    pub depth: Option<&'a Plane<f32>>,
+}
+
+/// Which instance of a frame: its index (the GT id, or the detection's rank among the
+/// frame's) and its object.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct InstanceKey {
+    pub gt_id: usize,
+    pub obj_id: u32,
+}
+
+/// One instance from its visible pixels (`mask`, the frame's size; `mask_path` names it in
+/// errors): points from the mask's valid depth, the RGB crop and the RGB model's region around
+/// `bbox_hint` (`[x, y, w, h]`; the valid pixels' bounding box when None), the dense targets
+/// when `gt_pose` is known. None when fewer than `min_pixels` pixels are valid. The instance's
+/// pose is `gt_pose`, the identity when unknown (frames with no GT: `synthgen predict`).
+pub fn build_instance(
+    f: &FramePixels<'_>,
+    key: InstanceKey,
+    mask: &Plane<u8>,
+    mask_path: &Path,
+    bbox_hint: Option<[f64; 4]>,
+    gt_pose: Option<Pose>,
+    opts: &DataOptions,
+) -> Result<Option<Instance>> {
+    let (scene_id, im_id, gt_id) = (f.scene_id, f.im_id, key.gt_id);
+    let [fx, _, cx, _, fy, cy, ..] = *f.cam_k;
+    let dense = opts.dense_targets && opts.rgb_box > 0;
+    let depth = f.depth;
+    // Without depth_points the depth serves the dense targets only, never the pixels.
+    let pixel_depth = depth.filter(|_| opts.depth_points);
+    let rgb = f.rgb;
+    if let Some(depth) = depth {
+        if mask.width != depth.width || mask.height != depth.height {
+            return Err(Error::Malformed {
+                what: "mask",
+                message: format!(
+                    "size {}x{} differs from the depth image's {}x{}",
+                    mask.width, mask.height, depth.width, depth.height
+                ),
+                path: mask_path.to_path_buf(),
+            });
+        }
+    }
+    let w = mask.width as usize;
+    let mut in_mask: Vec<bool> = mask.data.iter().map(|&v| v > 0).collect();
+    if !opts.augment.is_none() {
+        let mut rng = instance_rng(opts.seed ^ AUGMENT_STREAM, scene_id, im_id, gt_id);
+        augment_mask(&mut in_mask, w, &opts.augment, &mut rng);
+    }
+    let valid: Vec<usize> = (0..in_mask.len())
+        .filter(|&i| in_mask[i] && pixel_depth.is_none_or(|d| d.data[i] > 0.0))
+        .collect();
+    if valid.len() < opts.min_pixels.max(1) {
+        return Ok(None);
+    }
+    // The sampled pixels (u, v, index) and their back-projected points; none without depth.
+    let (uv, points_m): (Vec<Pixel>, Vec<[f32; 3]>) = match pixel_depth {
+        Some(depth) => {
+            let mut rng = instance_rng(opts.seed, scene_id, im_id, gt_id);
+            let uv: Vec<Pixel> = sample_indices(&mut rng, valid.len(), opts.n_points)
+                .iter()
+                .map(|&k| {
+                    let i = valid[k];
+                    ((i % w) as f64, (i / w) as f64, i)
+                })
+                .collect();
+            let points = uv
+                .iter()
+                .map(|&(u, v, i)| {
+                    let z = f64::from(depth.data[i]);
+                    [
+                        ((u - cx) * z / fx) as f32,
+                        ((v - cy) * z / fy) as f32,
+                        z as f32,
+                    ]
+                })
+                .collect();
+            (uv, points)
+        }
+        None => (Vec::new(), Vec::new()),
+    };
+    // The detector's box; else bbox_visib when known, else the bounding box of the valid
+    // pixels.
+    let bbox = || {
+        bbox_hint.unwrap_or_else(|| {
+            let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, 0.0f64, 0.0f64);
+            for &i in &valid {
+                let (u, v) = ((i % w) as f64, (i / w) as f64);
+                (x0, y0, x1, y1) = (x0.min(u), y0.min(v), x1.max(u), y1.max(v));
+            }
+            [x0, y0, (x1 - x0).max(1.0), (y1 - y0).max(1.0)]
+        })
+    };
+    let region = match rgb {
+        Some(img) if opts.rgb_box > 0 => {
+            let mut r = BoxRegion::from_image(
+                &img.rgb,
+                img.width,
+                img.height,
+                bbox(),
+                opts.rgb_box,
+                Pinhole::from_cam_k(f.cam_k),
+            );
+            if let (true, Some(d), Some(pose)) = (dense, depth, gt_pose) {
+                // The visible (unperturbed) mask's pixels, back-projected and taken to
+                // the model frame.
+                let obj_from_cam = pose.inverse();
+                let at = |x: usize, y: usize| {
+                    let i = y * w + x;
+                    let z = f64::from(d.data[i]);
+                    if mask.data[i] == 0 || z <= 0.0 || !z.is_finite() {
+                        return [f32::NAN; 3];
+                    }
+                    let c = synthgen_core::glam::DVec3::new(
+                        (x as f64 - cx) * z / fx,
+                        (y as f64 - cy) * z / fy,
+                        z,
+                    );
+                    obj_from_cam.transform_point(c).as_vec3().to_array()
+                };
+                let res = dense_target_res(opts.rgb_box);
+                r.target = Some(CoordRegion::sample(
+                    at,
+                    mask.width,
+                    mask.height,
+                    &r.region,
+                    res,
+                ));
+            }
+            Some(r)
+        }
+        _ => None,
+    };
+    let (crop_xy, crop_rgb) = match rgb {
+        Some(img) if opts.crop_size > 0 => {
+            let bbox = bbox();
+            let s = f64::from(opts.crop_size);
+            let xy = uv
+                .iter()
+                .map(|&(u, v, _)| {
+                    [
+                        (((u - bbox[0]) / bbox[2]) * s).clamp(0.0, s - 1.0) as f32,
+                        (((v - bbox[1]) / bbox[3]) * s).clamp(0.0, s - 1.0) as f32,
+                    ]
+                })
+                .collect();
+            (
+                xy,
+                crop_resize(&img.rgb, img.width, img.height, bbox, opts.crop_size),
+            )
+        }
+        _ => (Vec::new(), Vec::new()),
+    };
+    Ok(Some(Instance {
+        scene_id,
+        im_id,
+        gt_id,
+        obj_id: key.obj_id,
+        points_m,
+        crop_xy,
+        crop_rgb,
+        region,
+        pose: gt_pose.unwrap_or(Pose::IDENTITY),
+    }))
 }
 
 /// Seeds the augmentation's per-instance streams apart from the point sampling's.
@@ -622,6 +717,108 @@ pub fn load_source_instances(
 #[allow(clippy::unwrap_used, clippy::expect_used)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_detection_gives_its_masks_points_or_its_boxs_colour() {
+        use synthgen_formats::coco::Rle;
+        // A 40 × 30 frame 2 m away everywhere, but a hole in the depth at (5, 5).
+        let (w, h) = (40u32, 30u32);
+        let mut depth = Plane {
+            width: w,
+            height: h,
+            data: vec![2.0f32; (w * h) as usize],
+        };
+        depth.data[(5 * w + 5) as usize] = 0.0;
+        let rgb = RgbImage {
+            width: w,
+            height: h,
+            rgb: vec![90; (w * h * 3) as usize],
+        };
+        let k = [100.0, 0.0, 20.0, 0.0, 100.0, 15.0, 0.0, 0.0, 1.0];
+        let frame = FramePixels {
+            scene_id: 0,
+            im_id: 3,
+            cam_k: &k,
+            rgb: Some(&rgb),
+            depth: Some(&depth),
+        };
+        let rect = |x0: u32, y0: u32, x1: u32, y1: u32| {
+            let mut m = vec![0u8; (w * h) as usize];
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    m[(y * w + x) as usize] = 1;
+                }
+            }
+            Rle::from_mask(&m, w, h)
+        };
+        let key = InstanceKey {
+            gt_id: 0,
+            obj_id: 7,
+        };
+        let opts = DataOptions {
+            n_points: 64,
+            min_pixels: 20,
+            ..DataOptions::default()
+        };
+        let src = Path::new("frame.png");
+        // Points from the mask's pixels with depth: x in 0..10, y in 0..10, hole left out.
+        let m = rect(0, 0, 10, 10);
+        let i = detection_instance(&frame, key, [0.0, 0.0, 9.0, 9.0], Some(&m), src, &opts)
+            .unwrap()
+            .unwrap();
+        assert_eq!((i.obj_id, i.im_id, i.points_m.len()), (7, 3, 64));
+        assert_eq!(i.pose, Pose::IDENTITY);
+        for p in &i.points_m {
+            assert!((p[2] - 2.0).abs() < 1e-6);
+            let (u, v) = (p[0] * 100.0 / 2.0 + 20.0, p[1] * 100.0 / 2.0 + 15.0);
+            assert!(
+                (-0.01..9.01).contains(&u) && (-0.01..9.01).contains(&v),
+                "{p:?}"
+            );
+            assert!(
+                (u - 5.0).abs() > 1e-3 || (v - 5.0).abs() > 1e-3,
+                "the hole: {p:?}"
+            );
+        }
+        // Too few valid pixels: no instance.
+        let small = rect(0, 0, 4, 4);
+        assert!(
+            detection_instance(&frame, key, [0.0, 0.0, 3.0, 3.0], Some(&small), src, &opts)
+                .unwrap()
+                .is_none()
+        );
+        // The RGB models: no mask, the region around the box.
+        let rgb_opts = DataOptions {
+            rgb_box: 16,
+            depth_points: false,
+            min_pixels: 1,
+            ..DataOptions::default()
+        };
+        let i = detection_instance(&frame, key, [10.0, 8.0, 12.0, 10.0], None, src, &rgb_opts)
+            .unwrap()
+            .unwrap();
+        assert!(i.points_m.is_empty());
+        let r = i.region.expect("a region around the box");
+        assert_eq!(r, {
+            let pixels = FramePixels {
+                depth: None,
+                ..frame
+            };
+            build_instance(
+                &pixels,
+                key,
+                &box_plane(w, h, [10.0, 8.0, 12.0, 10.0]),
+                src,
+                Some([10.0, 8.0, 12.0, 10.0]),
+                None,
+                &rgb_opts,
+            )
+            .unwrap()
+            .unwrap()
+            .region
+            .unwrap()
+        });
+    }
 
     #[test]
     fn sampling_is_deterministic_and_fills_up() {

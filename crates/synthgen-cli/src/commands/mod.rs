@@ -9,6 +9,7 @@ pub mod export;
 pub mod merge;
 pub mod mix;
 pub mod model;
+pub mod predict;
 pub mod preview;
 pub mod render;
 mod render_flags;

@@ -79,6 +79,11 @@ fn train_help() {
 }
 
 #[test]
+fn predict_help() {
+    check_snapshot("predict_help.txt", &["predict", "--help"]);
+}
+
+#[test]
 fn eval_help() {
     check_snapshot("eval_help.txt", &["eval", "--help"]);
 }

@@ -24,6 +24,7 @@ mod linemod;
 mod mix;
 mod model_align;
 mod outputs_apart;
+mod predict;
 // The README's commands run in a temporary clone whose ../shared/data links the real one.
 #[cfg(unix)]
 mod readme;

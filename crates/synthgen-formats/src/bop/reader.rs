@@ -260,14 +260,31 @@ impl BopDataset {
     /// [`read_scene`](Self::read_scene); with `need_rgb` false an image without its colour
     /// file is no error (readers of the annotations alone: the metrics read no colour).
     pub fn read_scene_with(&self, split: &str, scene_id: u32, need_rgb: bool) -> Result<BopScene> {
+        self.read_scene_opts(split, scene_id, need_rgb, true)
+    }
+
+    /// [`read_scene_with`](Self::read_scene_with); with `need_gt` false the GT files
+    /// (`scene_gt.json`, `scene_gt_info.json`) are not read at all, present or not: the scene
+    /// has no GT instances (readers of the images alone, as `synthgen predict`).
+    pub fn read_scene_opts(
+        &self,
+        split: &str,
+        scene_id: u32,
+        need_rgb: bool,
+        need_gt: bool,
+    ) -> Result<BopScene> {
         crate::io::check_plain_name(split, "split", &self.root)?;
         let dir = self.root.join(split).join(format!("{scene_id:06}"));
         let camera_path = dir.join("scene_camera.json");
         let gt_path = dir.join("scene_gt.json");
         let camera = read_scene_camera(&camera_path)?;
-        let gt = read_scene_gt(&gt_path)?;
+        let gt = if need_gt {
+            read_scene_gt(&gt_path)?
+        } else {
+            BTreeMap::new()
+        };
         let info_path = dir.join("scene_gt_info.json");
-        let gt_info = if info_path.exists() {
+        let gt_info = if need_gt && info_path.exists() {
             Some(read_scene_gt_info(&info_path)?)
         } else {
             None

@@ -1,0 +1,98 @@
+//! `synthgen predict`'s arguments.
+
+use std::path::PathBuf;
+
+use clap::Args;
+
+use crate::cli::DeviceArg;
+
+pub const PREDICT_EXAMPLES: &str = "Examples:
+  # Photographs and the camera's intrinsics (BOP's camera.json, or {\"K\": [fx,0,cx,0,fy,cy,0,0,1]}):
+  synthgen predict --model runs/dense --detector runs/det --images photos/ \\
+      --camera camera.json --out poses/
+
+  # RGB-D (tnet, rnet, full): depth PNGs of the same names; camera.json's depth_scale
+  # (value x depth_scale = mm):
+  synthgen predict --model runs/full --detector runs/det --images rgb/ --depth depth/ \\
+      --camera camera.json --out poses/
+
+  # A dataset's frames (BOP, Linemod, YCB-Video; its GT is not read), scored afterwards:
+  synthgen predict --model runs/dense --detector runs/det --data ../shared/data/lmo --out poses/
+  synthgen eval --results poses/results.csv --data ../shared/data/lmo --bop
+
+  # Pictures of what was found (boxes, masks, each pose's axes: x red, y green, z blue):
+  synthgen predict --model runs/dense --detector runs/det --images photos/ \\
+      --camera camera.json --out poses/ --draw poses/pictures
+
+Per frame: the detector's boxes and masks (each object's best --per-object detections scoring
+at least --min-score), then per detection the pose model: the RGB models read the colour
+around the box, the depth models the points of the detection's mask. Writes OUT/results.csv
+(BOP's results format: scene_id,im_id,obj_id,score,R,t,time; whole poses, mm) and
+OUT/predictions.jsonl, one line per frame even when nothing was found:
+{\"frame\", \"scene_id\", \"image_id\", \"stamp\", \"objects\": [{\"obj_id\", \"score\",
+\"pose_score\", \"bbox\", \"R\" (row-major), \"t\" (metres), \"segmentation\" (COCO RLE)}],
+\"time\": {\"read\", \"detect\", \"instances\", \"pose\", \"total\"} (seconds)}. A TNet gives t
+and no R, an RNet R and no t: they are in predictions.jsonl only. Prints the objects found
+and the time per stage (median and 95th percentile per frame).";
+
+#[derive(Debug, Args)]
+#[command(group(clap::ArgGroup::new("frames").required(true).args(["images", "data"])))]
+pub struct PredictArgs {
+    /// The pose model: a `synthgen train` run folder (or its model.safetensors).
+    #[arg(long, value_name = "DIR")]
+    pub model: PathBuf,
+
+    /// The detector: a `synthgen detector train` run folder (or its model.safetensors).
+    #[arg(long, value_name = "DIR")]
+    pub detector: PathBuf,
+
+    /// A folder of photographs (PNG or JPEG), taken in name order; needs --camera.
+    #[arg(long, value_name = "DIR", requires = "camera")]
+    pub images: Option<PathBuf>,
+
+    /// The intrinsics of --images: BOP's camera.json (fx, fy, cx, cy, width, height,
+    /// depth_scale) or a JSON with "K" (nine numbers, row-major).
+    #[arg(long, value_name = "FILE")]
+    pub camera: Option<PathBuf>,
+
+    /// With --images and an RGB-D model: a folder of 16-bit depth PNGs with the photographs'
+    /// file stems (value × the camera's depth_scale = millimetres).
+    #[arg(long, value_name = "DIR", requires = "images")]
+    pub depth: Option<PathBuf>,
+
+    /// A dataset's frames instead of --images (BOP, Linemod or YCB-Video); its GT is not used.
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["images", "camera"])]
+    pub data: Option<PathBuf>,
+
+    /// With --data: the split (default: test, else the only split).
+    #[arg(long, requires = "data")]
+    pub split: Option<String>,
+
+    /// The output folder: results.csv and predictions.jsonl.
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+
+    /// Detections scoring less are left out (0.05 keeps what `detector run` keeps; a robot
+    /// that must not act on false finds wants more, e.g. 0.3).
+    #[arg(long, default_value_t = 0.05)]
+    pub min_score: f64,
+
+    /// At most this many of each object per frame, best first (1 to 100).
+    #[arg(long, default_value_t = 1, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=100))]
+    pub per_object: usize,
+
+    /// Draw every frame's detections and poses into this folder (PNG per frame).
+    #[arg(long, value_name = "DIR")]
+    pub draw: Option<PathBuf>,
+
+    /// Replace the predictions of an earlier run in --out.
+    #[arg(long)]
+    pub force: bool,
+
+    /// Worker threads (default: all cores).
+    #[arg(long, short = 'j', value_parser = crate::cli::threads())]
+    pub jobs: Option<usize>,
+
+    #[arg(long, value_enum, default_value = "cpu")]
+    pub device: DeviceArg,
+}

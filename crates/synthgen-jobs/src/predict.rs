@@ -1,0 +1,830 @@
+//! `synthgen predict`: poses from frames with no GT at all. Per frame: the colour (and the
+//! depth where the pose model reads it) → the detector's boxes and masks → per detection an
+//! instance (the RGB models' region around the box, the depth models' points from the mask)
+//! → the pose model → the estimates, written as BOP results (`results.csv`, what
+//! `synthgen eval --results` and bop_toolkit score) and as one JSON line per frame
+//! (`predictions.jsonl`, a line even when nothing was found), with the time of each stage.
+//!
+//! The frames come from a folder of photographs with the camera's intrinsics (`camera.json`,
+//! BOP's or a plain `K`), with depth images of the same names where the model needs depth, or
+//! from a dataset (BOP, Linemod, YCB-Video) whose GT is not used (a BOP split is read without
+//! its `scene_gt*.json`).
+
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use serde::Serialize;
+use synthgen_core::glam::DVec3;
+use synthgen_core::{Pose, Progress};
+use synthgen_detect::detections::bop_box;
+use synthgen_detect::detector::{Detector, Found};
+use synthgen_formats::bop::{read_depth_m, read_rgb, Plane, RgbImage};
+use synthgen_formats::coco::Rle;
+use synthgen_formats::identity::ObjectIdentity;
+use synthgen_formats::layout::open_source;
+use synthgen_formats::output::{check_apart, OutputLock};
+use synthgen_train::data::{detection_instance, DataOptions, FramePixels, InstanceKey};
+use synthgen_train::eval::pick_split;
+use synthgen_train::models::ModelKind;
+use synthgen_train::pose_model::{load_dataset_objects, Objects, PoseModel, Prediction};
+use synthgen_train::results::{write_results_csv, Estimate};
+use synthgen_train::train::{self, load_model, read_config, TrainConfig, CONFIG_FILE, MODEL_FILE};
+
+use crate::{user_error, Log};
+
+/// The results file `predict` writes into its `--out` folder (BOP's results format).
+pub const RESULTS_FILE: &str = "results.csv";
+/// The per-frame JSON lines `predict` writes into its `--out` folder.
+pub const PREDICTIONS_FILE: &str = "predictions.jsonl";
+
+/// Where the frames come from.
+#[derive(Debug, Clone)]
+pub enum PredictInput {
+    /// A folder of photographs (PNG or JPEG, sorted by name), the camera's intrinsics, and
+    /// where the model reads depth a folder of depth PNGs with the photographs' stems.
+    Images {
+        dir: PathBuf,
+        camera: PathBuf,
+        depth: Option<PathBuf>,
+    },
+    /// A dataset (BOP, Linemod or YCB-Video); its GT is not used.
+    Data { dir: PathBuf, split: Option<String> },
+}
+
+/// `synthgen predict`'s arguments as data.
+#[derive(Debug, Clone)]
+pub struct PredictRequest {
+    /// The pose model: a `synthgen train` run folder, or its `model.safetensors`.
+    pub model: PathBuf,
+    /// The detector: a `synthgen detector train` run folder, or its checkpoint.
+    pub detector: PathBuf,
+    pub input: PredictInput,
+    /// The output folder (`results.csv`, `predictions.jsonl`).
+    pub out: PathBuf,
+    /// Detections scoring less are left out.
+    pub min_score: f64,
+    /// At most this many detections (and so estimates) per object and frame, best first.
+    pub per_object: usize,
+    /// Draw each frame's detections and poses into this folder.
+    pub draw: Option<PathBuf>,
+    pub jobs: Option<usize>,
+    pub cuda: bool,
+    /// Replace the files of an earlier run in `out`.
+    pub force: bool,
+}
+
+/// One frame to predict on.
+struct FrameJob {
+    /// The frame's name in `predictions.jsonl`: the photograph's file name, or the dataset's
+    /// `SCENE/IMAGE`.
+    name: String,
+    scene_id: u32,
+    im_id: u32,
+    rgb: PathBuf,
+    depth: Option<PathBuf>,
+    cam_k: [f64; 9],
+    /// Depth PNG value × `depth_scale` = millimetres.
+    depth_scale: f64,
+    size: [u32; 2],
+}
+
+/// One object found in a frame, as `predictions.jsonl` gives it.
+#[derive(Debug, Clone, Serialize)]
+pub struct FoundObject {
+    pub obj_id: u32,
+    /// The detection's score.
+    pub score: f64,
+    /// The pose model's confidence (1 where it gives none).
+    pub pose_score: f64,
+    /// `[x, y, width, height]`, pixels.
+    pub bbox: [f64; 4],
+    /// The rotation, row-major (camera from object); null when the model predicts none (TNet).
+    #[serde(rename = "R")]
+    pub r: Option<[f64; 9]>,
+    /// The translation in metres (the object's origin in the camera frame); null when the
+    /// model predicts none (RNet) or the detection gave no usable pixels.
+    pub t: Option<[f64; 3]>,
+    /// The visible mask as COCO RLE, when the detector gives masks.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub segmentation: Option<Rle>,
+}
+
+/// One line of `predictions.jsonl`.
+#[derive(Debug, Clone, Serialize)]
+pub struct FramePrediction {
+    pub frame: String,
+    pub scene_id: u32,
+    pub image_id: u32,
+    /// Seconds since the Unix epoch when the frame was done (photographs carry no stamp).
+    pub stamp: f64,
+    pub objects: Vec<FoundObject>,
+    /// Seconds per stage: reading, detection, instances, pose model, total.
+    pub time: StageTimes,
+}
+
+/// Seconds spent per stage.
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct StageTimes {
+    pub read: f64,
+    pub detect: f64,
+    pub instances: f64,
+    pub pose: f64,
+    pub total: f64,
+}
+
+impl StageTimes {
+    fn add(&mut self, o: &StageTimes) {
+        self.read += o.read;
+        self.detect += o.detect;
+        self.instances += o.instances;
+        self.pose += o.pose;
+        self.total += o.total;
+    }
+}
+
+/// What a prediction run did.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct PredictSummary {
+    pub frames: usize,
+    /// Frames where at least one object was found.
+    pub frames_with_objects: usize,
+    /// Objects found, per object id.
+    pub found: BTreeMap<u32, usize>,
+    /// Rows of `results.csv` (whole poses).
+    pub results: usize,
+    /// Detections whose instance had too few valid pixels (no pose).
+    pub without_pose: usize,
+    /// Summed seconds per stage.
+    pub time: StageTimes,
+    /// The frames' total time per frame, median and 95th percentile, seconds.
+    pub median_frame_s: f64,
+    pub p95_frame_s: f64,
+}
+
+/// The checkpoint of a run folder or the file given, with its `config.json` beside it.
+fn checkpoint_of(path: &Path) -> PathBuf {
+    if path.is_dir() {
+        path.join(MODEL_FILE)
+    } else {
+        path.to_path_buf()
+    }
+}
+
+/// The camera of `--camera`: BOP's `camera.json` (`fx, fy, cx, cy, width, height`,
+/// `depth_scale`) or a plain intrinsics file (`K` or `cam_K`: nine numbers, row-major;
+/// optional `width`, `height`, `depth_scale`). Returns K, the depth scale and the image size
+/// when the file states it.
+pub fn read_camera_file(path: &Path) -> Result<([f64; 9], f64, Option<[u32; 2]>)> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read the camera file {}", path.display()))?;
+    let bad = |m: String| {
+        user_error(
+            format!("the camera file {} {m}", path.display()),
+            "give BOP's camera.json ({\"fx\", \"fy\", \"cx\", \"cy\", \"width\", \"height\"}) or {\"K\": [fx, 0, cx, 0, fy, cy, 0, 0, 1]}",
+        )
+    };
+    let v: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| bad(format!("is not JSON: {e}")))?;
+    let num = |key: &str| -> Result<Option<f64>> {
+        match v.get(key) {
+            None | Some(serde_json::Value::Null) => Ok(None),
+            Some(x) => x
+                .as_f64()
+                .filter(|f| f.is_finite())
+                .map(Some)
+                .ok_or_else(|| bad(format!("has a \"{key}\" that is not a finite number"))),
+        }
+    };
+    let k = if let Some(list) = v.get("K").or_else(|| v.get("cam_K")) {
+        let nums: Vec<f64> = list
+            .as_array()
+            .map(|a| a.iter().filter_map(serde_json::Value::as_f64).collect())
+            .unwrap_or_default();
+        let flat: Vec<f64> = if nums.len() == 9 {
+            nums
+        } else {
+            // [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]
+            list.as_array()
+                .map(|rows| {
+                    rows.iter()
+                        .filter_map(serde_json::Value::as_array)
+                        .flatten()
+                        .filter_map(serde_json::Value::as_f64)
+                        .collect()
+                })
+                .unwrap_or_default()
+        };
+        if flat.len() != 9 || flat.iter().any(|f| !f.is_finite()) {
+            return Err(bad("has a \"K\" that is not nine finite numbers".into()));
+        }
+        std::array::from_fn(|i| flat[i])
+    } else {
+        match (num("fx")?, num("fy")?, num("cx")?, num("cy")?) {
+            (Some(fx), Some(fy), Some(cx), Some(cy)) => [fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0],
+            _ => {
+                return Err(bad(
+                    "has neither \"K\" nor \"fx\", \"fy\", \"cx\", \"cy\"".into()
+                ))
+            }
+        }
+    };
+    if k[0] <= 0.0 || k[4] <= 0.0 {
+        return Err(bad("has a focal length that is not positive".into()));
+    }
+    let depth_scale = num("depth_scale")?.unwrap_or(1.0);
+    if depth_scale <= 0.0 {
+        return Err(bad("has a depth_scale that is not positive".into()));
+    }
+    let size = match (num("width")?, num("height")?) {
+        (Some(w), Some(h)) if w >= 1.0 && h >= 1.0 => Some([w as u32, h as u32]),
+        (None, None) => None,
+        _ => {
+            return Err(bad(
+                "has a width or height that is not a positive number".into()
+            ))
+        }
+    };
+    Ok((k, depth_scale, size))
+}
+
+/// The photographs of a folder (PNG, JPEG), sorted by name.
+fn list_images(dir: &Path) -> Result<Vec<PathBuf>> {
+    let entries = std::fs::read_dir(dir)
+        .with_context(|| format!("cannot read the image folder {}", dir.display()))?;
+    let mut out: Vec<PathBuf> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.is_file()
+                && p.extension().and_then(|e| e.to_str()).is_some_and(|e| {
+                    ["png", "jpg", "jpeg"].contains(&e.to_ascii_lowercase().as_str())
+                })
+        })
+        .collect();
+    out.sort();
+    Ok(out)
+}
+
+/// The frames of the request.
+fn frame_jobs(input: &PredictInput, needs_depth: bool) -> Result<Vec<FrameJob>> {
+    match input {
+        PredictInput::Images { dir, camera, depth } => {
+            let (cam_k, depth_scale, size) = read_camera_file(camera)?;
+            if needs_depth && depth.is_none() {
+                return Err(user_error(
+                    "this pose model reads depth, and no --depth folder was given",
+                    "give --depth DIR with a 16-bit depth PNG per photograph (the same file stem; camera.json's depth_scale: value × depth_scale = mm), or use an rgb / rgb-dense model",
+                ));
+            }
+            let images = list_images(dir)?;
+            if images.is_empty() {
+                return Err(user_error(
+                    format!("{} holds no PNG or JPEG images", dir.display()),
+                    "give the folder of the photographs to predict on",
+                ));
+            }
+            images
+                .into_iter()
+                .enumerate()
+                .map(|(i, rgb)| {
+                    let name = rgb
+                        .file_name()
+                        .map(|n| n.to_string_lossy().into_owned())
+                        .unwrap_or_default();
+                    let depth = match depth.as_ref().filter(|_| needs_depth) {
+                        Some(d) => {
+                            let stem = rgb.file_stem().unwrap_or_default();
+                            let p = d.join(stem).with_extension("png");
+                            if !p.is_file() {
+                                return Err(user_error(
+                                    format!("{name} has no depth image {}", p.display()),
+                                    "give each photograph a depth PNG of the same stem in --depth",
+                                ));
+                            }
+                            Some(p)
+                        }
+                        None => None,
+                    };
+                    Ok(FrameJob {
+                        name,
+                        scene_id: 0,
+                        im_id: i as u32,
+                        rgb,
+                        depth,
+                        cam_k,
+                        depth_scale,
+                        size: size.unwrap_or([0, 0]),
+                    })
+                })
+                .collect()
+        }
+        PredictInput::Data { dir, split } => {
+            let ds = open_source(dir)
+                .with_context(|| format!("cannot open the dataset {}", dir.display()))?;
+            let split = pick_split(ds.as_ref(), split.as_deref())?;
+            let cam = ds.camera();
+            let frames = ds.image_frames(std::slice::from_ref(&split))?;
+            frames
+                .into_iter()
+                .map(|f| {
+                    if needs_depth && f.depth.is_none() {
+                        return Err(user_error(
+                            format!(
+                                "image {} of scene {} in {} has no depth image, and this pose model reads depth",
+                                f.location.im_id,
+                                f.location.scene_id,
+                                dir.display()
+                            ),
+                            "predict with an rgb / rgb-dense model, or on RGB-D frames",
+                        ));
+                    }
+                    Ok(FrameJob {
+                        name: format!("{:06}/{:06}", f.location.scene_id, f.location.im_id),
+                        scene_id: f.location.scene_id,
+                        im_id: f.location.im_id,
+                        rgb: f.rgb,
+                        depth: f.depth,
+                        cam_k: f.camera.cam_k,
+                        depth_scale: f.camera.depth_scale,
+                        size: [cam.width, cam.height],
+                    })
+                })
+                .collect()
+        }
+    }
+}
+
+/// The loaded models of a request.
+struct Models {
+    cfg: TrainConfig,
+    pose: PoseModel,
+    detector: Detector,
+    objects: Option<Objects>,
+    /// The objects both the detector and the pose model know.
+    shared: Vec<u32>,
+}
+
+fn load_models(req: &PredictRequest, log: &Log<'_>) -> Result<Models> {
+    let ckpt = checkpoint_of(&req.model);
+    let cfg_path = ckpt.with_file_name(CONFIG_FILE);
+    if !cfg_path.is_file() {
+        return Err(user_error(
+            format!("no {CONFIG_FILE} beside {}", ckpt.display()),
+            "give --model the run folder of `synthgen train` (or its model.safetensors)",
+        ));
+    }
+    let cfg = read_config(&cfg_path)?;
+    let device = train::device(req.cuda)?;
+    let pose = load_model(&ckpt, &cfg, &device)
+        .with_context(|| format!("cannot load the pose model {}", ckpt.display()))?;
+    let detector = Detector::load(&req.detector, &device)
+        .with_context(|| format!("cannot load the detector {}", req.detector.display()))?;
+    // The objects both know, and the same objects under the same ids.
+    let of = |list: &[ObjectIdentity]| -> BTreeMap<u32, ObjectIdentity> {
+        list.iter().map(|o| (o.id, o.clone())).collect()
+    };
+    let (pose_objects, det_objects) = (of(&cfg.objects), of(&detector.cfg.objects));
+    let model_ids: Vec<u32> = if cfg.classes.is_empty() {
+        cfg.objects.iter().map(|o| o.id).collect()
+    } else {
+        cfg.classes.clone()
+    };
+    let mut shared = Vec::new();
+    for &id in &detector.cfg.classes {
+        if !model_ids.contains(&id) {
+            continue;
+        }
+        if let (Some(a), Some(b)) = (pose_objects.get(&id), det_objects.get(&id)) {
+            if !a.same_object(b) {
+                return Err(user_error(
+                    format!(
+                        "object {id} is {} for the pose model and {} for the detector",
+                        a.describe(),
+                        b.describe()
+                    ),
+                    "give a detector and a pose model trained on the same objects",
+                ));
+            }
+        }
+        shared.push(id);
+    }
+    if shared.is_empty() {
+        return Err(user_error(
+            format!(
+                "the detector finds objects {:?} and the pose model knows {:?}: none in common",
+                detector.cfg.classes, model_ids
+            ),
+            "give a detector and a pose model trained on the same objects",
+        ));
+    }
+    let left: Vec<u32> = detector
+        .cfg
+        .classes
+        .iter()
+        .copied()
+        .filter(|c| !shared.contains(c))
+        .collect();
+    if !left.is_empty() {
+        log.warning(format!(
+            "the pose model has no head for the detector's objects {left:?}: their detections are written without a pose"
+        ));
+    }
+    if cfg.model.needs_depth() && !detector.cfg.masks {
+        return Err(user_error(
+            format!(
+                "the {} model reads each object's points from its mask, and the detector {} gives boxes only",
+                cfg.model.name(),
+                req.detector.display()
+            ),
+            "train the detector with masks (detector train without --no-masks), or predict with an rgb / rgb-dense model",
+        ));
+    }
+    // Full and the RGB models need the objects' models (their points, their symmetries).
+    let objects = if cfg.model.predicts_rotation() {
+        let source = match &req.input {
+            PredictInput::Data { dir, .. } => dir.clone(),
+            PredictInput::Images { .. } => cfg.data.clone(),
+        };
+        let ds = open_source(&source).map_err(|e| {
+            user_error(
+                format!(
+                    "the pose model needs its objects' models, read from {} (the model's training dataset), and it cannot be opened: {e}",
+                    source.display()
+                ),
+                "keep the training dataset where `synthgen train` read it (its models/ folder), or predict on a dataset with --data",
+            )
+        })?;
+        Some(load_dataset_objects(
+            ds.as_ref(),
+            shared.iter().copied(),
+            cfg.loss_points,
+        )?)
+    } else {
+        None
+    };
+    Ok(Models {
+        cfg,
+        pose,
+        detector,
+        objects,
+        shared,
+    })
+}
+
+/// Runs `req`: the frames' estimates into `req.out`, progress and messages to `progress`.
+pub fn predict(req: &PredictRequest, progress: &dyn Progress) -> Result<PredictSummary> {
+    let log = Log::new(progress);
+    crate::use_threads(req.jobs);
+    if !(0.0..=1.0).contains(&req.min_score) {
+        return Err(user_error(
+            format!("--min-score {} is not in 0..1", req.min_score),
+            "give a detection score between 0 and 1 (e.g. 0.3)",
+        ));
+    }
+    if req.per_object == 0 || req.per_object > 100 {
+        return Err(user_error(
+            format!("--per-object {} is not in 1..=100", req.per_object),
+            "give how many of each object a frame may show (1 for BOP's LM-O and YCB-V)",
+        ));
+    }
+    let mut inputs: Vec<(&str, &Path)> = vec![("model", &req.model), ("detector", &req.detector)];
+    match &req.input {
+        PredictInput::Images { dir, camera, depth } => {
+            inputs.push(("image folder", dir));
+            inputs.push(("camera file", camera));
+            if let Some(d) = depth {
+                inputs.push(("depth folder", d));
+            }
+        }
+        PredictInput::Data { dir, .. } => inputs.push(("dataset", dir)),
+    }
+    check_apart(&req.out, &inputs)?;
+    if let Some(d) = &req.draw {
+        check_apart(d, &inputs)?;
+    }
+    let models = load_models(req, &log)?;
+    let kind = models.cfg.model;
+    let frames = frame_jobs(&req.input, kind.needs_depth())?;
+    std::fs::create_dir_all(&req.out)
+        .with_context(|| format!("cannot create {}", req.out.display()))?;
+    let _lock = OutputLock::acquire(&req.out)?;
+    let results_path = req.out.join(RESULTS_FILE);
+    let jsonl_path = req.out.join(PREDICTIONS_FILE);
+    if !req.force && (results_path.exists() || jsonl_path.exists()) {
+        return Err(user_error(
+            format!("{} already holds predictions", req.out.display()),
+            "give another --out, or --force to replace them",
+        ));
+    }
+    if let Some(d) = &req.draw {
+        std::fs::create_dir_all(d).with_context(|| format!("cannot create {}", d.display()))?;
+    }
+    // The lines go to a temporary file renamed at the end: an interrupted run leaves no
+    // half-written predictions.jsonl that looks finished.
+    let tmp_jsonl = req.out.join(format!("{PREDICTIONS_FILE}.partial"));
+    let mut jsonl = std::io::BufWriter::new(
+        std::fs::File::create(&tmp_jsonl)
+            .with_context(|| format!("cannot create {}", tmp_jsonl.display()))?,
+    );
+    let base = models.cfg.data_options();
+    let opts = DataOptions {
+        split: None,
+        // The RGB models read the colour around the box: every detection gets an estimate
+        // (its score says how much to trust it). The depth models need points: a detection
+        // whose mask holds fewer valid depth pixels than the training's minimum gets none.
+        min_pixels: if kind.is_rgb_only() {
+            1
+        } else {
+            base.min_pixels
+        },
+        ..base
+    };
+    log.info(format!(
+        "predicting on {} frames: detector ({} objects, input {}x{}) then the {} model",
+        frames.len(),
+        models.detector.cfg.classes.len(),
+        models.detector.cfg.input[0],
+        models.detector.cfg.input[1],
+        kind.name()
+    ));
+    progress.start("predicting", frames.len() as u64);
+    let mut summary = PredictSummary::default();
+    let mut estimates = Vec::new();
+    let mut frame_times = Vec::with_capacity(frames.len());
+    for job in &frames {
+        let (line, ests) = predict_frame(job, &models, &opts, req)?;
+        if let Some(dir) = &req.draw {
+            draw_frame(&dir.join(draw_name(job)), job, &line)?;
+        }
+        serde_json::to_writer(&mut jsonl, &line)?;
+        jsonl.write_all(b"\n")?;
+        summary.frames += 1;
+        if !line.objects.is_empty() {
+            summary.frames_with_objects += 1;
+        }
+        for o in &line.objects {
+            *summary.found.entry(o.obj_id).or_insert(0) += 1;
+            if o.t.is_none() && models.shared.contains(&o.obj_id) {
+                summary.without_pose += 1;
+            }
+        }
+        summary.time.add(&line.time);
+        frame_times.push(line.time.total);
+        estimates.extend(ests);
+        progress.advance(1);
+    }
+    progress.finish();
+    jsonl
+        .into_inner()
+        .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", tmp_jsonl.display()))?
+        .sync_all()?;
+    // The results first, the JSON lines last: predictions.jsonl is the run's "done" mark.
+    write_results_csv(&results_path, &estimates)?;
+    std::fs::rename(&tmp_jsonl, &jsonl_path)
+        .with_context(|| format!("cannot write {}", jsonl_path.display()))?;
+    summary.results = estimates.len();
+    frame_times.sort_by(f64::total_cmp);
+    let pick = |q: f64| {
+        frame_times
+            .get(((frame_times.len() as f64 - 1.0) * q).round() as usize)
+            .copied()
+            .unwrap_or(0.0)
+    };
+    summary.median_frame_s = pick(0.5);
+    summary.p95_frame_s = pick(0.95);
+    if !kind.predicts_rotation() || kind == ModelKind::Rnet {
+        log.info(format!(
+            "the {} model predicts {} only: {RESULTS_FILE} (whole poses) has no rows; predictions.jsonl has them",
+            kind.name(),
+            if kind == ModelKind::Tnet { "the centre" } else { "the rotation" }
+        ));
+    }
+    Ok(summary)
+}
+
+/// The file a frame is drawn into.
+fn draw_name(job: &FrameJob) -> String {
+    format!("{:06}_{:06}.png", job.scene_id, job.im_id)
+}
+
+/// One frame: read, detect, make the instances, run the pose model.
+fn predict_frame(
+    job: &FrameJob,
+    models: &Models,
+    opts: &DataOptions,
+    req: &PredictRequest,
+) -> Result<(FramePrediction, Vec<Estimate>)> {
+    let t0 = Instant::now();
+    let rgb = read_rgb(&job.rgb)?;
+    if job.size != [0, 0] && [rgb.width, rgb.height] != job.size {
+        return Err(user_error(
+            format!(
+                "{} is {}x{}, and the camera is {}x{}",
+                job.rgb.display(),
+                rgb.width,
+                rgb.height,
+                job.size[0],
+                job.size[1]
+            ),
+            "give the intrinsics of the camera that took these images (the same size)",
+        ));
+    }
+    let depth: Option<Plane<f32>> = match &job.depth {
+        Some(p) => {
+            let d = read_depth_m(p, job.depth_scale)?;
+            if [d.width, d.height] != [rgb.width, rgb.height] {
+                return Err(user_error(
+                    format!(
+                        "the depth image {} is {}x{}, and its colour image {}x{}",
+                        p.display(),
+                        d.width,
+                        d.height,
+                        rgb.width,
+                        rgb.height
+                    ),
+                    "give depth registered to the colour image (the same size)",
+                ));
+            }
+            Some(d)
+        }
+        None => None,
+    };
+    let t_read = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    let found = models.detector.detect_image(
+        &rgb.rgb,
+        rgb.width,
+        rgb.height,
+        req.min_score,
+        req.per_object,
+    )?;
+    let t_detect = t1.elapsed().as_secs_f64();
+    let t2 = Instant::now();
+    let instances = frame_instances(job, &rgb, depth.as_ref(), &found, models, opts)?;
+    let t_instances = t2.elapsed().as_secs_f64();
+    let t3 = Instant::now();
+    let refs: Vec<_> = instances.iter().filter_map(|(_, i)| i.as_ref()).collect();
+    let preds: Vec<Prediction> = if refs.is_empty() {
+        Vec::new()
+    } else {
+        models.pose.predict(&refs, models.objects.as_ref(), 64)?
+    };
+    let t_pose = t3.elapsed().as_secs_f64();
+    let total = t0.elapsed().as_secs_f64();
+    let mut preds = preds.into_iter();
+    let mut objects = Vec::new();
+    let mut estimates = Vec::new();
+    for (k, inst) in &instances {
+        let (obj, score, bbox, mask) = &found[*k];
+        let pred = inst.as_ref().and_then(|_| preds.next());
+        let r = pred.as_ref().and_then(|p| p.rotation.map(|(r, _)| r));
+        let t = pred
+            .as_ref()
+            .and_then(|p| p.centre_m)
+            .map(|c| DVec3::new(c[0].into(), c[1].into(), c[2].into()));
+        let pose_score = pred.as_ref().map_or(1.0, Prediction::score);
+        if let (Some(r), Some(t)) = (r, t) {
+            let mut e = Estimate::new(
+                job.scene_id,
+                job.im_id,
+                *obj,
+                score * pose_score,
+                Pose::new(r, t),
+            );
+            e.time_s = total;
+            estimates.push(e);
+        }
+        objects.push(FoundObject {
+            obj_id: *obj,
+            score: *score,
+            pose_score,
+            bbox: *bbox,
+            r: r.map(|r| {
+                let c = r.to_cols_array();
+                // glam is column-major; BOP's R is row-major.
+                [c[0], c[3], c[6], c[1], c[4], c[7], c[2], c[5], c[8]]
+            }),
+            t: t.map(|t| t.to_array()),
+            segmentation: mask.clone(),
+        });
+    }
+    let stamp = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64());
+    Ok((
+        FramePrediction {
+            frame: job.name.clone(),
+            scene_id: job.scene_id,
+            image_id: job.im_id,
+            stamp,
+            objects,
+            time: StageTimes {
+                read: t_read,
+                detect: t_detect,
+                instances: t_instances,
+                pose: t_pose,
+                total,
+            },
+        },
+        estimates,
+    ))
+}
+
+/// Per detection (its index in `found`), the instance the pose model reads: None for the
+/// objects the pose model does not know and for detections with too few valid pixels.
+fn frame_instances(
+    job: &FrameJob,
+    rgb: &RgbImage,
+    depth: Option<&Plane<f32>>,
+    found: &[Found],
+    models: &Models,
+    opts: &DataOptions,
+) -> Result<Vec<(usize, Option<synthgen_train::data::Instance>)>> {
+    let kind = models.cfg.model;
+    let pixels = FramePixels {
+        scene_id: job.scene_id,
+        im_id: job.im_id,
+        cam_k: &job.cam_k,
+        rgb: Some(rgb),
+        depth,
+    };
+    let mut out = Vec::with_capacity(found.len());
+    for (k, (obj, _, bbox, mask)) in found.iter().enumerate() {
+        if !models.shared.contains(obj) {
+            out.push((k, None));
+            continue;
+        }
+        // The depth models read their points from the detection's mask (a detector with
+        // masks: checked when loaded), the RGB models the colour around its box.
+        let mask = if kind.is_rgb_only() {
+            None
+        } else {
+            mask.as_ref()
+        };
+        let inst = detection_instance(
+            &pixels,
+            InstanceKey {
+                gt_id: k,
+                obj_id: *obj,
+            },
+            bop_box(*bbox),
+            mask,
+            &job.rgb,
+            opts,
+        )?;
+        out.push((k, inst));
+    }
+    Ok(out)
+}
+
+/// Draws a frame's detections (mask tinted, box, object id and score) and each pose's axes
+/// (x red, y green, z blue; 5 cm) into `path`.
+fn draw_frame(path: &Path, job: &FrameJob, line: &FramePrediction) -> Result<()> {
+    use synthgen_formats::annotate::mask_overlay;
+    let img = read_rgb(&job.rgb)?;
+    let masks: Vec<Vec<u8>> = line
+        .objects
+        .iter()
+        .filter_map(|o| o.segmentation.as_ref().map(Rle::decode))
+        .collect();
+    let theirs = vec![None; masks.len()];
+    let mut c = mask_overlay(&img, &masks, &theirs);
+    const BOX: [u8; 3] = [255, 200, 0];
+    let k = &job.cam_k;
+    let project = |p: DVec3| -> Option<(f64, f64)> {
+        (p.z > 1e-6).then(|| (k[0] * p.x / p.z + k[2], k[4] * p.y / p.z + k[5]))
+    };
+    for o in &line.objects {
+        let [x, y, w, h] = o.bbox;
+        let (x1, y1) = (x + w - 1.0, y + h - 1.0);
+        c.line((x, y), (x1, y), BOX, 2);
+        c.line((x1, y), (x1, y1), BOX, 2);
+        c.line((x1, y1), (x, y1), BOX, 2);
+        c.line((x, y1), (x, y), BOX, 2);
+        c.text(
+            x as i64 + 3,
+            y as i64 + 3,
+            &format!("{} {:.2}", o.obj_id, o.score),
+            2,
+            BOX,
+        );
+        if let (Some(r), Some(t)) = (o.r, o.t) {
+            let t = DVec3::from_array(t);
+            let col = |j: usize| DVec3::new(r[j], r[3 + j], r[6 + j]);
+            if let Some(o2) = project(t) {
+                for (j, colour) in [[235, 40, 40], [40, 200, 40], [40, 110, 255]]
+                    .into_iter()
+                    .enumerate()
+                {
+                    if let Some(e) = project(t + col(j) * 0.05) {
+                        c.line(o2, e, colour, 2);
+                    }
+                }
+            }
+        }
+    }
+    c.write_png(path)?;
+    Ok(())
+}
