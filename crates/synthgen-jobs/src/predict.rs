@@ -285,6 +285,15 @@ fn frame_jobs(input: &PredictInput, needs_depth: bool) -> Result<Vec<FrameJob>> 
                     "give the folder of the photographs to predict on",
                 ));
             }
+            // Image ids: the file stems' numbers where every stem is a distinct number (BOP's
+            // rgb/000003.png is image 3), else the images' places in name order.
+            let numbers: Vec<Option<u32>> = images
+                .iter()
+                .map(|p| p.file_stem()?.to_str()?.parse().ok())
+                .collect();
+            let distinct: std::collections::BTreeSet<u32> =
+                numbers.iter().flatten().copied().collect();
+            let by_stem = distinct.len() == images.len();
             images
                 .into_iter()
                 .enumerate()
@@ -310,7 +319,11 @@ fn frame_jobs(input: &PredictInput, needs_depth: bool) -> Result<Vec<FrameJob>> 
                     Ok(FrameJob {
                         name,
                         scene_id: 0,
-                        im_id: i as u32,
+                        im_id: if by_stem {
+                            numbers[i].unwrap_or(i as u32)
+                        } else {
+                            i as u32
+                        },
                         rgb,
                         depth,
                         cam_k,
@@ -391,9 +404,11 @@ fn load_models(req: &PredictRequest, log: &Log<'_>) -> Result<Models> {
     } else {
         cfg.classes.clone()
     };
+    // A model with no objects of its own (a class-free TNet) takes every object.
+    let any_object = model_ids.is_empty();
     let mut shared = Vec::new();
     for &id in &detector.cfg.classes {
-        if !model_ids.contains(&id) {
+        if !any_object && !model_ids.contains(&id) {
             continue;
         }
         if let (Some(a), Some(b)) = (pose_objects.get(&id), det_objects.get(&id)) {
@@ -780,7 +795,7 @@ fn frame_instances(
 }
 
 /// Draws a frame's detections (mask tinted, box, object id and score) and each pose's axes
-/// (x red, y green, z blue; 5 cm) into `path`.
+/// (x red, y green, z blue; 5 cm), or a cross at a centre without rotation, into `path`.
 fn draw_frame(path: &Path, job: &FrameJob, line: &FramePrediction) -> Result<()> {
     use synthgen_formats::annotate::mask_overlay;
     let img = read_rgb(&job.rgb)?;
@@ -810,6 +825,13 @@ fn draw_frame(path: &Path, job: &FrameJob, line: &FramePrediction) -> Result<()>
             2,
             BOX,
         );
+        if let (None, Some(t)) = (o.r, o.t) {
+            // A centre without a rotation (TNet): a cross.
+            if let Some((u, v)) = project(DVec3::from_array(t)) {
+                c.line((u - 8.0, v), (u + 8.0, v), BOX, 2);
+                c.line((u, v - 8.0), (u, v + 8.0), BOX, 2);
+            }
+        }
         if let (Some(r), Some(t)) = (o.r, o.t) {
             let t = DVec3::from_array(t);
             let col = |j: usize| DVec3::new(r[j], r[3 + j], r[6 + j]);

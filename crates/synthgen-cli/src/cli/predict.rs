@@ -46,7 +46,9 @@ pub struct PredictArgs {
     #[arg(long, value_name = "DIR")]
     pub detector: PathBuf,
 
-    /// A folder of photographs (PNG or JPEG), taken in name order; needs --camera.
+    /// A folder of photographs (PNG or JPEG), taken in name order; needs --camera. Image ids
+    /// (results.csv's im_id) are the file names' numbers where each is one (000003.png: 3),
+    /// else their places in name order; scene_id is 0.
     #[arg(long, value_name = "DIR", requires = "camera")]
     pub images: Option<PathBuf>,
 

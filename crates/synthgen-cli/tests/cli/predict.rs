@@ -267,6 +267,34 @@ fn predict_scores_as_eval_detections_without_reading_gt() {
         .map(|f| f["frame"].as_str().unwrap().to_string())
         .collect();
     assert_eq!(names[0], "000000.png");
+    // Names that are not numbers: ids by place in name order.
+    let named = d.join("named");
+    std::fs::create_dir(&named).unwrap();
+    for (i, n) in ["b.png", "a.png"].iter().enumerate() {
+        std::fs::copy(photos.join(format!("00000{i}.png")), named.join(n)).unwrap();
+    }
+    let o = predict(
+        &dense,
+        &det,
+        &[
+            "--images".as_ref(),
+            named.as_os_str(),
+            "--camera".as_ref(),
+            camera.as_os_str(),
+        ],
+        &d.join("pred_named"),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let ids: Vec<(String, u64)> = lines(&d.join("pred_named/predictions.jsonl"))
+        .iter()
+        .map(|f| {
+            (
+                f["frame"].as_str().unwrap().to_string(),
+                f["image_id"].as_u64().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(ids, [("a.png".to_string(), 0), ("b.png".to_string(), 1)]);
     assert_eq!(std::fs::read_dir(&pics).unwrap().count(), 8);
 
     // A second run into the same folder is refused; --force replaces it.
