@@ -369,17 +369,210 @@ fn frame_jobs(input: &PredictInput, needs_depth: bool) -> Result<Vec<FrameJob>> 
     }
 }
 
-/// The loaded models of a request.
-struct Models {
+/// A detector and a pose model, loaded, that turn a frame's colour (and depth) into the
+/// objects found and their poses: what `synthgen predict` runs per frame, and Python's
+/// `synthgen.Predictor`.
+pub struct Predictor {
     cfg: TrainConfig,
     pose: PoseModel,
     detector: Detector,
     objects: Option<Objects>,
     /// The objects both the detector and the pose model know.
     shared: Vec<u32>,
+    opts: DataOptions,
+    min_score: f64,
+    per_object: usize,
 }
 
-fn load_models(req: &PredictRequest, log: &Log<'_>) -> Result<Models> {
+/// How a [`Predictor`] is made.
+#[derive(Debug, Clone)]
+pub struct PredictorOptions {
+    /// The pose model: a `synthgen train` run folder, or its `model.safetensors`.
+    pub model: PathBuf,
+    /// The detector: a `synthgen detector train` run folder, or its checkpoint.
+    pub detector: PathBuf,
+    /// The dataset whose object models the pose model reads (Full, rgb, rgb-dense); None:
+    /// the model's training dataset.
+    pub objects_from: Option<PathBuf>,
+    /// Detections scoring less are left out.
+    pub min_score: f64,
+    /// At most this many detections (and so estimates) per object and frame, best first.
+    pub per_object: usize,
+    pub cuda: bool,
+}
+
+/// One frame's objects and the seconds of each stage (reading aside).
+#[derive(Debug, Clone)]
+pub struct FrameObjects {
+    pub objects: Vec<FoundObject>,
+    pub detect_s: f64,
+    pub instances_s: f64,
+    pub pose_s: f64,
+}
+
+impl Predictor {
+    /// The model kind of the pose model.
+    pub fn kind(&self) -> ModelKind {
+        self.cfg.model
+    }
+
+    /// Whether the pose model reads depth.
+    pub fn needs_depth(&self) -> bool {
+        self.cfg.model.needs_depth()
+    }
+
+    /// The objects found in one frame: `rgb`, `depth` in metres (0 where none; the depth
+    /// models need it), the camera matrix row-major; `scene_id`/`im_id` name the frame.
+    pub fn predict_image(
+        &self,
+        rgb: &RgbImage,
+        depth: Option<&Plane<f32>>,
+        cam_k: &[f64; 9],
+        ids: (u32, u32),
+    ) -> Result<FrameObjects> {
+        if self.needs_depth() && depth.is_none() {
+            return Err(user_error(
+                format!("the {} model reads depth, and the frame has none", self.cfg.model.name()),
+                "give the frame's depth (registered to the colour image), or use an rgb / rgb-dense model",
+            ));
+        }
+        if let Some(d) = depth {
+            if [d.width, d.height] != [rgb.width, rgb.height] {
+                return Err(user_error(
+                    format!(
+                        "the depth is {}x{}, and the colour image {}x{}",
+                        d.width, d.height, rgb.width, rgb.height
+                    ),
+                    "give depth registered to the colour image (the same size)",
+                ));
+            }
+        }
+        if cam_k.iter().any(|v| !v.is_finite()) || cam_k[0] <= 0.0 || cam_k[4] <= 0.0 {
+            return Err(user_error(
+                format!("the camera matrix {cam_k:?} is not a camera's (finite, positive focal lengths)"),
+                "give K as [fx, 0, cx, 0, fy, cy, 0, 0, 1]",
+            ));
+        }
+        let t1 = Instant::now();
+        let found = self.detector.detect_image(
+            &rgb.rgb,
+            rgb.width,
+            rgb.height,
+            self.min_score,
+            self.per_object,
+        )?;
+        let detect_s = t1.elapsed().as_secs_f64();
+        let t2 = Instant::now();
+        let instances = self.frame_instances(ids, cam_k, rgb, depth, &found)?;
+        let instances_s = t2.elapsed().as_secs_f64();
+        let t3 = Instant::now();
+        let refs: Vec<_> = instances.iter().filter_map(Option::as_ref).collect();
+        let preds: Vec<Prediction> = if refs.is_empty() {
+            Vec::new()
+        } else {
+            self.pose.predict(&refs, self.objects.as_ref(), 64)?
+        };
+        let pose_s = t3.elapsed().as_secs_f64();
+        let mut preds = preds.into_iter();
+        let objects = found
+            .iter()
+            .zip(&instances)
+            .map(|((obj, score, bbox, mask), inst)| {
+                let pred = inst.as_ref().and_then(|_| preds.next());
+                let r = pred.as_ref().and_then(|p| p.rotation.map(|(r, _)| r));
+                let t = pred
+                    .as_ref()
+                    .and_then(|p| p.centre_m)
+                    .map(|c| [c[0], c[1], c[2]].map(f64::from));
+                FoundObject {
+                    obj_id: *obj,
+                    score: *score,
+                    pose_score: pred.as_ref().map_or(1.0, Prediction::score),
+                    bbox: *bbox,
+                    r: r.map(|r| {
+                        let c = r.to_cols_array();
+                        // glam is column-major; BOP's R is row-major.
+                        [c[0], c[3], c[6], c[1], c[4], c[7], c[2], c[5], c[8]]
+                    }),
+                    t,
+                    segmentation: mask.clone(),
+                }
+            })
+            .collect();
+        Ok(FrameObjects {
+            objects,
+            detect_s,
+            instances_s,
+            pose_s,
+        })
+    }
+
+    /// Per detection, the instance the pose model reads: None for the objects the pose model
+    /// does not know and for detections with too few valid pixels.
+    fn frame_instances(
+        &self,
+        (scene_id, im_id): (u32, u32),
+        cam_k: &[f64; 9],
+        rgb: &RgbImage,
+        depth: Option<&Plane<f32>>,
+        found: &[Found],
+    ) -> Result<Vec<Option<synthgen_train::data::Instance>>> {
+        let pixels = FramePixels {
+            scene_id,
+            im_id,
+            cam_k,
+            rgb: Some(rgb),
+            depth,
+        };
+        let source = Path::new("the frame");
+        found
+            .iter()
+            .enumerate()
+            .map(|(k, (obj, _, bbox, mask))| {
+                if !self.shared.contains(obj) {
+                    return Ok(None);
+                }
+                // The depth models read their points from the detection's mask (a detector
+                // with masks: checked when loaded), the RGB models the colour around its box.
+                let mask = if self.cfg.model.is_rgb_only() {
+                    None
+                } else {
+                    mask.as_ref()
+                };
+                Ok(detection_instance(
+                    &pixels,
+                    InstanceKey {
+                        gt_id: k,
+                        obj_id: *obj,
+                    },
+                    bop_box(*bbox),
+                    mask,
+                    source,
+                    &self.opts,
+                )?)
+            })
+            .collect()
+    }
+
+    /// Loads the detector and the pose model of `o`; warnings go to `log`.
+    pub fn load(o: &PredictorOptions, log: &Log<'_>) -> Result<Predictor> {
+        if !(0.0..=1.0).contains(&o.min_score) {
+            return Err(user_error(
+                format!("--min-score {} is not in 0..1", o.min_score),
+                "give a detection score between 0 and 1 (e.g. 0.3)",
+            ));
+        }
+        if o.per_object == 0 || o.per_object > 100 {
+            return Err(user_error(
+                format!("--per-object {} is not in 1..=100", o.per_object),
+                "give how many of each object a frame may show (1 for BOP's LM-O and YCB-V)",
+            ));
+        }
+        load_models(o, log)
+    }
+}
+
+fn load_models(req: &PredictorOptions, log: &Log<'_>) -> Result<Predictor> {
     let ckpt = checkpoint_of(&req.model);
     let cfg_path = ckpt.with_file_name(CONFIG_FILE);
     if !cfg_path.is_file() {
@@ -458,10 +651,7 @@ fn load_models(req: &PredictRequest, log: &Log<'_>) -> Result<Models> {
     }
     // Full and the RGB models need the objects' models (their points, their symmetries).
     let objects = if cfg.model.predicts_rotation() {
-        let source = match &req.input {
-            PredictInput::Data { dir, .. } => dir.clone(),
-            PredictInput::Images { .. } => cfg.data.clone(),
-        };
+        let source = req.objects_from.clone().unwrap_or_else(|| cfg.data.clone());
         let ds = open_source(&source).map_err(|e| {
             user_error(
                 format!(
@@ -479,12 +669,28 @@ fn load_models(req: &PredictRequest, log: &Log<'_>) -> Result<Models> {
     } else {
         None
     };
-    Ok(Models {
+    let base = cfg.data_options();
+    let opts = DataOptions {
+        split: None,
+        // The RGB models read the colour around the box: every detection gets an estimate
+        // (its score says how much to trust it). The depth models need points: a detection
+        // whose mask holds fewer valid depth pixels than the training's minimum gets none.
+        min_pixels: if cfg.model.is_rgb_only() {
+            1
+        } else {
+            base.min_pixels
+        },
+        ..base
+    };
+    Ok(Predictor {
         cfg,
         pose,
         detector,
         objects,
         shared,
+        opts,
+        min_score: req.min_score,
+        per_object: req.per_object,
     })
 }
 
@@ -492,18 +698,6 @@ fn load_models(req: &PredictRequest, log: &Log<'_>) -> Result<Models> {
 pub fn predict(req: &PredictRequest, progress: &dyn Progress) -> Result<PredictSummary> {
     let log = Log::new(progress);
     crate::use_threads(req.jobs);
-    if !(0.0..=1.0).contains(&req.min_score) {
-        return Err(user_error(
-            format!("--min-score {} is not in 0..1", req.min_score),
-            "give a detection score between 0 and 1 (e.g. 0.3)",
-        ));
-    }
-    if req.per_object == 0 || req.per_object > 100 {
-        return Err(user_error(
-            format!("--per-object {} is not in 1..=100", req.per_object),
-            "give how many of each object a frame may show (1 for BOP's LM-O and YCB-V)",
-        ));
-    }
     let mut inputs: Vec<(&str, &Path)> = vec![("model", &req.model), ("detector", &req.detector)];
     match &req.input {
         PredictInput::Images { dir, camera, depth } => {
@@ -519,8 +713,21 @@ pub fn predict(req: &PredictRequest, progress: &dyn Progress) -> Result<PredictS
     if let Some(d) = &req.draw {
         check_apart(d, &inputs)?;
     }
-    let models = load_models(req, &log)?;
-    let kind = models.cfg.model;
+    let models = Predictor::load(
+        &PredictorOptions {
+            model: req.model.clone(),
+            detector: req.detector.clone(),
+            objects_from: match &req.input {
+                PredictInput::Data { dir, .. } => Some(dir.clone()),
+                PredictInput::Images { .. } => None,
+            },
+            min_score: req.min_score,
+            per_object: req.per_object,
+            cuda: req.cuda,
+        },
+        &log,
+    )?;
+    let kind = models.kind();
     let frames = frame_jobs(&req.input, kind.needs_depth())?;
     std::fs::create_dir_all(&req.out)
         .with_context(|| format!("cannot create {}", req.out.display()))?;
@@ -543,19 +750,6 @@ pub fn predict(req: &PredictRequest, progress: &dyn Progress) -> Result<PredictS
         std::fs::File::create(&tmp_jsonl)
             .with_context(|| format!("cannot create {}", tmp_jsonl.display()))?,
     );
-    let base = models.cfg.data_options();
-    let opts = DataOptions {
-        split: None,
-        // The RGB models read the colour around the box: every detection gets an estimate
-        // (its score says how much to trust it). The depth models need points: a detection
-        // whose mask holds fewer valid depth pixels than the training's minimum gets none.
-        min_pixels: if kind.is_rgb_only() {
-            1
-        } else {
-            base.min_pixels
-        },
-        ..base
-    };
     log.info(format!(
         "predicting on {} frames: detector ({} objects, input {}x{}) then the {} model",
         frames.len(),
@@ -569,7 +763,7 @@ pub fn predict(req: &PredictRequest, progress: &dyn Progress) -> Result<PredictS
     let mut estimates = Vec::new();
     let mut frame_times = Vec::with_capacity(frames.len());
     for job in &frames {
-        let (line, ests) = predict_frame(job, &models, &opts, req)?;
+        let (line, ests) = predict_frame(job, &models)?;
         if let Some(dir) = &req.draw {
             draw_frame(&dir.join(draw_name(job)), job, &line)?;
         }
@@ -624,13 +818,8 @@ fn draw_name(job: &FrameJob) -> String {
     format!("{:06}_{:06}.png", job.scene_id, job.im_id)
 }
 
-/// One frame: read, detect, make the instances, run the pose model.
-fn predict_frame(
-    job: &FrameJob,
-    models: &Models,
-    opts: &DataOptions,
-    req: &PredictRequest,
-) -> Result<(FramePrediction, Vec<Estimate>)> {
+/// One frame: read, then the predictor; the frame's line and its whole poses.
+fn predict_frame(job: &FrameJob, models: &Predictor) -> Result<(FramePrediction, Vec<Estimate>)> {
     let t0 = Instant::now();
     let rgb = read_rgb(&job.rgb)?;
     if job.size != [0, 0] && [rgb.width, rgb.height] != job.size {
@@ -666,65 +855,29 @@ fn predict_frame(
         }
         None => None,
     };
-    let t_read = t0.elapsed().as_secs_f64();
-    let t1 = Instant::now();
-    let found = models.detector.detect_image(
-        &rgb.rgb,
-        rgb.width,
-        rgb.height,
-        req.min_score,
-        req.per_object,
-    )?;
-    let t_detect = t1.elapsed().as_secs_f64();
-    let t2 = Instant::now();
-    let instances = frame_instances(job, &rgb, depth.as_ref(), &found, models, opts)?;
-    let t_instances = t2.elapsed().as_secs_f64();
-    let t3 = Instant::now();
-    let refs: Vec<_> = instances.iter().filter_map(|(_, i)| i.as_ref()).collect();
-    let preds: Vec<Prediction> = if refs.is_empty() {
-        Vec::new()
-    } else {
-        models.pose.predict(&refs, models.objects.as_ref(), 64)?
-    };
-    let t_pose = t3.elapsed().as_secs_f64();
+    let read_s = t0.elapsed().as_secs_f64();
+    let found =
+        models.predict_image(&rgb, depth.as_ref(), &job.cam_k, (job.scene_id, job.im_id))?;
     let total = t0.elapsed().as_secs_f64();
-    let mut preds = preds.into_iter();
-    let mut objects = Vec::new();
-    let mut estimates = Vec::new();
-    for (k, inst) in &instances {
-        let (obj, score, bbox, mask) = &found[*k];
-        let pred = inst.as_ref().and_then(|_| preds.next());
-        let r = pred.as_ref().and_then(|p| p.rotation.map(|(r, _)| r));
-        let t = pred
-            .as_ref()
-            .and_then(|p| p.centre_m)
-            .map(|c| DVec3::new(c[0].into(), c[1].into(), c[2].into()));
-        let pose_score = pred.as_ref().map_or(1.0, Prediction::score);
-        if let (Some(r), Some(t)) = (r, t) {
+    let estimates = found
+        .objects
+        .iter()
+        .filter_map(|o| {
+            let (r, t) = (o.r?, o.t?);
+            let r = synthgen_core::glam::DMat3::from_cols_array(&[
+                r[0], r[3], r[6], r[1], r[4], r[7], r[2], r[5], r[8],
+            ]);
             let mut e = Estimate::new(
                 job.scene_id,
                 job.im_id,
-                *obj,
-                score * pose_score,
-                Pose::new(r, t),
+                o.obj_id,
+                o.score * o.pose_score,
+                Pose::new(r, DVec3::from_array(t)),
             );
             e.time_s = total;
-            estimates.push(e);
-        }
-        objects.push(FoundObject {
-            obj_id: *obj,
-            score: *score,
-            pose_score,
-            bbox: *bbox,
-            r: r.map(|r| {
-                let c = r.to_cols_array();
-                // glam is column-major; BOP's R is row-major.
-                [c[0], c[3], c[6], c[1], c[4], c[7], c[2], c[5], c[8]]
-            }),
-            t: t.map(|t| t.to_array()),
-            segmentation: mask.clone(),
-        });
-    }
+            Some(e)
+        })
+        .collect();
     let stamp = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0.0, |d| d.as_secs_f64());
@@ -734,64 +887,17 @@ fn predict_frame(
             scene_id: job.scene_id,
             image_id: job.im_id,
             stamp,
-            objects,
             time: StageTimes {
-                read: t_read,
-                detect: t_detect,
-                instances: t_instances,
-                pose: t_pose,
+                read: read_s,
+                detect: found.detect_s,
+                instances: found.instances_s,
+                pose: found.pose_s,
                 total,
             },
+            objects: found.objects,
         },
         estimates,
     ))
-}
-
-/// Per detection (its index in `found`), the instance the pose model reads: None for the
-/// objects the pose model does not know and for detections with too few valid pixels.
-fn frame_instances(
-    job: &FrameJob,
-    rgb: &RgbImage,
-    depth: Option<&Plane<f32>>,
-    found: &[Found],
-    models: &Models,
-    opts: &DataOptions,
-) -> Result<Vec<(usize, Option<synthgen_train::data::Instance>)>> {
-    let kind = models.cfg.model;
-    let pixels = FramePixels {
-        scene_id: job.scene_id,
-        im_id: job.im_id,
-        cam_k: &job.cam_k,
-        rgb: Some(rgb),
-        depth,
-    };
-    let mut out = Vec::with_capacity(found.len());
-    for (k, (obj, _, bbox, mask)) in found.iter().enumerate() {
-        if !models.shared.contains(obj) {
-            out.push((k, None));
-            continue;
-        }
-        // The depth models read their points from the detection's mask (a detector with
-        // masks: checked when loaded), the RGB models the colour around its box.
-        let mask = if kind.is_rgb_only() {
-            None
-        } else {
-            mask.as_ref()
-        };
-        let inst = detection_instance(
-            &pixels,
-            InstanceKey {
-                gt_id: k,
-                obj_id: *obj,
-            },
-            bop_box(*bbox),
-            mask,
-            &job.rgb,
-            opts,
-        )?;
-        out.push((k, inst));
-    }
-    Ok(out)
 }
 
 /// Draws a frame's detections (mask tinted, box, object id and score) and each pose's axes
