@@ -16,6 +16,7 @@ mod frame;
 mod gil;
 mod job;
 mod metrics;
+mod predict;
 
 use pyo3::prelude::*;
 
@@ -28,5 +29,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     commands::register(m)?;
     experiment::register(m)?;
     metrics::register(m)?;
+    predict::register(m)?;
     Ok(())
 }

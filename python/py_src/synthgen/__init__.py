@@ -1,5 +1,6 @@
 """synthgen from Python: annotated RGB-D frames rendered in memory as numpy arrays, BOP /
-Linemod / YCB-Video datasets as the same frames, the CLI's render, mix and eval, its
+Linemod / YCB-Video datasets as the same frames, the CLI's render, mix and eval, poses
+from images with no GT (:class:`Predictor`, as ``synthgen predict``), its
 experiments (:mod:`synthgen.experiment`), the pose metrics, and PyTorch adapters in
 :mod:`synthgen.torch` (imported only when used).
 
@@ -21,6 +22,7 @@ from ._dataset import Dataset, open_dataset
 from ._frame import Frame
 from ._generator import Generator
 from ._native import Error, InputError, InternalError
+from ._predict import Predictor, predict
 from ._progress import ProgressBar
 
 __version__: str = _native.__version__
@@ -32,6 +34,7 @@ __all__ = [
     "Generator",
     "InputError",
     "InternalError",
+    "Predictor",
     "ProgressBar",
     "__version__",
     "evaluate",
@@ -40,6 +43,7 @@ __all__ = [
     "metrics",
     "mix",
     "open_dataset",
+    "predict",
     "render",
 ]
 

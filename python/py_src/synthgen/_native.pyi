@@ -62,9 +62,7 @@ class Dataset:
     def splits(self) -> List[str]: ...
     def frame_obj_ids(self) -> List[List[int]]: ...
     def frame_visib_fracts(self) -> List[List[Optional[float]]]: ...
-    def annotations(
-        self, i: int, gt_ids: Optional[Sequence[int]] = None
-    ) -> Dict[str, Any]: ...
+    def annotations(self, i: int, gt_ids: Optional[Sequence[int]] = None) -> Dict[str, Any]: ...
     def images(
         self,
         i: int,
@@ -75,6 +73,25 @@ class Dataset:
     ) -> Dict[str, np.ndarray]: ...
     def model_file(self, obj_id: int) -> Tuple[str, str]: ...
     def eval_model(self, obj_id: int) -> Tuple[np.ndarray, float, bool]: ...
+
+@final
+class Predictor:
+    def __new__(
+        cls,
+        model: _Path,
+        detector: _Path,
+        *,
+        objects_from: Optional[_Path] = None,
+        min_score: float = 0.05,
+        per_object: int = 1,
+    ) -> Predictor: ...
+    @property
+    def model_kind(self) -> str: ...
+    @property
+    def needs_depth(self) -> bool: ...
+    def predict(
+        self, rgb: np.ndarray, K: np.ndarray, depth: Optional[np.ndarray] = None
+    ) -> List[Dict[str, Any]]: ...
 
 def render(
     objects: Sequence[_Path],
@@ -132,7 +149,6 @@ def evaluate(
     visib_gt_min: float = -1.0,
     rotations: str = "as_stored",
 ) -> Dict[str, Any]: ...
-
 def evaluate_detections(
     data: _Path,
     detections: _Path,
