@@ -116,7 +116,8 @@ pub enum Command {
     #[command(subcommand)]
     Detector(DetectorCommand),
     /// Poses from frames with no GT: the detector, then a pose model, on photographs (with
-    /// their camera's intrinsics) or a dataset's frames; BOP results and JSON lines.
+    /// their camera's intrinsics), a dataset's frames or a ROS 2 bag; BOP results and JSON
+    /// lines.
     #[command(after_long_help = PREDICT_EXAMPLES)]
     Predict(Box<PredictArgs>),
     /// Run an experiment end to end: the mixing table, synthetic to real, the RGB model's table.

@@ -186,6 +186,7 @@ pub fn paths(command: &Command) -> CommandPaths {
             p.input_opt("--camera", &a.camera);
             p.input_opt("--depth", &a.depth);
             p.input_opt("--data", &a.data);
+            p.input_opt("--bag", &a.bag);
             p.output("--out", &a.out);
             p.output_opt("--draw", &a.draw);
         }

@@ -26,6 +26,7 @@ use synthgen_formats::coco::Rle;
 use synthgen_formats::identity::ObjectIdentity;
 use synthgen_formats::layout::open_source;
 use synthgen_formats::output::{check_apart, OutputLock};
+use synthgen_formats::rosbag::{read_bag, BagFrames, Decoded};
 use synthgen_train::data::{detection_instance, DataOptions, FramePixels, InstanceKey};
 use synthgen_train::eval::pick_split;
 use synthgen_train::models::ModelKind;
@@ -52,6 +53,15 @@ pub enum PredictInput {
     },
     /// A dataset (BOP, Linemod or YCB-Video); its GT is not used.
     Data { dir: PathBuf, split: Option<String> },
+    /// A ROS 2 bag in MCAP: the image topic's messages (`sensor_msgs/msg/Image` or
+    /// `CompressedImage`), each with the camera info in force and, for the depth models, the
+    /// depth topic's message nearest in stamp.
+    Bag {
+        path: PathBuf,
+        image_topic: String,
+        depth_topic: Option<String>,
+        camera_info_topic: String,
+    },
 }
 
 /// `synthgen predict`'s arguments as data.
@@ -366,6 +376,7 @@ fn frame_jobs(input: &PredictInput, needs_depth: bool) -> Result<Vec<FrameJob>> 
                 })
                 .collect()
         }
+        PredictInput::Bag { .. } => Err(anyhow::anyhow!("a bag's frames are not files")),
     }
 }
 
@@ -708,6 +719,7 @@ pub fn predict(req: &PredictRequest, progress: &dyn Progress) -> Result<PredictS
             }
         }
         PredictInput::Data { dir, .. } => inputs.push(("dataset", dir)),
+        PredictInput::Bag { path, .. } => inputs.push(("bag", path)),
     }
     check_apart(&req.out, &inputs)?;
     if let Some(d) = &req.draw {
@@ -719,7 +731,7 @@ pub fn predict(req: &PredictRequest, progress: &dyn Progress) -> Result<PredictS
             detector: req.detector.clone(),
             objects_from: match &req.input {
                 PredictInput::Data { dir, .. } => Some(dir.clone()),
-                PredictInput::Images { .. } => None,
+                PredictInput::Images { .. } | PredictInput::Bag { .. } => None,
             },
             min_score: req.min_score,
             per_object: req.per_object,
@@ -728,7 +740,7 @@ pub fn predict(req: &PredictRequest, progress: &dyn Progress) -> Result<PredictS
         &log,
     )?;
     let kind = models.kind();
-    let frames = frame_jobs(&req.input, kind.needs_depth())?;
+    let frames = Frames::of(&req.input, kind.needs_depth())?;
     std::fs::create_dir_all(&req.out)
         .with_context(|| format!("cannot create {}", req.out.display()))?;
     let _lock = OutputLock::acquire(&req.out)?;
@@ -762,10 +774,16 @@ pub fn predict(req: &PredictRequest, progress: &dyn Progress) -> Result<PredictS
     let mut summary = PredictSummary::default();
     let mut estimates = Vec::new();
     let mut frame_times = Vec::with_capacity(frames.len());
-    for job in &frames {
-        let (line, ests) = predict_frame(job, &models)?;
+    for i in 0..frames.len() {
+        let t0 = Instant::now();
+        let frame = frames.load(i)?;
+        let (line, ests) = predict_frame(&frame, t0, &models)?;
         if let Some(dir) = &req.draw {
-            draw_frame(&dir.join(draw_name(job)), job, &line)?;
+            draw_frame(
+                &dir.join(format!("{:06}_{:06}.png", frame.scene_id, frame.im_id)),
+                &frame,
+                &line,
+            )?;
         }
         serde_json::to_writer(&mut jsonl, &line)?;
         jsonl.write_all(b"\n")?;
@@ -813,14 +831,138 @@ pub fn predict(req: &PredictRequest, progress: &dyn Progress) -> Result<PredictS
     Ok(summary)
 }
 
-/// The file a frame is drawn into.
-fn draw_name(job: &FrameJob) -> String {
-    format!("{:06}_{:06}.png", job.scene_id, job.im_id)
+/// The frames of a request: files (photographs or a dataset's) or a bag's messages.
+enum Frames {
+    Files(Vec<FrameJob>),
+    Bag { bag: BagFrames, needs_depth: bool },
 }
 
-/// One frame: read, then the predictor; the frame's line and its whole poses.
-fn predict_frame(job: &FrameJob, models: &Predictor) -> Result<(FramePrediction, Vec<Estimate>)> {
-    let t0 = Instant::now();
+/// A frame read: its images and camera.
+struct LoadedFrame {
+    name: String,
+    scene_id: u32,
+    im_id: u32,
+    /// The message's header stamp (bags), seconds.
+    stamp: Option<f64>,
+    rgb: RgbImage,
+    depth: Option<Plane<f32>>,
+    cam_k: [f64; 9],
+}
+
+impl Frames {
+    fn of(input: &PredictInput, needs_depth: bool) -> Result<Frames> {
+        match input {
+            PredictInput::Bag {
+                path,
+                image_topic,
+                depth_topic,
+                camera_info_topic,
+            } => {
+                if needs_depth && depth_topic.is_none() {
+                    return Err(user_error(
+                        "this pose model reads depth, and no --depth-topic was given",
+                        "give --depth-topic (sensor_msgs/Image, 16UC1 mm or 32FC1 m, registered to the colour image), or use an rgb / rgb-dense model",
+                    ));
+                }
+                let bag = read_bag(
+                    path,
+                    image_topic,
+                    depth_topic.as_deref().filter(|_| needs_depth),
+                    camera_info_topic,
+                )?;
+                Ok(Frames::Bag { bag, needs_depth })
+            }
+            _ => Ok(Frames::Files(frame_jobs(input, needs_depth)?)),
+        }
+    }
+
+    fn len(&self) -> usize {
+        match self {
+            Frames::Files(f) => f.len(),
+            Frames::Bag { bag, .. } => bag.images.len(),
+        }
+    }
+
+    fn load(&self, i: usize) -> Result<LoadedFrame> {
+        match self {
+            Frames::Files(f) => load_file_frame(&f[i]),
+            Frames::Bag { bag, needs_depth } => {
+                let m = &bag.images[i];
+                let rgb = match bag.decode(m)? {
+                    Decoded::Colour(c) => c,
+                    Decoded::Depth(_) => {
+                        return Err(user_error(
+                            format!(
+                                "message {} on the image topic of {} is a depth image",
+                                m.index,
+                                bag.path.display()
+                            ),
+                            "give --image-topic the colour topic and --depth-topic the depth",
+                        ))
+                    }
+                };
+                let depth = if *needs_depth {
+                    // A frame without depth near its stamp has no depth: its objects get no
+                    // points (and so no pose), and the frame still gets its line.
+                    match bag.depth_for(m).map(|d| bag.decode(d)).transpose()? {
+                        Some(Decoded::Depth(d)) => Some(d),
+                        Some(Decoded::Colour(_)) => {
+                            return Err(user_error(
+                                format!(
+                                    "the depth topic of {} holds colour images",
+                                    bag.path.display()
+                                ),
+                                "give --depth-topic a 16UC1 or 32FC1 image topic",
+                            ))
+                        }
+                        None => Some(Plane {
+                            width: rgb.width,
+                            height: rgb.height,
+                            data: vec![0.0; (rgb.width * rgb.height) as usize],
+                        }),
+                    }
+                } else {
+                    None
+                };
+                let info = bag.camera_for(m).ok_or_else(|| {
+                    user_error(
+                        format!("{} has no camera info", bag.path.display()),
+                        "give --camera-info-topic",
+                    )
+                })?;
+                if [info.width, info.height] != [rgb.width, rgb.height]
+                    && info.width != 0
+                    && info.height != 0
+                {
+                    return Err(user_error(
+                        format!(
+                            "message {} of {} is {}x{}, and its camera info says {}x{}",
+                            m.index,
+                            bag.path.display(),
+                            rgb.width,
+                            rgb.height,
+                            info.width,
+                            info.height
+                        ),
+                        "give the camera info topic of the image topic's camera",
+                    ));
+                }
+                Ok(LoadedFrame {
+                    name: format!("{}@{:.9}", m.header.frame_id, m.header.seconds()),
+                    scene_id: 0,
+                    im_id: i as u32,
+                    stamp: Some(m.header.seconds()),
+                    rgb,
+                    depth,
+                    cam_k: info.k,
+                })
+            }
+        }
+    }
+}
+
+/// A photograph's or a dataset frame's files, read.
+fn load_file_frame(job: &FrameJob) -> Result<LoadedFrame> {
     let rgb = read_rgb(&job.rgb)?;
     if job.size != [0, 0] && [rgb.width, rgb.height] != job.size {
         return Err(user_error(
@@ -855,6 +997,25 @@ fn predict_frame(job: &FrameJob, models: &Predictor) -> Result<(FramePrediction,
         }
         None => None,
     };
+    Ok(LoadedFrame {
+        name: job.name.clone(),
+        scene_id: job.scene_id,
+        im_id: job.im_id,
+        stamp: None,
+        rgb,
+        depth,
+        cam_k: job.cam_k,
+    })
+}
+
+/// One frame read (since `t0`), then the predictor; the frame's line and its whole poses.
+fn predict_frame(
+    frame: &LoadedFrame,
+    t0: Instant,
+    models: &Predictor,
+) -> Result<(FramePrediction, Vec<Estimate>)> {
+    let job = frame;
+    let (rgb, depth) = (&frame.rgb, &frame.depth);
     let read_s = t0.elapsed().as_secs_f64();
     let found =
         models.predict_image(&rgb, depth.as_ref(), &job.cam_k, (job.scene_id, job.im_id))?;
@@ -878,9 +1039,11 @@ fn predict_frame(job: &FrameJob, models: &Predictor) -> Result<(FramePrediction,
             Some(e)
         })
         .collect();
-    let stamp = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64());
+    let stamp = frame.stamp.unwrap_or_else(|| {
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0.0, |d| d.as_secs_f64())
+    });
     Ok((
         FramePrediction {
             frame: job.name.clone(),
@@ -902,16 +1065,16 @@ fn predict_frame(job: &FrameJob, models: &Predictor) -> Result<(FramePrediction,
 
 /// Draws a frame's detections (mask tinted, box, object id and score) and each pose's axes
 /// (x red, y green, z blue; 5 cm), or a cross at a centre without rotation, into `path`.
-fn draw_frame(path: &Path, job: &FrameJob, line: &FramePrediction) -> Result<()> {
+fn draw_frame(path: &Path, job: &LoadedFrame, line: &FramePrediction) -> Result<()> {
     use synthgen_formats::annotate::mask_overlay;
-    let img = read_rgb(&job.rgb)?;
+    let img = &job.rgb;
     let masks: Vec<Vec<u8>> = line
         .objects
         .iter()
         .filter_map(|o| o.segmentation.as_ref().map(Rle::decode))
         .collect();
     let theirs = vec![None; masks.len()];
-    let mut c = mask_overlay(&img, &masks, &theirs);
+    let mut c = mask_overlay(img, &masks, &theirs);
     const BOX: [u8; 3] = [255, 200, 0];
     let k = &job.cam_k;
     let project = |p: DVec3| -> Option<(f64, f64)> {

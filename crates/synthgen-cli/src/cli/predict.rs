@@ -20,6 +20,11 @@ pub const PREDICT_EXAMPLES: &str = "Examples:
   synthgen predict --model runs/dense --detector runs/det --data ../shared/data/lmo --out poses/
   synthgen eval --results poses/results.csv --data ../shared/data/lmo --bop
 
+  # A ROS 2 bag (MCAP) from a RealSense: colour, aligned depth, camera info:
+  synthgen predict --model runs/full --detector runs/det --bag run.mcap \\
+      --image-topic /camera/color/image_raw \\
+      --depth-topic /camera/aligned_depth_to_color/image_raw --out poses/
+
   # Pictures of what was found (boxes, masks, each pose's axes: x red, y green, z blue):
   synthgen predict --model runs/dense --detector runs/det --images photos/ \\
       --camera camera.json --out poses/ --draw poses/pictures
@@ -31,12 +36,13 @@ around the box, the depth models the points of the detection's mask. Writes OUT/
 OUT/predictions.jsonl, one line per frame even when nothing was found:
 {\"frame\", \"scene_id\", \"image_id\", \"stamp\", \"objects\": [{\"obj_id\", \"score\",
 \"pose_score\", \"bbox\", \"R\" (row-major), \"t\" (metres), \"segmentation\" (COCO RLE)}],
-\"time\": {\"read\", \"detect\", \"instances\", \"pose\", \"total\"} (seconds)}. A TNet gives t
+\"time\": {\"read\", \"detect\", \"instances\", \"pose\", \"total\"} (seconds)}; from a bag,
+\"frame\" is FRAME_ID@STAMP and \"stamp\" the image's header stamp. A TNet gives t
 and no R, an RNet R and no t: they are in predictions.jsonl only. Prints the objects found
 and the time per stage (median and 95th percentile per frame).";
 
 #[derive(Debug, Args)]
-#[command(group(clap::ArgGroup::new("frames").required(true).args(["images", "data"])))]
+#[command(group(clap::ArgGroup::new("frames").required(true).args(["images", "data", "bag"])))]
 pub struct PredictArgs {
     /// The pose model: a `synthgen train` run folder (or its model.safetensors).
     #[arg(long, value_name = "DIR")]
@@ -65,6 +71,27 @@ pub struct PredictArgs {
     /// A dataset's frames instead of --images (BOP, Linemod or YCB-Video); its GT is not used.
     #[arg(long, value_name = "DIR", conflicts_with_all = ["images", "camera"])]
     pub data: Option<PathBuf>,
+
+    /// A ROS 2 bag in MCAP (`ros2 bag record -s mcap`) instead of --images: the messages of
+    /// --image-topic (sensor_msgs/Image: rgb8, bgr8, rgba8, bgra8, mono8; or CompressedImage,
+    /// JPEG/PNG), each with the CameraInfo in force.
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["images", "camera", "data"], requires = "image_topic")]
+    pub bag: Option<PathBuf>,
+
+    /// With --bag: the colour image topic (e.g. /camera/color/image_raw).
+    #[arg(long, value_name = "TOPIC", requires = "bag")]
+    pub image_topic: Option<String>,
+
+    /// With --bag and an RGB-D model: the depth topic (16UC1 mm or 32FC1 m, registered to the
+    /// colour image, e.g. /camera/aligned_depth_to_color/image_raw); each image takes the
+    /// depth message nearest in stamp, within 50 ms.
+    #[arg(long, value_name = "TOPIC", requires = "bag")]
+    pub depth_topic: Option<String>,
+
+    /// With --bag: the CameraInfo topic (default: camera_info beside --image-topic, as
+    /// image_transport publishes it: /camera/color/image_raw → /camera/color/camera_info).
+    #[arg(long, value_name = "TOPIC", requires = "bag")]
+    pub camera_info_topic: Option<String>,
 
     /// With --data: the split (default: test, else the only split).
     #[arg(long, requires = "data")]

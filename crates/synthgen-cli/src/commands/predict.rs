@@ -8,18 +8,33 @@ use crate::cli::{DeviceArg, PredictArgs};
 use crate::{ExitStatus, Printer};
 
 pub fn run(args: PredictArgs, printer: &Printer) -> Result<ExitStatus> {
-    let input = match (args.images, args.camera, args.data) {
-        (Some(dir), Some(camera), None) => PredictInput::Images {
+    let input = match (args.images, args.camera, args.data, args.bag) {
+        (Some(dir), Some(camera), None, None) => PredictInput::Images {
             dir,
             camera,
             depth: args.depth,
         },
-        (None, None, Some(dir)) => PredictInput::Data {
+        (None, None, Some(dir), None) => PredictInput::Data {
             dir,
             split: args.split,
         },
+        (None, None, None, Some(path)) => {
+            let image_topic = args.image_topic.unwrap_or_default();
+            let camera_info_topic =
+                args.camera_info_topic
+                    .unwrap_or_else(|| match image_topic.rsplit_once('/') {
+                        Some((ns, _)) => format!("{ns}/camera_info"),
+                        None => "camera_info".to_string(),
+                    });
+            PredictInput::Bag {
+                path,
+                image_topic,
+                depth_topic: args.depth_topic,
+                camera_info_topic,
+            }
+        }
         // clap's groups leave no other combination.
-        _ => anyhow::bail!("give --images DIR --camera FILE, or --data DATASET"),
+        _ => anyhow::bail!("give --images DIR --camera FILE, --data DATASET or --bag FILE"),
     };
     let request = PredictRequest {
         model: args.model,

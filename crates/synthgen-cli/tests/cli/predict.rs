@@ -93,6 +93,81 @@ fn without_gt(data: &Path, to: &Path) -> PathBuf {
     to.to_path_buf()
 }
 
+/// A ROS 2 bag (MCAP) of a BOP scene's frames: bgr8 colour on /cam/color/image_raw, 32FC1
+/// depth in metres on /cam/depth, one CameraInfo on /cam/color/camera_info; frame i stamped
+/// 100 + i/10 s.
+fn scene_bag(scene: &Path, out: &Path) {
+    use synthgen_formats::rosbag::{cdr, Header, CAMERA_INFO, IMAGE};
+    let cams = json_file(&scene.join("scene_camera.json"));
+    let f = std::io::BufWriter::new(std::fs::File::create(out).unwrap());
+    let mut w = mcap::Writer::new(f).unwrap();
+    let none = std::collections::BTreeMap::new();
+    let si = w
+        .add_schema(IMAGE, "ros2msg", cdr::image_schema().as_bytes())
+        .unwrap();
+    let sc = w
+        .add_schema(CAMERA_INFO, "ros2msg", cdr::camera_info_schema().as_bytes())
+        .unwrap();
+    let colour = w
+        .add_channel(si, "/cam/color/image_raw", "cdr", &none)
+        .unwrap();
+    let depth = w.add_channel(si, "/cam/depth", "cdr", &none).unwrap();
+    let info = w
+        .add_channel(sc, "/cam/color/camera_info", "cdr", &none)
+        .unwrap();
+    let mut put = |chan: u16, seq: u32, t: u64, msg: &[u8]| {
+        let h = mcap::records::MessageHeader {
+            channel_id: chan,
+            sequence: seq,
+            log_time: t,
+            publish_time: t,
+        };
+        w.write_to_known_channel(&h, msg).unwrap();
+    };
+    for i in 0..8u32 {
+        let header = Header {
+            sec: 100,
+            nanosec: i * 100_000_000,
+            frame_id: "camera_color_optical_frame".into(),
+        };
+        let t = 100_000_000_000 + u64::from(i) * 100_000_000;
+        let cam = &cams[i.to_string()];
+        let k: Vec<f64> = cam["cam_K"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        let rgb = image::open(scene.join(format!("rgb/{i:06}.png")))
+            .unwrap()
+            .to_rgb8();
+        let (width, height) = rgb.dimensions();
+        if i == 0 {
+            let k: [f64; 9] = std::array::from_fn(|j| k[j]);
+            put(info, 0, t, &cdr::camera_info(&header, width, height, &k));
+        }
+        let bgr: Vec<u8> = rgb.pixels().flat_map(|p| [p[2], p[1], p[0]]).collect();
+        put(
+            colour,
+            i,
+            t,
+            &cdr::image(&header, width, height, "bgr8", width * 3, &bgr),
+        );
+        let scale = cam["depth_scale"].as_f64().unwrap();
+        let d =
+            synthgen_formats::bop::read_depth_m(&scene.join(format!("depth/{i:06}.png")), scale)
+                .unwrap();
+        let bytes: Vec<u8> = d.data.iter().flat_map(|v| v.to_le_bytes()).collect();
+        put(
+            depth,
+            i,
+            t,
+            &cdr::image(&header, width, height, "32FC1", width * 4, &bytes),
+        );
+    }
+    w.finish().unwrap();
+}
+
 #[test]
 fn predict_scores_as_eval_detections_without_reading_gt() {
     let dir = tempfile::tempdir().unwrap();
@@ -295,6 +370,51 @@ fn predict_scores_as_eval_detections_without_reading_gt() {
         })
         .collect();
     assert_eq!(ids, [("a.png".to_string(), 0), ("b.png".to_string(), 1)]);
+
+    // The same frames as a ROS 2 bag (bgr8 colour, CameraInfo): the same poses, the frames
+    // named and stamped by their headers.
+    let bag = d.join("run.mcap");
+    scene_bag(&data.join("train_pbr/000000"), &bag);
+    let out_bag = d.join("pred_bag");
+    let o = predict(
+        &dense,
+        &det,
+        &[
+            "--bag".as_ref(),
+            bag.as_os_str(),
+            "--image-topic".as_ref(),
+            "/cam/color/image_raw".as_ref(),
+        ],
+        &out_bag,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(rows(&out_bag.join("results.csv")), b);
+    let bag_lines = lines(&out_bag.join("predictions.jsonl"));
+    assert_eq!(bag_lines.len(), 8);
+    assert_eq!(
+        bag_lines[3]["frame"],
+        "camera_color_optical_frame@100.300000000"
+    );
+    assert!((bag_lines[3]["stamp"].as_f64().unwrap() - 100.3).abs() < 1e-9);
+    // A topic the bag does not have: named with the bag's topics.
+    refused(
+        &predict(
+            &dense,
+            &det,
+            &[
+                "--bag".as_ref(),
+                bag.as_os_str(),
+                "--image-topic".as_ref(),
+                "/camera/color/image_raw".as_ref(),
+            ],
+            &d.join("p_bag_bad"),
+        ),
+        &[
+            "run.mcap",
+            "/camera/color/image_raw",
+            "/cam/color/image_raw (sensor_msgs/msg/Image, 8)",
+        ],
+    );
     assert_eq!(std::fs::read_dir(&pics).unwrap().count(), 8);
 
     // A second run into the same folder is refused; --force replaces it.
@@ -402,6 +522,39 @@ fn predict_scores_as_eval_detections_without_reading_gt() {
     }
     let table = String::from_utf8_lossy(&o.stdout).to_string();
     assert!(centres + without > 0);
+    // TNet on the bag's 32FC1 depth (metres, as the dataset's PNGs read): the same centres.
+    let out4 = d.join("pred_tnet_bag");
+    let o4 = predict(
+        &tnet,
+        &det,
+        &[
+            "--bag".as_ref(),
+            bag.as_os_str(),
+            "--image-topic".as_ref(),
+            "/cam/color/image_raw".as_ref(),
+            "--depth-topic".as_ref(),
+            "/cam/depth".as_ref(),
+        ],
+        &out4,
+    );
+    assert!(o4.status.success(), "{}", stderr(&o4));
+    let centres_of = |p: &Path| -> Vec<Value> {
+        lines(p)
+            .iter()
+            .flat_map(|f| {
+                f["objects"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|o| o["t"].clone())
+                    .collect::<Vec<_>>()
+            })
+            .collect()
+    };
+    assert_eq!(
+        centres_of(&out4.join("predictions.jsonl")),
+        centres_of(&out3.join("predictions.jsonl"))
+    );
     assert!(
         table.contains(&format!("{without} detections without a pose")),
         "{table}"
