@@ -87,18 +87,15 @@ impl PyPredictor {
         }
         let k = K.as_array();
         let cam_k: [f64; 9] = std::array::from_fn(|i| k[[i / 3, i % 3]]);
-        let depth = match depth {
-            Some(d) => Some(Plane {
-                width: d.as_array().shape()[1] as u32,
-                height: d.as_array().shape()[0] as u32,
-                data: d
-                    .as_array()
-                    .iter()
-                    .map(|&v| if v.is_finite() && v > 0.0 { v } else { 0.0 })
-                    .collect(),
-            }),
-            None => None,
-        };
+        let depth = depth.map(|d| Plane {
+            width: d.as_array().shape()[1] as u32,
+            height: d.as_array().shape()[0] as u32,
+            data: d
+                .as_array()
+                .iter()
+                .map(|&v| if v.is_finite() && v > 0.0 { v } else { 0.0 })
+                .collect(),
+        });
         let found = detached(py, || {
             self.inner
                 .predict_image(&image, depth.as_ref(), &cam_k, (0, 0))

@@ -1017,8 +1017,7 @@ fn predict_frame(
     let job = frame;
     let (rgb, depth) = (&frame.rgb, &frame.depth);
     let read_s = t0.elapsed().as_secs_f64();
-    let found =
-        models.predict_image(&rgb, depth.as_ref(), &job.cam_k, (job.scene_id, job.im_id))?;
+    let found = models.predict_image(rgb, depth.as_ref(), &job.cam_k, (job.scene_id, job.im_id))?;
     let total = t0.elapsed().as_secs_f64();
     let estimates = found
         .objects
