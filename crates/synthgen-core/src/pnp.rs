@@ -219,10 +219,90 @@ fn null_vector<const N: usize>(rows: impl Iterator<Item = [f64; N]>) -> Option<[
         .iter()
         .map(|r| r.iter().map(|v| v.abs()).fold(0.0, f64::max))
         .fold(0.0, f64::max);
+    if let Some(v) = smallest_eigenvector(&ata, scale) {
+        return Some(v);
+    }
     let (values, vectors) =
         crate::jacobi::symmetric_eigen(ata, |a| off_diagonal(a) < 1e-26 * scale * scale);
     let best = (0..N).min_by(|&a, &b| values[a].total_cmp(&values[b]))?;
     Some(std::array::from_fn(|i| vectors[i][best]))
+}
+
+/// The unit eigenvector of the symmetric positive semi-definite `m`'s smallest eigenvalue by
+/// inverse iteration (`m` + a shift of 1e-13 × its largest entry, Cholesky-factored once), to
+/// the precision of the Jacobi solve it stands in for: ~20x fewer operations for RANSAC's
+/// 12x12 minimal systems, the same vector (up to its sign, which the DLTs fix). None when the
+/// factorization or the convergence fails (a smallest eigenvalue barely apart from the next,
+/// as in degenerate samples): the caller then takes the Jacobi solve.
+fn smallest_eigenvector<const N: usize>(m: &[[f64; N]; N], scale: f64) -> Option<[f64; N]> {
+    if !(scale.is_finite() && scale > 0.0) {
+        return None;
+    }
+    let shift = 1e-13 * scale;
+    let mut l = [[0.0f64; N]; N];
+    for i in 0..N {
+        for j in 0..=i {
+            let mut sum = m[i][j] + if i == j { shift } else { 0.0 };
+            for k in 0..j {
+                sum -= l[i][k] * l[j][k];
+            }
+            if i == j {
+                if sum <= 0.0 || !sum.is_finite() {
+                    return None;
+                }
+                l[i][i] = sum.sqrt();
+            } else {
+                l[i][j] = sum / l[j][j];
+            }
+        }
+    }
+    let normalized = |v: [f64; N]| -> Option<[f64; N]> {
+        let n = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        (n.is_finite() && n > 0.0).then(|| v.map(|x| x / n))
+    };
+    // A start with a share of every direction (no eigenvector is orthogonal to it by chance).
+    let mut x = normalized(std::array::from_fn(|i| 1.0 + 0.1 * i as f64))?;
+    for _ in 0..40 {
+        // Solve (L Lᵀ) z = x.
+        let mut y = [0.0f64; N];
+        for i in 0..N {
+            let mut s = x[i];
+            for k in 0..i {
+                s -= l[i][k] * y[k];
+            }
+            y[i] = s / l[i][i];
+        }
+        let mut z = [0.0f64; N];
+        for i in (0..N).rev() {
+            let mut s = y[i];
+            for k in i + 1..N {
+                s -= l[k][i] * z[k];
+            }
+            z[i] = s / l[i][i];
+        }
+        let next = normalized(z)?;
+        let dot: f64 = next.iter().zip(&x).map(|(a, b)| a * b).sum();
+        let step = next
+            .iter()
+            .zip(&x)
+            .map(|(a, b)| (a - dot.signum() * b).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        x = next;
+        if step < 1e-14 {
+            // Converged; accepted when the residual |m x − λ x| is at Jacobi's precision.
+            let mx: [f64; N] = std::array::from_fn(|i| (0..N).map(|j| m[i][j] * x[j]).sum());
+            let lambda: f64 = mx.iter().zip(&x).map(|(a, b)| a * b).sum();
+            let r = mx
+                .iter()
+                .zip(&x)
+                .map(|(a, b)| (a - lambda * b).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            return (r <= 1e-12 * scale).then_some(x);
+        }
+    }
+    None
 }
 
 /// The DLT for coplanar model points (a box seen on one face): in the plane's frame (origin
@@ -643,6 +723,55 @@ mod tests {
         let re = angle_deg(&sol.pose.rotation, &truth().rotation);
         let te = (sol.pose.translation_m - truth().translation_m).length();
         assert!(re < 1.0 && te < 0.005, "{re} deg, {te} m");
+    }
+
+    #[test]
+    fn inverse_iteration_gives_jacobis_smallest_eigenvector() {
+        // RANSAC's minimal systems: 6 noisy correspondences, 12 DLT rows.
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let mut agreed = 0;
+        for trial in 0..200 {
+            let mut rows = Vec::new();
+            for _ in 0..12 {
+                rows.push(std::array::from_fn::<f64, 12, _>(|_| {
+                    rng.gen_range(-1.0..1.0)
+                }));
+            }
+            // A near null direction: the rows made almost orthogonal to v.
+            let v: [f64; 12] = std::array::from_fn(|i| ((i + trial) as f64).sin());
+            let vn = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+            for r in rows.iter_mut() {
+                let d = r.iter().zip(&v).map(|(a, b)| a * b).sum::<f64>() / (vn * vn);
+                for (a, b) in r.iter_mut().zip(&v) {
+                    *a -= d * b * (1.0 - 1e-4);
+                }
+            }
+            let mut ata = [[0.0f64; 12]; 12];
+            for r in &rows {
+                for i in 0..12 {
+                    for j in 0..12 {
+                        ata[i][j] += r[i] * r[j];
+                    }
+                }
+            }
+            let scale = ata
+                .iter()
+                .map(|r| r.iter().map(|v| v.abs()).fold(0.0, f64::max))
+                .fold(0.0, f64::max);
+            let (values, vectors) =
+                crate::jacobi::symmetric_eigen(ata, |a| off_diagonal(a) < 1e-26 * scale * scale);
+            let best = (0..12)
+                .min_by(|&a, &b| values[a].total_cmp(&values[b]))
+                .unwrap();
+            let jac: [f64; 12] = std::array::from_fn(|i| vectors[i][best]);
+            if let Some(inv) = smallest_eigenvector(&ata, scale) {
+                let dot: f64 = jac.iter().zip(&inv).map(|(a, b)| a * b).sum();
+                assert!(1.0 - dot.abs() < 1e-12, "trial {trial}: {jac:?} vs {inv:?}");
+                agreed += 1;
+            }
+        }
+        // Well-separated smallest eigenvalues: inverse iteration answers (nearly) always.
+        assert!(agreed >= 190, "{agreed}");
     }
 
     #[test]
