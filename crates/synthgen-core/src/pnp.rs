@@ -234,6 +234,7 @@ fn null_vector<const N: usize>(rows: impl Iterator<Item = [f64; N]>) -> Option<[
 /// 12x12 minimal systems, the same vector (up to its sign, which the DLTs fix). None when the
 /// factorization or the convergence fails (a smallest eigenvalue barely apart from the next,
 /// as in degenerate samples): the caller then takes the Jacobi solve.
+#[allow(clippy::needless_range_loop)] // triangular solves: index arithmetic reads clearest
 fn smallest_eigenvector<const N: usize>(m: &[[f64; N]; N], scale: f64) -> Option<[f64; N]> {
     if !(scale.is_finite() && scale > 0.0) {
         return None;
