@@ -47,7 +47,6 @@ pub mod layout;
 pub mod linemod;
 pub mod manifest;
 pub mod output;
-pub mod rosbag;
 pub mod shared_frames;
 pub mod source;
 pub mod validate;

@@ -26,7 +26,7 @@ use synthgen_formats::coco::Rle;
 use synthgen_formats::identity::ObjectIdentity;
 use synthgen_formats::layout::open_source;
 use synthgen_formats::output::{check_apart, OutputLock};
-use synthgen_formats::rosbag::{read_bag, BagFrames, Decoded};
+use synthgen_ros::rosbag::{read_bag, BagFrames, Decoded};
 use synthgen_train::data::{detection_instance, DataOptions, FramePixels, InstanceKey};
 use synthgen_train::eval::pick_split;
 use synthgen_train::models::ModelKind;

@@ -97,7 +97,7 @@ fn without_gt(data: &Path, to: &Path) -> PathBuf {
 /// depth in metres on /cam/depth, one CameraInfo on /cam/color/camera_info; frame i stamped
 /// 100 + i/10 s.
 fn scene_bag(scene: &Path, out: &Path) {
-    use synthgen_formats::rosbag::{cdr, Header, CAMERA_INFO, IMAGE};
+    use synthgen_ros::rosbag::{cdr, Header, CAMERA_INFO, IMAGE};
     let cams = json_file(&scene.join("scene_camera.json"));
     let f = std::io::BufWriter::new(std::fs::File::create(out).unwrap());
     let mut w = mcap::Writer::new(f).unwrap();

@@ -5,13 +5,13 @@
 //!
 //! [`read_bag`] reads a bag's image, depth and camera-info topics into [`BagFrames`]; the
 //! images are kept as their messages' bytes and decoded one at a time ([`BagFrames::frame`]).
-//! [`cdr`] writes the same messages (the tests' bags, and `synthgen ros --record`'s).
+//! [`cdr`] writes the same messages (the tests' bags).
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use crate::bop::{Plane, RgbImage};
-use crate::{Error, Result};
+use synthgen_formats::bop::{Plane, RgbImage};
+use synthgen_formats::{Error, Result};
 
 /// The ROS 2 type names read here.
 pub const IMAGE: &str = "sensor_msgs/msg/Image";
