@@ -65,6 +65,15 @@ impl CommandPaths {
             }
         }
     }
+
+    /// A flag that names a run folder (an input as `role`) or its checkpoint file.
+    fn run_or_checkpoint(&mut self, role: &'static str, p: &Path) {
+        if p.is_dir() {
+            self.input(role, p);
+        } else {
+            self.checkpoint(p);
+        }
+    }
 }
 
 /// The inputs and outputs `command` names on its command line.
@@ -155,11 +164,7 @@ pub fn paths(command: &Command) -> CommandPaths {
             p.output("--out", &a.out);
         }
         Command::Detector(DetectorCommand::Run(a)) => {
-            if a.checkpoint.is_dir() {
-                p.input("detector", &a.checkpoint);
-            } else {
-                p.checkpoint(&a.checkpoint);
-            }
+            p.run_or_checkpoint("detector", &a.checkpoint);
             p.input("dataset", &a.data);
             p.output("--out", &a.out);
         }
@@ -172,16 +177,8 @@ pub fn paths(command: &Command) -> CommandPaths {
             p.output_opt("--draw", &a.draw);
         }
         Command::Predict(a) => {
-            if a.model.is_dir() {
-                p.input("--model", &a.model);
-            } else {
-                p.checkpoint(&a.model);
-            }
-            if a.detector.is_dir() {
-                p.input("--detector", &a.detector);
-            } else {
-                p.checkpoint(&a.detector);
-            }
+            p.run_or_checkpoint("--model", &a.model);
+            p.run_or_checkpoint("--detector", &a.detector);
             p.input_opt("--images", &a.images);
             p.input_opt("--camera", &a.camera);
             p.input_opt("--depth", &a.depth);

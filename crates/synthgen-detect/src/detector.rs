@@ -498,15 +498,10 @@ impl Detector {
     /// The detector of a run folder (`config.json` and `model.safetensors`), or of a
     /// checkpoint file with `config.json` beside it.
     pub fn load(path: &Path, device: &Device) -> Result<Detector> {
-        let (dir, model) = if path.is_dir() {
-            (path.to_path_buf(), path.join(MODEL_FILE))
-        } else {
-            (
-                path.parent()
-                    .map_or_else(|| PathBuf::from("."), Path::to_path_buf),
-                path.to_path_buf(),
-            )
-        };
+        let model = synthgen_train::train::checkpoint_in(path);
+        let dir = model
+            .parent()
+            .map_or_else(|| PathBuf::from("."), Path::to_path_buf);
         let cfg: DetectorConfig = read_run_config(&dir.join(CONFIG_FILE), RunKind::Detector)?;
         let mut d = Detector::new(cfg, device)?;
         d.varmap.load(&model).map_err(|e| Error::Malformed {

@@ -32,7 +32,7 @@ use synthgen_train::eval::pick_split;
 use synthgen_train::models::ModelKind;
 use synthgen_train::pose_model::{load_dataset_objects, Objects, PoseModel, Prediction};
 use synthgen_train::results::{write_results_csv, Estimate};
-use synthgen_train::train::{self, load_model, read_config, TrainConfig, CONFIG_FILE, MODEL_FILE};
+use synthgen_train::train::{self, load_model, read_config, TrainConfig, CONFIG_FILE};
 
 use crate::{user_error, Log};
 
@@ -174,15 +174,6 @@ pub struct PredictSummary {
     pub p95_frame_s: f64,
 }
 
-/// The checkpoint of a run folder or the file given, with its `config.json` beside it.
-fn checkpoint_of(path: &Path) -> PathBuf {
-    if path.is_dir() {
-        path.join(MODEL_FILE)
-    } else {
-        path.to_path_buf()
-    }
-}
-
 /// The camera of `--camera`: BOP's `camera.json` (`fx, fy, cx, cy, width, height`,
 /// `depth_scale`) or a plain intrinsics file (`K` or `cam_K`: nine numbers, row-major;
 /// optional `width`, `height`, `depth_scale`). Returns K, the depth scale and the image size
@@ -277,107 +268,109 @@ fn list_images(dir: &Path) -> Result<Vec<PathBuf>> {
     Ok(out)
 }
 
-/// The frames of the request.
-fn frame_jobs(input: &PredictInput, needs_depth: bool) -> Result<Vec<FrameJob>> {
-    match input {
-        PredictInput::Images { dir, camera, depth } => {
-            let (cam_k, depth_scale, size) = read_camera_file(camera)?;
-            if needs_depth && depth.is_none() {
-                return Err(user_error(
-                    "this pose model reads depth, and no --depth folder was given",
-                    "give --depth DIR with a 16-bit depth PNG per photograph (the same file stem; camera.json's depth_scale: value × depth_scale = mm), or use an rgb / rgb-dense model",
-                ));
-            }
-            let images = list_images(dir)?;
-            if images.is_empty() {
-                return Err(user_error(
-                    format!("{} holds no PNG or JPEG images", dir.display()),
-                    "give the folder of the photographs to predict on",
-                ));
-            }
-            // Image ids: the file stems' numbers where every stem is a distinct number (BOP's
-            // rgb/000003.png is image 3), else the images' places in name order.
-            let numbers: Vec<Option<u32>> = images
-                .iter()
-                .map(|p| p.file_stem()?.to_str()?.parse().ok())
-                .collect();
-            let distinct: std::collections::BTreeSet<u32> =
-                numbers.iter().flatten().copied().collect();
-            let by_stem = distinct.len() == images.len();
-            images
-                .into_iter()
-                .enumerate()
-                .map(|(i, rgb)| {
-                    let name = rgb
-                        .file_name()
-                        .map(|n| n.to_string_lossy().into_owned())
-                        .unwrap_or_default();
-                    let depth = match depth.as_ref().filter(|_| needs_depth) {
-                        Some(d) => {
-                            let stem = rgb.file_stem().unwrap_or_default();
-                            let p = d.join(stem).with_extension("png");
-                            if !p.is_file() {
-                                return Err(user_error(
-                                    format!("{name} has no depth image {}", p.display()),
-                                    "give each photograph a depth PNG of the same stem in --depth",
-                                ));
-                            }
-                            Some(p)
-                        }
-                        None => None,
-                    };
-                    Ok(FrameJob {
-                        name,
-                        scene_id: 0,
-                        im_id: if by_stem {
-                            numbers[i].unwrap_or(i as u32)
-                        } else {
-                            i as u32
-                        },
-                        rgb,
-                        depth,
-                        cam_k,
-                        depth_scale,
-                        size: size.unwrap_or([0, 0]),
-                    })
-                })
-                .collect()
-        }
-        PredictInput::Data { dir, split } => {
-            let ds = open_source(dir)
-                .with_context(|| format!("cannot open the dataset {}", dir.display()))?;
-            let split = pick_split(ds.as_ref(), split.as_deref())?;
-            let cam = ds.camera();
-            let frames = ds.image_frames(std::slice::from_ref(&split))?;
-            frames
-                .into_iter()
-                .map(|f| {
-                    if needs_depth && f.depth.is_none() {
+/// The frames of a folder of photographs: their camera file, and their depth PNGs where the
+/// model reads depth.
+fn image_jobs(
+    dir: &Path,
+    camera: &Path,
+    depth: Option<&Path>,
+    needs_depth: bool,
+) -> Result<Vec<FrameJob>> {
+    let (cam_k, depth_scale, size) = read_camera_file(camera)?;
+    if needs_depth && depth.is_none() {
+        return Err(user_error(
+            "this pose model reads depth, and no --depth folder was given",
+            "give --depth DIR with a 16-bit depth PNG per photograph (the same file stem; camera.json's depth_scale: value × depth_scale = mm), or use an rgb / rgb-dense model",
+        ));
+    }
+    let images = list_images(dir)?;
+    if images.is_empty() {
+        return Err(user_error(
+            format!("{} holds no PNG or JPEG images", dir.display()),
+            "give the folder of the photographs to predict on",
+        ));
+    }
+    // Image ids: the file stems' numbers where every stem is a distinct number (BOP's
+    // rgb/000003.png is image 3), else the images' places in name order.
+    let numbers: Vec<Option<u32>> = images
+        .iter()
+        .map(|p| p.file_stem()?.to_str()?.parse().ok())
+        .collect();
+    let distinct: std::collections::BTreeSet<u32> = numbers.iter().flatten().copied().collect();
+    let by_stem = distinct.len() == images.len();
+    images
+        .into_iter()
+        .enumerate()
+        .map(|(i, rgb)| {
+            let name = rgb
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            let depth = match depth.filter(|_| needs_depth) {
+                Some(d) => {
+                    let stem = rgb.file_stem().unwrap_or_default();
+                    let p = d.join(stem).with_extension("png");
+                    if !p.is_file() {
                         return Err(user_error(
-                            format!(
-                                "image {} of scene {} in {} has no depth image, and this pose model reads depth",
-                                f.location.im_id,
-                                f.location.scene_id,
-                                dir.display()
-                            ),
-                            "predict with an rgb / rgb-dense model, or on RGB-D frames",
+                            format!("{name} has no depth image {}", p.display()),
+                            "give each photograph a depth PNG of the same stem in --depth",
                         ));
                     }
-                    Ok(FrameJob {
-                        name: format!("{:06}/{:06}", f.location.scene_id, f.location.im_id),
-                        scene_id: f.location.scene_id,
-                        im_id: f.location.im_id,
-                        rgb: f.rgb,
-                        depth: f.depth,
-                        cam_k: f.camera.cam_k,
-                        depth_scale: f.camera.depth_scale,
-                        size: [cam.width, cam.height],
-                    })
-                })
-                .collect()
-        }
-        PredictInput::Bag { .. } => Err(anyhow::anyhow!("a bag's frames are not files")),
-    }
+                    Some(p)
+                }
+                None => None,
+            };
+            Ok(FrameJob {
+                name,
+                scene_id: 0,
+                im_id: if by_stem {
+                    numbers[i].unwrap_or(i as u32)
+                } else {
+                    i as u32
+                },
+                rgb,
+                depth,
+                cam_k,
+                depth_scale,
+                size: size.unwrap_or([0, 0]),
+            })
+        })
+        .collect()
+}
+
+/// The frames of a dataset's split, read without their GT.
+fn dataset_jobs(dir: &Path, split: Option<&str>, needs_depth: bool) -> Result<Vec<FrameJob>> {
+    let ds =
+        open_source(dir).with_context(|| format!("cannot open the dataset {}", dir.display()))?;
+    let split = pick_split(ds.as_ref(), split)?;
+    let cam = ds.camera();
+    let frames = ds.image_frames(std::slice::from_ref(&split))?;
+    frames
+        .into_iter()
+        .map(|f| {
+            if needs_depth && f.depth.is_none() {
+                return Err(user_error(
+                    format!(
+                        "image {} of scene {} in {} has no depth image, and this pose model reads depth",
+                        f.location.im_id,
+                        f.location.scene_id,
+                        dir.display()
+                    ),
+                    "predict with an rgb / rgb-dense model, or on RGB-D frames",
+                ));
+            }
+            Ok(FrameJob {
+                name: format!("{:06}/{:06}", f.location.scene_id, f.location.im_id),
+                scene_id: f.location.scene_id,
+                im_id: f.location.im_id,
+                rgb: f.rgb,
+                depth: f.depth,
+                cam_k: f.camera.cam_k,
+                depth_scale: f.camera.depth_scale,
+                size: [cam.width, cam.height],
+            })
+        })
+        .collect()
 }
 
 /// A detector and a pose model, loaded, that turn a frame's colour (and depth) into the
@@ -584,7 +577,7 @@ impl Predictor {
 }
 
 fn load_models(req: &PredictorOptions, log: &Log<'_>) -> Result<Predictor> {
-    let ckpt = checkpoint_of(&req.model);
+    let ckpt = train::checkpoint_in(&req.model);
     let cfg_path = ckpt.with_file_name(CONFIG_FILE);
     if !cfg_path.is_file() {
         return Err(user_error(
@@ -872,7 +865,17 @@ impl Frames {
                 )?;
                 Ok(Frames::Bag { bag, needs_depth })
             }
-            _ => Ok(Frames::Files(frame_jobs(input, needs_depth)?)),
+            PredictInput::Images { dir, camera, depth } => Ok(Frames::Files(image_jobs(
+                dir,
+                camera,
+                depth.as_deref(),
+                needs_depth,
+            )?)),
+            PredictInput::Data { dir, split } => Ok(Frames::Files(dataset_jobs(
+                dir,
+                split.as_deref(),
+                needs_depth,
+            )?)),
         }
     }
 
@@ -1014,10 +1017,14 @@ fn predict_frame(
     t0: Instant,
     models: &Predictor,
 ) -> Result<(FramePrediction, Vec<Estimate>)> {
-    let job = frame;
     let (rgb, depth) = (&frame.rgb, &frame.depth);
     let read_s = t0.elapsed().as_secs_f64();
-    let found = models.predict_image(rgb, depth.as_ref(), &job.cam_k, (job.scene_id, job.im_id))?;
+    let found = models.predict_image(
+        rgb,
+        depth.as_ref(),
+        &frame.cam_k,
+        (frame.scene_id, frame.im_id),
+    )?;
     let total = t0.elapsed().as_secs_f64();
     let estimates = found
         .objects
@@ -1028,8 +1035,8 @@ fn predict_frame(
                 r[0], r[3], r[6], r[1], r[4], r[7], r[2], r[5], r[8],
             ]);
             let mut e = Estimate::new(
-                job.scene_id,
-                job.im_id,
+                frame.scene_id,
+                frame.im_id,
                 o.obj_id,
                 o.score * o.pose_score,
                 Pose::new(r, DVec3::from_array(t)),
@@ -1045,9 +1052,9 @@ fn predict_frame(
     });
     Ok((
         FramePrediction {
-            frame: job.name.clone(),
-            scene_id: job.scene_id,
-            image_id: job.im_id,
+            frame: frame.name.clone(),
+            scene_id: frame.scene_id,
+            image_id: frame.im_id,
             stamp,
             time: StageTimes {
                 read: read_s,

@@ -433,6 +433,16 @@ pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path, what: &'static str
 
 /// A pose model's `config.json`; a detector's is refused by name (not as serde's "unknown
 /// variant").
+/// The checkpoint a path names: a run folder's `model.safetensors`, or the file itself
+/// (`config.json` beside it either way).
+pub fn checkpoint_in(path: &Path) -> PathBuf {
+    if path.is_dir() {
+        path.join(MODEL_FILE)
+    } else {
+        path.to_path_buf()
+    }
+}
+
 pub fn read_config(path: &Path) -> Result<TrainConfig> {
     read_run_config(path, RunKind::Pose)
 }
