@@ -786,7 +786,8 @@ pub fn predict(req: &PredictRequest, progress: &dyn Progress) -> Result<PredictS
         }
         for o in &line.objects {
             *summary.found.entry(o.obj_id).or_insert(0) += 1;
-            if o.t.is_none() && models.shared.contains(&o.obj_id) {
+            // No pose at all: an RNet's rotation has no t, a TNet's centre no R.
+            if o.t.is_none() && o.r.is_none() && models.shared.contains(&o.obj_id) {
                 summary.without_pose += 1;
             }
         }
