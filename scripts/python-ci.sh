@@ -17,7 +17,7 @@ pip_quiet=(--quiet --disable-pip-version-check)
 # torch 2.0.1 is the oldest torch the package supports (pyproject's `torch>=2.0`) and PyPI's
 # smallest for CPython 3.11 on Linux: 2.3 GB with its CUDA libraries, against 3.0 GB for 2.15
 # (download.pytorch.org's CPU wheels are not reachable from CI). It was built against numpy 1.
-test_requirements=(pytest mypy "torch==2.0.1" "numpy<2" "pycocotools==2.0.7" "mcap==1.6.0" "mcap-ros2-support==0.6.0" "pillow")
+test_requirements=(pytest mypy "torch==2.0.1" "numpy<2" "pycocotools==2.0.7" "mcap==1.6.0" "mcap-ros2-support==0.6.0" "pillow" "cyclonedds==11.0.1" "rosbags==0.11.9")
 
 setup() {
   if [ ! -x "$tools/bin/maturin" ]; then
@@ -41,7 +41,7 @@ run_tests() {
   (cd python && "$tools/bin/maturin" build --profile dev --locked -o "$wheels")
   "$venv/bin/pip" install "${pip_quiet[@]}" --no-deps --force-reinstall "$wheels"/synthgen-*.whl
   echo "wheel built and installed: $(($(date +%s) - started)) s"
-  SYNTHGEN_REQUIRE_TORCH=1 SYNTHGEN_REQUIRE_SHARED=1 SYNTHGEN_REQUIRE_PYCOCOTOOLS=1 SYNTHGEN_REQUIRE_MCAP=1 SYNTHGEN_BIN=target/debug/synthgen \
+  SYNTHGEN_REQUIRE_TORCH=1 SYNTHGEN_REQUIRE_SHARED=1 SYNTHGEN_REQUIRE_PYCOCOTOOLS=1 SYNTHGEN_REQUIRE_MCAP=1 SYNTHGEN_REQUIRE_DDS=1 SYNTHGEN_BIN=target/debug/synthgen \
     "$venv/bin/python" -m pytest -q -p no:cacheprovider python/tests
   # The stubs are checked against the built module, not trusted; the package type-checks.
   "$venv/bin/python" -m mypy.stubtest synthgen._native --allowlist python/stubtest-allowlist.txt

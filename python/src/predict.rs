@@ -11,9 +11,10 @@ use pyo3::types::{PyDict, PyList};
 use synthgen_core::NoProgress;
 use synthgen_formats::bop::{Plane, RgbImage};
 use synthgen_jobs::predict::{Predictor, PredictorOptions};
+use synthgen_jobs::rgb_refine::refine_options;
 use synthgen_jobs::Log;
 
-use crate::errors::input_error;
+use crate::errors::{input_error, to_py};
 use crate::gil::detached;
 
 #[pyclass(module = "synthgen._native", name = "Predictor", frozen)]
@@ -24,7 +25,8 @@ pub struct PyPredictor {
 #[pymethods]
 impl PyPredictor {
     #[new]
-    #[pyo3(signature = (model, detector, *, objects_from=None, min_score=0.05, per_object=1))]
+    #[pyo3(signature = (model, detector, *, objects_from=None, min_score=0.05, per_object=1, refine="none", refine_models=None))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
         model: PathBuf,
@@ -32,6 +34,8 @@ impl PyPredictor {
         objects_from: Option<PathBuf>,
         min_score: f64,
         per_object: usize,
+        refine: &str,
+        refine_models: Option<PathBuf>,
     ) -> PyResult<Self> {
         let options = PredictorOptions {
             model,
@@ -40,6 +44,8 @@ impl PyPredictor {
             min_score,
             per_object,
             cuda: false,
+            refine: refine_options(refine).map_err(to_py)?,
+            refine_models,
         };
         let inner = detached(py, || Predictor::load(&options, &Log::new(&NoProgress)))?;
         Ok(PyPredictor { inner })

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import os
+import subprocess
 from pathlib import Path
+from typing import Tuple
 
 import pytest
 import synthgen
@@ -78,3 +80,53 @@ def rendered(tmp_path_factory: pytest.TempPathFactory, gen: synthgen.Generator) 
     )
     assert report["written"] == len(gen)
     return out
+
+
+def run_cli(*args: object) -> None:
+    """Runs the CLI with `args`, failing on a non-zero exit."""
+    subprocess.run([str(a) for a in args], check=True, capture_output=True)
+
+
+@pytest.fixture(scope="session")
+def models(tmp_path_factory: pytest.TempPathFactory, rendered: Path) -> Tuple[Path, Path]:
+    """A one-epoch detector and rgb-dense model of `rendered` (CLI-trained)."""
+    exe = synthgen_exe()
+    tmp = tmp_path_factory.mktemp("models")
+    det = tmp / "det"
+    run_cli(
+        exe,
+        "detector",
+        "train",
+        "-q",
+        "--data",
+        rendered,
+        "--input",
+        "64x48",
+        "--batch",
+        "2",
+        "--epochs",
+        "1",
+        "--out",
+        det,
+    )
+    dense = tmp / "dense"
+    run_cli(
+        exe,
+        "train",
+        "-q",
+        "--model",
+        "rgb-dense",
+        "--data",
+        rendered,
+        "--crop-size",
+        "16",
+        "--epochs",
+        "1",
+        "--batch",
+        "4",
+        "--width",
+        "16",
+        "--out",
+        dense,
+    )
+    return dense, det

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
 from pathlib import Path
 from typing import Tuple
 
@@ -13,56 +12,8 @@ import numpy as np
 import pytest
 import synthgen
 
+from .conftest import run_cli as _run
 from .conftest import synthgen_exe
-
-
-def _run(*args: object) -> None:
-    subprocess.run([str(a) for a in args], check=True, capture_output=True)
-
-
-@pytest.fixture(scope="module")
-def models(tmp_path_factory: pytest.TempPathFactory, rendered: Path) -> Tuple[Path, Path]:
-    """A one-epoch detector and rgb-dense model of `rendered` (CLI-trained)."""
-    exe = synthgen_exe()
-    tmp = tmp_path_factory.mktemp("models")
-    det = tmp / "det"
-    _run(
-        exe,
-        "detector",
-        "train",
-        "-q",
-        "--data",
-        rendered,
-        "--input",
-        "64x48",
-        "--batch",
-        "2",
-        "--epochs",
-        "1",
-        "--out",
-        det,
-    )
-    dense = tmp / "dense"
-    _run(
-        exe,
-        "train",
-        "-q",
-        "--model",
-        "rgb-dense",
-        "--data",
-        rendered,
-        "--crop-size",
-        "16",
-        "--epochs",
-        "1",
-        "--batch",
-        "4",
-        "--width",
-        "16",
-        "--out",
-        dense,
-    )
-    return dense, det
 
 
 def test_predictor_matches_the_cli(
@@ -103,6 +54,15 @@ def test_predictor_matches_the_cli(
         p.predict(frame.rgb, np.zeros((3, 3)))
     with pytest.raises(synthgen.InputError, match="min-score"):
         synthgen.Predictor(dense, det, min_score=2.0)
+    # The refinement of `synthgen predict --refine`: the same detections, refined poses.
+    refined = synthgen.Predictor(dense, det, objects_from=rendered, refine="edges").predict(
+        frame.rgb, frame.cam_K
+    )
+    assert [o["obj_id"] for o in refined] == [o["obj_id"] for o in found]
+    for o in refined:
+        np.testing.assert_allclose(o["R"] @ o["R"].T, np.eye(3), atol=1e-6)
+    with pytest.raises(synthgen.InputError, match="not a refinement"):
+        synthgen.Predictor(dense, det, refine="sharpen")
 
 
 HEADER = (

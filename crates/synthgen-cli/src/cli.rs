@@ -11,6 +11,7 @@ mod experiment;
 mod model;
 mod predict;
 mod rgb;
+mod ros;
 mod scale;
 mod scene;
 mod sensor;
@@ -24,6 +25,7 @@ pub use experiment::{ExperimentCommand, ExperimentMixArgs};
 pub use model::{ModelAlignArgs, ModelCommand};
 pub use predict::{PredictArgs, PREDICT_EXAMPLES};
 pub use rgb::ExperimentRgbArgs;
+pub use ros::{RosArgs, ROS_EXAMPLES};
 pub use scale::{MergeArgs, Shard, MERGE_EXAMPLES};
 pub use scene::{SceneCommand, SceneFitArgs};
 pub use sensor::{SensorCommand, SensorCompareArgs, SensorCompareRgbArgs, SensorFitArgs};
@@ -120,6 +122,10 @@ pub enum Command {
     /// lines.
     #[command(after_long_help = PREDICT_EXAMPLES)]
     Predict(Box<PredictArgs>),
+    /// A ROS 2 node (no ROS installation needed): subscribes a camera's images and camera
+    /// info, publishes vision_msgs Detection3DArray (a pose per object) and Detection2DArray.
+    #[command(after_long_help = ROS_EXAMPLES)]
+    Ros(Box<RosArgs>),
     /// Run an experiment end to end: the mixing table, synthetic to real, the RGB model's table.
     ///
     /// `mix`: the real/synthetic mixing table (mix, train, evaluate per composition).

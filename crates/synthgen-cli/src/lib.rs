@@ -104,6 +104,7 @@ fn dispatch(command: cli::Command, printer: &Printer) -> anyhow::Result<ExitStat
             commands::detector::run_eval(args, printer)
         }
         cli::Command::Predict(args) => commands::predict::run(*args, printer),
+        cli::Command::Ros(args) => commands::ros::run(*args, printer),
         cli::Command::Experiment(cli::ExperimentCommand::Mix(args)) => {
             commands::experiment::run_mix(args, printer)
         }

@@ -42,6 +42,7 @@ pub mod predict;
 pub mod render;
 pub mod replay;
 pub mod rgb_refine;
+pub mod ros;
 pub mod train;
 
 use log::Printer;

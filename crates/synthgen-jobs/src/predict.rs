@@ -16,11 +16,13 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
+use rayon::prelude::*;
 use serde::Serialize;
 use synthgen_core::glam::DVec3;
-use synthgen_core::{Pose, Progress};
+use synthgen_core::{Intrinsics, Pose, Progress};
 use synthgen_detect::detections::bop_box;
 use synthgen_detect::detector::{Detector, Found};
+use synthgen_fit::edge_refine::EdgeRefineOptions;
 use synthgen_formats::bop::{read_depth_m, read_rgb, Plane, RgbImage};
 use synthgen_formats::coco::Rle;
 use synthgen_formats::identity::ObjectIdentity;
@@ -34,6 +36,7 @@ use synthgen_train::pose_model::{load_dataset_objects, Objects, PoseModel, Predi
 use synthgen_train::results::{write_results_csv, Estimate};
 use synthgen_train::train::{self, load_model, read_config, TrainConfig, CONFIG_FILE};
 
+use crate::rgb_refine::Refiner;
 use crate::{user_error, Log};
 
 /// The results file `predict` writes into its `--out` folder (BOP's results format).
@@ -82,6 +85,9 @@ pub struct PredictRequest {
     pub draw: Option<PathBuf>,
     pub jobs: Option<usize>,
     pub cuda: bool,
+    /// Refine the RGB models' estimates on the image ([`PredictorOptions::refine`]).
+    pub refine: Option<EdgeRefineOptions>,
+    pub refine_models: Option<PathBuf>,
     /// Replace the files of an earlier run in `out`.
     pub force: bool,
 }
@@ -142,6 +148,8 @@ pub struct StageTimes {
     pub detect: f64,
     pub instances: f64,
     pub pose: f64,
+    /// The refinement on the image (0 without `--refine`).
+    pub refine: f64,
     pub total: f64,
 }
 
@@ -151,6 +159,7 @@ impl StageTimes {
         self.detect += o.detect;
         self.instances += o.instances;
         self.pose += o.pose;
+        self.refine += o.refine;
         self.total += o.total;
     }
 }
@@ -386,6 +395,8 @@ pub struct Predictor {
     opts: DataOptions,
     min_score: f64,
     per_object: usize,
+    /// The RGB models' estimates refined on the image (`--refine edges|views`).
+    refiner: Option<Refiner>,
 }
 
 /// How a [`Predictor`] is made.
@@ -403,6 +414,11 @@ pub struct PredictorOptions {
     /// At most this many detections (and so estimates) per object and frame, best first.
     pub per_object: usize,
     pub cuda: bool,
+    /// Refine the RGB models' estimates on the image (`eval --refine edges|views`), each
+    /// kept to its detection's box.
+    pub refine: Option<EdgeRefineOptions>,
+    /// With `refine`: the colours from these meshes (`eval --refine-models`).
+    pub refine_models: Option<PathBuf>,
 }
 
 /// One frame's objects and the seconds of each stage (reading aside).
@@ -412,6 +428,8 @@ pub struct FrameObjects {
     pub detect_s: f64,
     pub instances_s: f64,
     pub pose_s: f64,
+    /// 0 without a refinement.
+    pub refine_s: f64,
 }
 
 impl Predictor {
@@ -423,6 +441,21 @@ impl Predictor {
     /// Whether the pose model reads depth.
     pub fn needs_depth(&self) -> bool {
         self.cfg.model.needs_depth()
+    }
+
+    /// The objects both the detector and the pose model know.
+    pub fn object_ids(&self) -> &[u32] {
+        &self.shared
+    }
+
+    /// An object's identity (name, diameter, bounding-box size) as the models were trained
+    /// on it.
+    pub fn object_identity(&self, id: u32) -> Option<&ObjectIdentity> {
+        self.cfg
+            .objects
+            .iter()
+            .chain(&self.detector.cfg.objects)
+            .find(|o| o.id == id)
     }
 
     /// The objects found in one frame: `rgb`, `depth` in metres (0 where none; the depth
@@ -502,12 +535,40 @@ impl Predictor {
                     segmentation: mask.clone(),
                 }
             })
-            .collect();
+            .collect::<Vec<_>>();
+        let t4 = Instant::now();
+        let objects = match &self.refiner {
+            Some(refiner) => {
+                let k = Intrinsics::from_k(cam_k, rgb.width, rgb.height);
+                objects
+                    .into_par_iter()
+                    .map(|mut o| {
+                        if let (Some(r), Some(t)) = (o.r, o.t) {
+                            let pose = Pose::from_bop(&r, &t.map(|v| v * 1000.0));
+                            if let Some(done) =
+                                refiner.refine_pose(rgb, &k, o.obj_id, &pose, &[o.bbox])
+                            {
+                                o.r = Some(done.pose.rotation_row_major());
+                                o.t = Some(done.pose.translation_m.to_array());
+                            }
+                        }
+                        o
+                    })
+                    .collect()
+            }
+            None => objects,
+        };
+        let refine_s = if self.refiner.is_some() {
+            t4.elapsed().as_secs_f64()
+        } else {
+            0.0
+        };
         Ok(FrameObjects {
             objects,
             detect_s,
             instances_s,
             pose_s,
+            refine_s,
         })
     }
 
@@ -686,6 +747,43 @@ fn load_models(req: &PredictorOptions, log: &Log<'_>) -> Result<Predictor> {
         },
         ..base
     };
+    if req.refine.is_none() && req.refine_models.is_some() {
+        return Err(user_error(
+            "--refine-models gives the refinement its colours, and no --refine is asked for",
+            "add --refine views (or edges), or drop --refine-models",
+        ));
+    }
+    let refiner = match &req.refine {
+        Some(refine) => {
+            if !cfg.model.is_rgb_only() {
+                return Err(user_error(
+                    format!(
+                        "--refine edges and views refine the RGB models' estimates, and this is a {} model",
+                        cfg.model.name()
+                    ),
+                    "drop --refine, or predict with an rgb or rgb-dense model",
+                ));
+            }
+            let source = req.objects_from.clone().unwrap_or_else(|| cfg.data.clone());
+            let ds = open_source(&source).map_err(|e| {
+                user_error(
+                    format!(
+                        "the refinement needs the objects' models, read from {}, and it cannot be opened: {e}",
+                        source.display()
+                    ),
+                    "keep the training dataset where `synthgen train` read it, or predict on a dataset with --data",
+                )
+            })?;
+            let ids = shared.iter().copied().collect();
+            Some(Refiner::load(
+                ds.as_ref(),
+                &ids,
+                refine,
+                req.refine_models.as_deref(),
+            )?)
+        }
+        None => None,
+    };
     Ok(Predictor {
         cfg,
         pose,
@@ -695,6 +793,7 @@ fn load_models(req: &PredictorOptions, log: &Log<'_>) -> Result<Predictor> {
         opts,
         min_score: req.min_score,
         per_object: req.per_object,
+        refiner,
     })
 }
 
@@ -729,6 +828,8 @@ pub fn predict(req: &PredictRequest, progress: &dyn Progress) -> Result<PredictS
             min_score: req.min_score,
             per_object: req.per_object,
             cuda: req.cuda,
+            refine: req.refine.clone(),
+            refine_models: req.refine_models.clone(),
         },
         &log,
     )?;
@@ -1062,6 +1163,7 @@ fn predict_frame(
                 detect: found.detect_s,
                 instances: found.instances_s,
                 pose: found.pose_s,
+                refine: found.refine_s,
                 total,
             },
             objects: found.objects,

@@ -11,12 +11,14 @@ use anyhow::{Context, Result};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use synthgen_core::glam::DVec3;
+use synthgen_core::Intrinsics;
 use synthgen_core::{Pose, Progress};
 use synthgen_fit::appearance::{Appearance, ColouredSurface};
 use synthgen_fit::edge_refine::{
     refine, refine_with_views, EdgeField, EdgeRefineOptions, Rect, ViewTemplates, VisibleBox,
 };
 use synthgen_formats::bop::image::read_rgb;
+use synthgen_formats::bop::RgbImage;
 use synthgen_formats::source::{FrameSource, SourceFrame};
 use synthgen_train::bop::{eval_model_paths, load_render_models};
 use synthgen_train::data::CropBoxes;
@@ -151,14 +153,190 @@ fn region(points: &[DVec3], pose: &Pose, k: &synthgen_core::Intrinsics) -> Optio
     )
 }
 
+/// The refinement named as `--refine` names it: "none" (None), "edges", "views" (the view
+/// search, with its defaults).
+pub fn refine_options(mode: &str) -> Result<Option<EdgeRefineOptions>> {
+    Ok(match mode {
+        "none" => None,
+        "edges" => Some(EdgeRefineOptions::default()),
+        "views" => Some(EdgeRefineOptions::with_view_search()),
+        other => {
+            return Err(crate::user_error(
+                format!("refine {other:?} is not a refinement"),
+                "give none, edges or views",
+            ))
+        }
+    })
+}
+
+/// The models a refinement reads, loaded once: each object's triangles and box points, its
+/// coloured surface where the options compare colours, its view templates where they search
+/// views. [`refine_estimates`] refines a results file with it; `synthgen predict` and the ROS
+/// node refine each frame's estimates with it ([`Refiner::refine_pose`]).
+pub struct Refiner {
+    opts: EdgeRefineOptions,
+    tris: BTreeMap<u32, Vec<[DVec3; 3]>>,
+    points: BTreeMap<u32, Vec<DVec3>>,
+    surfaces: BTreeMap<u32, ColouredSurface>,
+    templates: BTreeMap<u32, ViewTemplates>,
+    /// The objects whose colours came from `colour_models` (see [`Refiner::load`]).
+    pub colours_from_folder: Vec<u32>,
+}
+
+/// One estimate refined: its new pose, the cost before and after, whether the refinement was
+/// accepted (else the pose is the estimate's), whether a visible box bounded it.
+#[derive(Debug, Clone, Copy)]
+pub struct Refined {
+    pub pose: Pose,
+    pub initial_cost: f64,
+    pub cost: f64,
+    pub accepted: bool,
+    pub boxed: bool,
+}
+
+impl Refiner {
+    /// Loads `ds`' models of `ids`. `colour_models`: a folder with one subfolder per object
+    /// (`synthgen model align` writes one, in the dataset's frame) whose meshes give the
+    /// colours compared with the image instead of the dataset's models (a dataset whose models
+    /// carry no texture, as YCB-Video's own); objects without a subfolder keep their dataset
+    /// model's colours. The contour is always the dataset model's.
+    pub fn load(
+        ds: &dyn FrameSource,
+        ids: &std::collections::BTreeSet<u32>,
+        opts: &EdgeRefineOptions,
+        colour_models: Option<&Path>,
+    ) -> Result<Refiner> {
+        let models = load_render_models(ds, ids.iter().copied())
+            .with_context(|| format!("cannot load the object models of {}", ds.root().display()))?;
+        let tris: BTreeMap<u32, Vec<[DVec3; 3]>> = models
+            .iter()
+            .map(|(id, m)| (*id, m.triangles_m()))
+            .collect();
+        let points: BTreeMap<u32, Vec<DVec3>> = tris
+            .iter()
+            .map(|(id, t)| (*id, box_points(t, 500)))
+            .collect();
+        // With colours to compare: each object's coloured model (`colour_models`' mesh, else
+        // the dataset's own model, which carries the colours; the eval models may not), None
+        // when it has no colours to compare.
+        let mut colours_from_folder = Vec::new();
+        let surfaces: BTreeMap<u32, ColouredSurface> = if opts.reads_model_colours() {
+            let replaced: BTreeMap<u32, PathBuf> = match colour_models {
+                Some(dir) => {
+                    let (meshes, _) = crate::models::replacement_meshes(
+                        ds,
+                        dir,
+                        ids.iter().copied(),
+                        "--refine-models",
+                    )?;
+                    ids.iter()
+                        .zip(meshes)
+                        .filter_map(|(id, m)| Some((*id, m?)))
+                        .collect()
+                }
+                None => BTreeMap::new(),
+            };
+            colours_from_folder = replaced.keys().copied().collect();
+            // Without `models_eval/` the models above are the dataset's own: not loaded twice.
+            let own_models_loaded = eval_model_paths(ds).0 == ds.models_info_path();
+            let mut surfaces = BTreeMap::new();
+            for &id in ids {
+                let loaded = match replaced.get(&id) {
+                    Some(path) => synthgen_assets::load_model(
+                        path,
+                        synthgen_assets::Units::Auto,
+                        &synthgen_core::NoProgress,
+                    )
+                    .map(|l| Some(l.model))
+                    .with_context(|| format!("cannot load {}", path.display())),
+                    None if own_models_loaded => Ok(None),
+                    None => ds
+                        .load_model(id, &synthgen_core::NoProgress)
+                        .map(Some)
+                        .map_err(anyhow::Error::from),
+                }
+                .with_context(|| {
+                    format!(
+                        "cannot load the coloured object models of {}",
+                        ds.root().display()
+                    )
+                })?;
+                let model = match &loaded {
+                    Some(m) => m,
+                    None => match models.iter().find(|(i, _)| *i == id) {
+                        Some((_, m)) => m,
+                        None => continue,
+                    },
+                };
+                if let Some(s) = ColouredSurface::from_model(model) {
+                    surfaces.insert(id, s);
+                }
+            }
+            surfaces
+        } else {
+            BTreeMap::new()
+        };
+        // With a view search: each object's contours from every viewpoint, once.
+        let templates: BTreeMap<u32, ViewTemplates> = if opts.view_search.is_some() {
+            tris.par_iter()
+                .map(|(id, t)| (*id, ViewTemplates::new(t, opts)))
+                .collect()
+        } else {
+            BTreeMap::new()
+        };
+        Ok(Refiner {
+            opts: opts.clone(),
+            tris,
+            points,
+            surfaces,
+            templates,
+            colours_from_folder,
+        })
+    }
+
+    /// `pose` of object `obj_id` refined on `img` (camera `k`); `boxes`: the visible boxes
+    /// of the object's instances in the image (`[x, y, w, h]`), of which the one nearest the
+    /// estimate bounds what of it shows. None when the object has no model here, or its model
+    /// at `pose` is behind the camera or off the image.
+    pub fn refine_pose(
+        &self,
+        img: &RgbImage,
+        k: &Intrinsics,
+        obj_id: u32,
+        pose: &Pose,
+        boxes: &[[f64; 4]],
+    ) -> Option<Refined> {
+        let opts = &self.opts;
+        let visible = nearest_box(boxes, pose, k).and_then(|b| VisibleBox::from_xywh(b, opts));
+        let (t, p) = (self.tris.get(&obj_id)?, self.points.get(&obj_id)?);
+        let rect = region(p, pose, k)?;
+        let field =
+            EdgeField::new(&img.rgb, img.width, img.height, rect, opts).with_visible_box(visible);
+        let appearance = self.surfaces.get(&obj_id).map(|surface| Appearance {
+            rgb: &img.rgb,
+            width: img.width,
+            height: img.height,
+            surface,
+        });
+        let a = appearance.as_ref();
+        let r = match self.templates.get(&obj_id) {
+            Some(views) => refine_with_views(&field, t, views, pose, k, opts, a),
+            None => refine(&field, t, &[*pose], k, opts, a),
+        }?;
+        Some(Refined {
+            pose: r.pose,
+            initial_cost: r.initial_cost,
+            cost: r.cost,
+            accepted: r.accepted,
+            boxed: visible.is_some(),
+        })
+    }
+}
+
 /// `estimates` refined on the RGB images of `split` (each estimate's own image; the others
 /// kept), in the same order; the time each took is added to its `time_s` when known.
-/// `colour_models`: a folder with one subfolder per object (`synthgen model align` writes
-/// one, in the dataset's frame) whose meshes give the colours compared with the image instead
-/// of the dataset's models (a dataset whose models carry no texture, as YCB-Video's own);
-/// objects without a subfolder keep their dataset model's colours. The contour is always the
-/// dataset model's. `boxes`: what of each instance shows, when the refinement should keep to
-/// it ([`BoxSource`]).
+/// `colour_models`: see [`Refiner::load`]. `boxes`: what of each instance shows, when the
+/// refinement should keep to it ([`BoxSource`]).
 pub fn refine_estimates(
     ds: &dyn FrameSource,
     split: &str,
@@ -175,84 +353,7 @@ pub fn refine_estimates(
         .map(|f| ((f.location.scene_id, f.location.im_id), f))
         .collect();
     let ids: std::collections::BTreeSet<u32> = estimates.iter().map(|e| e.obj_id).collect();
-    let models = load_render_models(ds, ids.iter().copied())
-        .with_context(|| format!("cannot load the object models of {}", ds.root().display()))?;
-    let tris: BTreeMap<u32, Vec<[DVec3; 3]>> = models
-        .iter()
-        .map(|(id, m)| (*id, m.triangles_m()))
-        .collect();
-    let points: BTreeMap<u32, Vec<DVec3>> = tris
-        .iter()
-        .map(|(id, t)| (*id, box_points(t, 500)))
-        .collect();
-    // With colours to compare: each object's coloured model (`colour_models`' mesh, else the
-    // dataset's own model, which carries the colours; the eval models may not), None when it
-    // has no colours to compare.
-    let mut colours_from_folder = Vec::new();
-    let surfaces: BTreeMap<u32, ColouredSurface> = if opts.reads_model_colours() {
-        let replaced: BTreeMap<u32, PathBuf> = match colour_models {
-            Some(dir) => {
-                let (meshes, _) = crate::models::replacement_meshes(
-                    ds,
-                    dir,
-                    ids.iter().copied(),
-                    "--refine-models",
-                )?;
-                ids.iter()
-                    .zip(meshes)
-                    .filter_map(|(id, m)| Some((*id, m?)))
-                    .collect()
-            }
-            None => BTreeMap::new(),
-        };
-        colours_from_folder = replaced.keys().copied().collect();
-        // Without `models_eval/` the models above are the dataset's own: not loaded twice.
-        let own_models_loaded = eval_model_paths(ds).0 == ds.models_info_path();
-        let mut surfaces = BTreeMap::new();
-        for &id in &ids {
-            let loaded = match replaced.get(&id) {
-                Some(path) => synthgen_assets::load_model(
-                    path,
-                    synthgen_assets::Units::Auto,
-                    &synthgen_core::NoProgress,
-                )
-                .map(|l| Some(l.model))
-                .with_context(|| format!("cannot load {}", path.display())),
-                None if own_models_loaded => Ok(None),
-                None => ds
-                    .load_model(id, &synthgen_core::NoProgress)
-                    .map(Some)
-                    .map_err(anyhow::Error::from),
-            }
-            .with_context(|| {
-                format!(
-                    "cannot load the coloured object models of {}",
-                    ds.root().display()
-                )
-            })?;
-            let model = match &loaded {
-                Some(m) => m,
-                None => match models.iter().find(|(i, _)| *i == id) {
-                    Some((_, m)) => m,
-                    None => continue,
-                },
-            };
-            if let Some(s) = ColouredSurface::from_model(model) {
-                surfaces.insert(id, s);
-            }
-        }
-        surfaces
-    } else {
-        BTreeMap::new()
-    };
-    // With a view search: each object's contours from every viewpoint, once.
-    let templates: BTreeMap<u32, ViewTemplates> = if opts.view_search.is_some() {
-        tris.par_iter()
-            .map(|(id, t)| (*id, ViewTemplates::new(t, opts)))
-            .collect()
-    } else {
-        BTreeMap::new()
-    };
+    let refiner = Refiner::load(ds, &ids, opts, colour_models)?;
     let mut groups: BTreeMap<(u32, u32), Vec<usize>> = BTreeMap::new();
     for (i, e) in estimates.iter().enumerate() {
         groups.entry((e.scene_id, e.im_id)).or_default().push(i);
@@ -289,30 +390,8 @@ pub fn refine_estimates(
             for &i in idx {
                 let e = &estimates[i];
                 let t0 = Instant::now();
-                let visible = frame_boxes
-                    .get(&e.obj_id)
-                    .and_then(|b| nearest_box(b, &e.pose, &k))
-                    .and_then(|b| VisibleBox::from_xywh(b, opts));
-                let refined = match (tris.get(&e.obj_id), points.get(&e.obj_id)) {
-                    (Some(t), Some(p)) => region(p, &e.pose, &k).and_then(|rect| {
-                        let field = EdgeField::new(&img.rgb, img.width, img.height, rect, opts)
-                            .with_visible_box(visible);
-                        let appearance = surfaces.get(&e.obj_id).map(|surface| Appearance {
-                            rgb: &img.rgb,
-                            width: img.width,
-                            height: img.height,
-                            surface,
-                        });
-                        let a = appearance.as_ref();
-                        match templates.get(&e.obj_id) {
-                            Some(views) => {
-                                refine_with_views(&field, t, views, &e.pose, &k, opts, a)
-                            }
-                            None => refine(&field, t, &[e.pose], &k, opts, a),
-                        }
-                    }),
-                    _ => None,
-                };
+                let b = frame_boxes.get(&e.obj_id).map_or(&[][..], |b| b.as_slice());
+                let refined = refiner.refine_pose(&img, &k, e.obj_id, &e.pose, b);
                 out.push((
                     i,
                     refined.map(|r| {
@@ -322,7 +401,7 @@ pub fn refine_estimates(
                         if new.time_s >= 0.0 {
                             new.time_s += t0.elapsed().as_secs_f64();
                         }
-                        (new, r.initial_cost, r.cost, r.accepted, visible.is_some())
+                        (new, r.initial_cost, r.cost, r.accepted, r.boxed)
                     }),
                 ));
                 progress.advance(1);
@@ -334,7 +413,7 @@ pub fn refine_estimates(
     let mut out = estimates.to_vec();
     let mut summary = RefineSummary {
         estimates: estimates.len(),
-        colours_from_folder,
+        colours_from_folder: refiner.colours_from_folder.clone(),
         ..Default::default()
     };
     for (i, r) in done.into_iter().flatten() {

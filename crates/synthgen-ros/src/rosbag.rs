@@ -362,8 +362,21 @@ fn decode_image(schema: &str, data: &[u8]) -> std::result::Result<Decoded, Strin
     let big = c.u8()? != 0;
     let step = c.u32()? as usize;
     let pixels = c.bytes()?;
+    decode_pixels(width, height, &encoding, big, step, pixels)
+}
+
+/// Decodes an `Image`'s pixels: rgb8, bgr8, rgba8, bgra8, mono8 colour; depth 16UC1 in mm,
+/// 32FC1 in metres (0 where none).
+pub fn decode_pixels(
+    width: u32,
+    height: u32,
+    encoding: &str,
+    big: bool,
+    step: usize,
+    pixels: &[u8],
+) -> std::result::Result<Decoded, String> {
     let (w, h) = (width as usize, height as usize);
-    let bpp = match encoding.as_str() {
+    let bpp = match encoding {
         "rgb8" | "bgr8" => 3,
         "rgba8" | "bgra8" => 4,
         "mono8" | "8UC1" => 1,
@@ -383,7 +396,7 @@ fn decode_image(schema: &str, data: &[u8]) -> std::result::Result<Decoded, Strin
         ));
     }
     let row = |y: usize| &pixels[y * step..y * step + w * bpp];
-    Ok(match encoding.as_str() {
+    Ok(match encoding {
         "16UC1" | "mono16" | "32FC1" => {
             let mut data = Vec::with_capacity(w * h);
             for y in 0..h {

@@ -84,6 +84,8 @@ class Predictor:
         objects_from: Optional[_Path] = None,
         min_score: float = 0.05,
         per_object: int = 1,
+        refine: str = "none",
+        refine_models: Optional[_Path] = None,
     ) -> Predictor: ...
     @property
     def model_kind(self) -> str: ...

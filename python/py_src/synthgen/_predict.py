@@ -21,8 +21,11 @@ class Predictor:
     ...     print(o["obj_id"], o["score"], o["R"], o["t"])
 
     ``objects_from`` is the dataset whose object models the pose model reads (Full, rgb,
-    rgb-dense; default: the model's training dataset); ``min_score`` and ``per_object`` as
-    ``synthgen predict``'s ``--min-score`` and ``--per-object``.
+    rgb-dense; default: the model's training dataset); ``min_score``, ``per_object``,
+    ``refine`` (``"none"``, ``"edges"``, ``"views"``: the RGB models' estimates refined on the
+    image, each kept to its detection's box) and ``refine_models`` (the colours of ``"views"``
+    from these meshes) as ``synthgen predict``'s ``--min-score``, ``--per-object``,
+    ``--refine`` and ``--refine-models``.
     """
 
     def __init__(
@@ -33,6 +36,8 @@ class Predictor:
         objects_from: Optional[PathLike] = None,
         min_score: float = 0.05,
         per_object: int = 1,
+        refine: str = "none",
+        refine_models: Optional[PathLike] = None,
     ) -> None:
         self._native = _native.Predictor(
             os.fspath(model),
@@ -40,6 +45,8 @@ class Predictor:
             objects_from=None if objects_from is None else os.fspath(objects_from),
             min_score=float(min_score),
             per_object=int(per_object),
+            refine=str(refine),
+            refine_models=None if refine_models is None else os.fspath(refine_models),
         )
 
     @property
@@ -86,6 +93,7 @@ def predict(
     objects_from: Optional[PathLike] = None,
     min_score: float = 0.05,
     per_object: int = 1,
+    refine: str = "none",
 ) -> List[Dict[str, Any]]:
     """:meth:`Predictor.predict` of one image with models loaded for it; for many images,
     hold a :class:`Predictor` (the models are loaded once)."""
@@ -95,4 +103,5 @@ def predict(
         objects_from=objects_from,
         min_score=min_score,
         per_object=per_object,
+        refine=refine,
     ).predict(rgb, K, depth)

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use crate::cli::DeviceArg;
+use crate::cli::{DeviceArg, RgbRefineArg};
 
 pub const PREDICT_EXAMPLES: &str = "Examples:
   # Photographs and the camera's intrinsics (BOP's camera.json, or {\"K\": [fx,0,cx,0,fy,cy,0,0,1]}):
@@ -36,7 +36,7 @@ around the box, the depth models the points of the detection's mask. Writes OUT/
 OUT/predictions.jsonl, one line per frame even when nothing was found:
 {\"frame\", \"scene_id\", \"image_id\", \"stamp\", \"objects\": [{\"obj_id\", \"score\",
 \"pose_score\", \"bbox\", \"R\" (row-major), \"t\" (metres), \"segmentation\" (COCO RLE)}],
-\"time\": {\"read\", \"detect\", \"instances\", \"pose\", \"total\"} (seconds)}; from a bag,
+\"time\": {\"read\", \"detect\", \"instances\", \"pose\", \"refine\", \"total\"} (seconds)}; from a bag,
 \"frame\" is FRAME_ID@STAMP and \"stamp\" the image's header stamp. A TNet gives t
 and no R, an RNet R and no t: they are in predictions.jsonl only. Prints the objects found
 and the time per stage (median and 95th percentile per frame).";
@@ -117,6 +117,17 @@ pub struct PredictArgs {
     /// Replace the predictions of an earlier run in --out.
     #[arg(long)]
     pub force: bool,
+
+    /// Refine the RGB models' estimates on the image, each kept to its detection's box, as
+    /// `eval --refine` does: edges (contours onto the image's edges), views (a search over
+    /// rotations first, then edges and the model's colours; ~0.5 s an estimate on 2 cores).
+    #[arg(long, value_enum, default_value_t = RgbRefineArg::None)]
+    pub refine: RgbRefineArg,
+
+    /// With --refine views: compare the image with these meshes' colours instead of the
+    /// objects' models' (one subfolder per object, as `synthgen model align` writes).
+    #[arg(long, value_name = "DIR")]
+    pub refine_models: Option<PathBuf>,
 
     /// Worker threads (default: all cores).
     #[arg(long, short = 'j', value_parser = crate::cli::threads())]

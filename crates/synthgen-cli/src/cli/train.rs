@@ -288,6 +288,17 @@ pub enum RgbRefineArg {
     Views,
 }
 
+impl RgbRefineArg {
+    /// The name `synthgen_jobs::rgb_refine::refine_options` reads.
+    pub fn name(self) -> &'static str {
+        match self {
+            RgbRefineArg::None => "none",
+            RgbRefineArg::Edges => "edges",
+            RgbRefineArg::Views => "views",
+        }
+    }
+}
+
 #[derive(Debug, Args)]
 pub struct EvalArgs {
     /// The dataset with the ground truth (and models/ for ADD): BOP, or Linemod (detected).

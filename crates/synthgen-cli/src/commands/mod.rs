@@ -14,6 +14,7 @@ pub mod preview;
 pub mod render;
 mod render_flags;
 mod replay;
+pub mod ros;
 pub mod scene;
 pub mod sensor;
 pub mod stats;

@@ -3,6 +3,7 @@
 
 use anyhow::Result;
 use synthgen_jobs::predict::{predict, PredictInput, PredictRequest};
+use synthgen_jobs::rgb_refine::refine_options;
 
 use crate::cli::{DeviceArg, PredictArgs};
 use crate::{ExitStatus, Printer};
@@ -46,6 +47,8 @@ pub fn run(args: PredictArgs, printer: &Printer) -> Result<ExitStatus> {
         draw: args.draw,
         jobs: args.jobs,
         cuda: args.device == DeviceArg::Cuda,
+        refine: refine_options(args.refine.name())?,
+        refine_models: args.refine_models,
         force: args.force,
     };
     let s = predict(&request, printer)?;
@@ -61,7 +64,7 @@ pub fn run(args: PredictArgs, printer: &Printer) -> Result<ExitStatus> {
         }
     };
     table.push_str(&format!(
-        "\n{} frames, {} with objects; {} whole poses in {}; {} detections without a pose (fewer valid depth pixels in the mask than the model's minimum)\n\n| stage | mean ms/frame |\n|---|---|\n| read | {:.1} |\n| detect | {:.1} |\n| instances | {:.1} |\n| pose | {:.1} |\n| total | {:.1} (median {:.1}, p95 {:.1}) |\n",
+        "\n{} frames, {} with objects; {} whole poses in {}; {} detections without a pose (fewer valid depth pixels in the mask than the model's minimum)\n\n| stage | mean ms/frame |\n|---|---|\n| read | {:.1} |\n| detect | {:.1} |\n| instances | {:.1} |\n| pose | {:.1} |\n| refine | {:.1} |\n| total | {:.1} (median {:.1}, p95 {:.1}) |\n",
         s.frames,
         s.frames_with_objects,
         s.results,
@@ -71,6 +74,7 @@ pub fn run(args: PredictArgs, printer: &Printer) -> Result<ExitStatus> {
         per(s.time.detect),
         per(s.time.instances),
         per(s.time.pose),
+        per(s.time.refine),
         per(s.time.total),
         1000.0 * s.median_frame_s,
         1000.0 * s.p95_frame_s,

@@ -84,6 +84,11 @@ fn predict_help() {
 }
 
 #[test]
+fn ros_help() {
+    check_snapshot("ros_help.txt", &["ros", "--help"]);
+}
+
+#[test]
 fn eval_help() {
     check_snapshot("eval_help.txt", &["eval", "--help"]);
 }

@@ -259,6 +259,50 @@ fn predict_scores_as_eval_detections_without_reading_gt() {
             "{key}: {reference} vs {got}"
         );
     }
+
+    // --refine edges: the same estimates refined on the image (eval --refine's refinement,
+    // kept to each detection's box); its time is the refine stage.
+    let refined = d.join("pred_refined");
+    let o = predict(
+        &dense,
+        &det,
+        &[
+            "--data".as_ref(),
+            bare.as_os_str(),
+            "--refine".as_ref(),
+            "edges".as_ref(),
+        ],
+        &refined,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (plain, moved) = (
+        rows(&out.join("results.csv")),
+        rows(&refined.join("results.csv")),
+    );
+    assert_eq!(
+        plain.keys().collect::<Vec<_>>(),
+        moved.keys().collect::<Vec<_>>()
+    );
+    assert!(plain != moved, "the refinement moved no estimate");
+    for f in lines(&refined.join("predictions.jsonl")) {
+        let n = f["objects"].as_array().unwrap().len();
+        let t = f["time"]["refine"].as_f64().unwrap();
+        assert!(if n > 0 { t > 0.0 } else { t >= 0.0 }, "{f}");
+    }
+    refused(
+        &predict(
+            &dense,
+            &det,
+            &[
+                "--data".as_ref(),
+                bare.as_os_str(),
+                "--refine-models".as_ref(),
+                data.as_os_str(),
+            ],
+            &d.join("p_rm"),
+        ),
+        &["--refine-models", "--refine views"],
+    );
     let (ra, ga) = (
         reference["all"]["mean_add_mm"].as_f64().unwrap(),
         got["all"]["mean_add_mm"].as_f64().unwrap(),
@@ -474,6 +518,20 @@ fn predict_scores_as_eval_detections_without_reading_gt() {
         ),
         &["reads depth", "--depth"],
     );
+    refused(
+        &predict(
+            &tnet,
+            &det,
+            &[
+                "--data".as_ref(),
+                bare.as_os_str(),
+                "--refine".as_ref(),
+                "edges".as_ref(),
+            ],
+            &d.join("p_t_ref"),
+        ),
+        &["refine the RGB models' estimates", "tnet model"],
+    );
     let boxes_only = d.join("det_boxes");
     train(
         &[
@@ -558,5 +616,55 @@ fn predict_scores_as_eval_detections_without_reading_gt() {
     assert!(
         table.contains(&format!("{without} detections without a pose")),
         "{table}"
+    );
+
+    // `synthgen ros` refuses before it joins a DDS domain (no network traffic in this test;
+    // the node itself is tested against Cyclone DDS in a private network namespace:
+    // python/tests/test_ros_node.py).
+    let ros_with = |model: &Path, detector: &Path, extra: &[&std::ffi::OsStr]| {
+        run(synthgen()
+            .args(["ros", "--model"])
+            .arg(model)
+            .arg("--detector")
+            .arg(detector)
+            .args(extra))
+    };
+    let ros = |model: &Path, extra: &[&std::ffi::OsStr]| ros_with(model, &det, extra);
+    refused(
+        &ros(&tnet, &[]),
+        &["tnet model reads depth", "--depth-topic"],
+    );
+    refused(
+        &ros_with(
+            &tnet,
+            &boxes_only,
+            &["--depth-topic".as_ref(), "/camera/depth".as_ref()],
+        ),
+        &["points from its mask", "boxes only"],
+    );
+    let taken = d.join("taken.mcap");
+    std::fs::write(&taken, b"not ours").unwrap();
+    refused(
+        &ros(&dense, &["--record".as_ref(), taken.as_os_str()]),
+        &["taken.mcap", "exists", "--force"],
+    );
+    assert_eq!(std::fs::read(&taken).unwrap(), b"not ours");
+    let inside = dense.join("out.mcap");
+    refused(
+        &ros(&dense, &["--record".as_ref(), inside.as_os_str()]),
+        &["--record", "inside"],
+    );
+    refused(
+        &ros(&dense, &["--duration=-1".as_ref()]),
+        &["--duration -1", "positive"],
+    );
+    refused(
+        &run(synthgen()
+            .env("ROS_DOMAIN_ID", "300")
+            .args(["ros", "--model"])
+            .arg(&dense)
+            .arg("--detector")
+            .arg(&det)),
+        &["ROS_DOMAIN_ID=\"300\"", "0 to 232"],
     );
 }

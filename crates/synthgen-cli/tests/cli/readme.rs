@@ -43,6 +43,10 @@ const NOT_RUN: &[(&str, &str)] = &[
         "installs into ~/.cargo/bin; the binary cargo built for the tests stands in for it",
     ),
     (
+        "synthgen ros ",
+        "a ROS 2 node: it runs until stopped and joins a DDS domain (UDP multicast); python/tests/test_ros_node.py runs it against Cyclone DDS in a private network namespace",
+    ),
+    (
         "pip install",
         "builds the Python wheel (maturin, minutes); python/tests/test_readme.py runs the README's Python example",
     ),
@@ -230,6 +234,12 @@ fn readme_commands(md: &str) -> Vec<Line> {
 /// ARGS`), else the reason it is not run; anything else fails the test.
 fn synthgen_args(line: &Line) -> Result<Vec<String>, &'static str> {
     let w = &line.words;
+    let joined = w.join(" ");
+    for (prefix, why) in NOT_RUN {
+        if joined.starts_with(prefix) {
+            return Err(why);
+        }
+    }
     if w[0] == "synthgen" {
         return Ok(w[1..].to_vec());
     }
@@ -238,12 +248,6 @@ fn synthgen_args(line: &Line) -> Result<Vec<String>, &'static str> {
         let pkg = w.windows(2).any(|p| p[0] == "-p" && p[1] == "synthgen-cli");
         if let (Some(dash), true) = (dash, pkg) {
             return Ok(w[dash + 1..].to_vec());
-        }
-    }
-    let joined = w.join(" ");
-    for (prefix, why) in NOT_RUN {
-        if joined.starts_with(prefix) {
-            return Err(why);
         }
     }
     panic!(
