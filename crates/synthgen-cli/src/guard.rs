@@ -148,6 +148,9 @@ pub fn paths(command: &Command) -> CommandPaths {
             }
             p.input_opt("--refine-models", &a.refine_models);
             p.input_opt("--detections", &a.detections);
+            if let Some(d) = &a.detector {
+                p.run_or_checkpoint("--detector", d);
+            }
             p.input_opt("--targets", &a.targets);
             p.output_opt("--json", &a.json);
             p.output_opt("--save-results", &a.save_results);

@@ -77,6 +77,11 @@ pub struct EvalRequest {
     /// GT boxes (instances without one get no estimate), and `VisibleBoxes::Detected` reads
     /// them.
     pub detections: Option<PathBuf>,
+    /// A detector (`synthgen detector train` run folder): the checkpoint runs as `synthgen
+    /// predict` runs it — the detector on each frame, no GT box or mask read, the refinement
+    /// where asked — and its results are scored: `eval` is `predict` followed by scoring
+    /// ([`crate::predict::predict`], then the `results` path).
+    pub detector: Option<PathBuf>,
 }
 
 /// What an evaluation printed and whether it counts as failed.
@@ -96,6 +101,10 @@ pub fn evaluate_request(req: &EvalRequest, progress: &dyn Progress) -> Result<Ev
     let args = req;
     let failed = match (&args.results, &args.checkpoint) {
         (Some(csv), None) => run_results(args, csv, printer)?,
+        (None, Some(ckpt)) if args.detector.is_some() => {
+            let det = args.detector.as_deref().unwrap_or(Path::new(""));
+            run_predicted(args, ckpt, det, printer)?
+        }
         (None, Some(ckpt)) => {
             run_checkpoint(args, ckpt, printer)?;
             None
@@ -122,6 +131,96 @@ fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
     let text = serde_json::to_string_pretty(value)?;
     synthgen_formats::io::atomic_write(path, (text + "\n").as_bytes())?;
     Ok(())
+}
+
+/// A scratch folder removed when dropped (on errors too).
+struct Scratch(PathBuf);
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// `eval --checkpoint --detector`: `predict` on the dataset's frames (its GT unread) into a
+/// scratch folder, then its `results.csv` scored as `--results` scores one.
+fn run_predicted(
+    args: &EvalRequest,
+    ckpt: &Path,
+    detector: &Path,
+    printer: &Printer<'_>,
+) -> Result<Option<String>> {
+    if args.detections.is_some() {
+        return Err(user_error(
+            "--detector runs the detector on each frame, and --detections gives a detector's boxes from a file: one or the other",
+            "drop --detections (or --detector)",
+        ));
+    }
+    if args.visible_boxes != VisibleBoxes::None {
+        return Err(user_error(
+            "with --detector the refinement keeps each estimate to its own detection's box: --visible-box does not apply",
+            "drop --visible-box",
+        ));
+    }
+    let config_path = ckpt.with_file_name(CONFIG_FILE);
+    if config_path.is_file() {
+        let cfg = read_config(&config_path)?;
+        if !cfg.model.predicts_rotation() || cfg.model == ModelKind::Rnet {
+            return Err(user_error(
+                format!(
+                    "--detector scores whole poses as `synthgen predict` writes them, and a {} checkpoint predicts {} only",
+                    cfg.model.name(),
+                    if cfg.model == ModelKind::Tnet { "the object centre" } else { "the rotation" }
+                ),
+                "score it from a detector's masks with --detections FILE (`synthgen detector run` writes one)",
+            ));
+        }
+    }
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.subsec_nanos());
+    let scratch = Scratch(std::env::temp_dir().join(format!(
+        "synthgen-eval-predict-{}-{nanos}",
+        std::process::id()
+    )));
+    crate::predict::predict(
+        &crate::predict::PredictRequest {
+            model: ckpt.to_path_buf(),
+            detector: detector.to_path_buf(),
+            input: crate::predict::PredictInput::Data {
+                dir: args.data.clone(),
+                split: args.split.clone(),
+            },
+            out: scratch.0.clone(),
+            min_score: crate::predict::DEFAULT_MIN_SCORE,
+            per_object: 1,
+            draw: None,
+            jobs: None,
+            cuda: args.cuda,
+            refine: args.refine.clone(),
+            refine_models: args.refine_models.clone(),
+            force: false,
+        },
+        printer.progress(),
+    )?;
+    let csv = scratch.0.join(crate::predict::RESULTS_FILE);
+    if let Some(save) = &args.save_results {
+        let bytes =
+            std::fs::read(&csv).with_context(|| format!("cannot read {}", csv.display()))?;
+        synthgen_formats::io::atomic_write(save, &bytes)?;
+        printer.info(format!("wrote the estimates to {}", save.display()));
+    }
+    // Scored as they are: the refinement, if asked, ran inside predict.
+    let scoring = EvalRequest {
+        results: Some(csv.clone()),
+        checkpoint: None,
+        refine: None,
+        refine_models: None,
+        save_results: None,
+        detector: None,
+        ..args.clone()
+    };
+    run_results(&scoring, &csv, printer)
 }
 
 /// Scores a results CSV; returns why the evaluation counts as failed (unreadable rows), if so.

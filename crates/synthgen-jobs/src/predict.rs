@@ -39,6 +39,9 @@ use synthgen_train::train::{self, load_model, read_config, TrainConfig, CONFIG_F
 use crate::rgb_refine::Refiner;
 use crate::{user_error, Log};
 
+/// `--min-score`'s default: what `synthgen detector run` keeps.
+pub const DEFAULT_MIN_SCORE: f64 = 0.05;
+
 /// The results file `predict` writes into its `--out` folder (BOP's results format).
 pub const RESULTS_FILE: &str = "results.csv";
 /// The per-frame JSON lines `predict` writes into its `--out` folder.

@@ -405,6 +405,18 @@ pub struct EvalArgs {
     #[arg(long, value_name = "FILE")]
     pub detections: Option<PathBuf>,
 
+    /// A detector (`synthgen detector train` run folder): the checkpoint (full, rgb,
+    /// rgb-dense) runs as `synthgen predict` runs it on the dataset's frames — the detector
+    /// on each raw frame, no GT box or mask read, --refine inside — and its whole poses are
+    /// scored: what a robot gets. --save-results writes them.
+    #[arg(
+        long,
+        value_name = "DIR",
+        requires = "checkpoint",
+        conflicts_with = "detections"
+    )]
+    pub detector: Option<PathBuf>,
+
     /// With --visible-box: what each pixel by which the box reaches beyond the outline costs,
     /// summed over its four sides, pixels of edge cost per pixel of gap. Default: 0.1; 0: the
     /// box only hides the edges outside it.

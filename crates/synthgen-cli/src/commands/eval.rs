@@ -116,6 +116,7 @@ pub fn run(args: EvalArgs, printer: &Printer) -> Result<ExitStatus> {
         refine_models: args.refine_models,
         visible_boxes: args.visible_box.into(),
         detections: args.detections,
+        detector: args.detector,
     };
     if request.save_results.is_some() && request.checkpoint.is_none() && request.refine.is_none() {
         return Err(synthgen_jobs::user_error(

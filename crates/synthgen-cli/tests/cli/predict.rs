@@ -260,6 +260,19 @@ fn predict_scores_as_eval_detections_without_reading_gt() {
         );
     }
 
+    // eval --checkpoint --detector is predict followed by scoring: the same scores.
+    let via = scores(
+        &data,
+        &[
+            "--checkpoint".as_ref(),
+            dense.join("model.safetensors").as_os_str(),
+            "--detector".as_ref(),
+            det.as_os_str(),
+        ],
+        &d.join("via.json"),
+    );
+    assert_eq!(via["all"], got["all"], "{via} vs {got}");
+
     // --refine edges: the same estimates refined on the image (eval --refine's refinement,
     // kept to each detection's box); its time is the refine stage.
     let refined = d.join("pred_refined");
@@ -531,6 +544,16 @@ fn predict_scores_as_eval_detections_without_reading_gt() {
             &d.join("p_t_ref"),
         ),
         &["refine the RGB models' estimates", "tnet model"],
+    );
+    refused(
+        &run(synthgen()
+            .args(["eval", "-q", "--data"])
+            .arg(&data)
+            .arg("--checkpoint")
+            .arg(tnet.join("model.safetensors"))
+            .arg("--detector")
+            .arg(&det)),
+        &["tnet checkpoint predicts the object centre", "--detections"],
     );
     let boxes_only = d.join("det_boxes");
     train(
