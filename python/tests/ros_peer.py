@@ -231,6 +231,11 @@ def main() -> int:
     ap.add_argument("--rate", type=float, default=5.0)
     ap.add_argument("--status-every", type=float, default=60.0, help="the node's, with --soak")
     ap.add_argument("--node-arg", action="append", default=[], help="more flags for the node")
+    ap.add_argument(
+        "--depth-mm",
+        help="a 16-bit PNG of the image's depth in millimetres: published as 16UC1 beside each "
+        "image, and the node started with --depth-topic (the RGB-D models)",
+    )
     a = ap.parse_args()
     loopback_multicast()
     k = [float(v) for v in json.loads(a.k)]
@@ -254,6 +259,7 @@ def main() -> int:
             str(a.status_every) if a.soak > 0 else "0",
             "--domain-id",
             "0",
+            *(["--depth-topic", "/camera/depth/image_rect_raw"] if a.depth_mm else []),
             *a.node_arg,
         ],
         stdout=subprocess.PIPE,
@@ -265,6 +271,7 @@ def main() -> int:
     reliable = Qos(Policy.Reliability.Reliable(1_000_000_000), Policy.History.KeepLast(50))
     image_w = DataWriter(dp, Topic(dp, "rt/camera/color/image_raw", Image), qos=sensor)
     info_w = DataWriter(dp, Topic(dp, "rt/camera/color/camera_info", CameraInfo), qos=sensor)
+    depth_w = DataWriter(dp, Topic(dp, "rt/camera/depth/image_rect_raw", Image), qos=sensor)
     d3_r = DataReader(dp, Topic(dp, "rt/synthgen/detections", Detection3DArray), qos=reliable)
     d2_r = DataReader(dp, Topic(dp, "rt/synthgen/detections_2d", Detection2DArray), qos=reliable)
 
@@ -279,12 +286,18 @@ def main() -> int:
             if isinstance(m, Detection2DArray):
                 got2[m.header.stamp.sec] = m
 
-    def publish(sec: int, img: Image, wait_for: Optional[float]) -> bool:
-        """Camera info then the image, again every 0.2 s until the node answers for this
-        stamp (best effort: the first may go before discovery) or `wait_for` seconds pass."""
+    def publish(
+        sec: int, img: Image, wait_for: Optional[float], depth: Optional[Image] = None
+    ) -> bool:
+        """Camera info (and the depth) then the image, again every 0.2 s until the node
+        answers for this stamp (best effort: the first may go before discovery) or `wait_for`
+        seconds pass."""
         deadline = time.time() + (wait_for if wait_for is not None else a.timeout)
         while time.time() < deadline:
             info_w.write(camera_info(sec, k, w, h))
+            if depth is not None:
+                depth.header = header(sec)
+                depth_w.write(depth)
             img.header = header(sec)
             image_w.write(img)
             end = time.time() + 0.2
@@ -308,6 +321,28 @@ def main() -> int:
     if a.soak > 0:
         return soak(a, node, info_w, image_w, d3_r, good, k, w, h)
     steps: List[Dict[str, Any]] = []
+    if a.depth_mm:
+        import numpy as np
+
+        mm = np.asarray(PilImage.open(a.depth_mm), dtype=np.uint16)
+        depth = image(w, h, "16UC1", mm.astype("<u2").tobytes())
+        try:
+            steps.append({"sec": 100, "what": "rgbd", "answered": publish(100, good, None, depth)})
+            # An image with no depth near its stamp: skipped after its wait; the node goes on.
+            steps.append({"sec": 101, "what": "no depth", "answered": publish(101, good, 2.0)})
+            steps.append(
+                {"sec": 103, "what": "rgbd", "answered": publish(103, good, a.timeout, depth)}
+            )
+        finally:
+            time.sleep(0.3)
+            poll()
+            node.send_signal(signal.SIGINT)
+            try:
+                out, err = node.communicate(timeout=30)
+            except subprocess.TimeoutExpired:
+                node.kill()
+                out, err = node.communicate()
+        return write_out(a, steps, got3, got2, node.returncode, out, err)
     try:
         ok = publish(100, good, None)
         steps.append({"sec": 100, "what": "rgb8", "answered": ok})
@@ -327,6 +362,19 @@ def main() -> int:
         except subprocess.TimeoutExpired:
             node.kill()
             out, err = node.communicate()
+    return write_out(a, steps, got3, got2, node.returncode, out, err)
+
+
+def write_out(
+    a: argparse.Namespace,
+    steps: List[Dict[str, Any]],
+    got3: Dict[int, Any],
+    got2: Dict[int, Any],
+    rc: int,
+    out: str,
+    err: str,
+) -> int:
+    """What the peer saw, as JSON for the test."""
 
     def plain(m: Any) -> Any:
         return json.loads(json.dumps(asdict(m), default=list))
@@ -337,7 +385,7 @@ def main() -> int:
                 "steps": steps,
                 "detections": {str(s): plain(m) for s, m in got3.items()},
                 "detections_2d": {str(s): plain(m) for s, m in got2.items()},
-                "rc": node.returncode,
+                "rc": rc,
                 "stdout": out,
                 "stderr": err,
             }

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 import synthgen
 
-from .conftest import synthgen_exe
+from .conftest import run_cli, synthgen_exe
 
 PEER = Path(__file__).with_name("ros_peer.py")
 
@@ -81,9 +81,8 @@ def _check_frame(
         assert all(0.05 < s < 0.5 for s in size), size
 
 
-def test_the_node_answers_a_cyclone_dds_peer_field_by_field(
-    tmp_path: Path, rendered: Path, models: Tuple[Path, Path]
-) -> None:
+def _require_dds() -> Path:
+    """The CLI binary, once DDS can be tested here (else a skip, or a failure in CI)."""
     exe = synthgen_exe()
     if shutil.which("unshare") is None or shutil.which("ip") is None:
         _skip_or_fail("unshare or ip is missing (util-linux, iproute2): no private namespace")
@@ -100,6 +99,50 @@ def test_the_node_answers_a_cyclone_dds_peer_field_by_field(
             "cannot make a private network namespace (unshare -n needs root): "
             f"{probe.stderr.strip()}"
         )
+    return exe
+
+
+def _run_peer(
+    tmp_path: Path, exe: Path, model: Path, det: Path, png: Path, k: List[float], *extra: object
+) -> Dict[str, Any]:
+    """ros_peer.py in a private network namespace; what it saw."""
+    out = tmp_path / "peer.json"
+    run = subprocess.run(
+        [
+            "unshare",
+            "-n",
+            sys.executable,
+            PEER,
+            "--exe",
+            exe,
+            "--model",
+            model,
+            "--detector",
+            det,
+            "--image",
+            png,
+            "--k",
+            json.dumps(k),
+            "--record",
+            tmp_path / "published.mcap",
+            "--out",
+            out,
+            *extra,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert run.returncode == 0, run.stderr
+    seen: Dict[str, Any] = json.loads(out.read_text())
+    assert seen["rc"] == 0, seen["stderr"]
+    return seen
+
+
+def test_the_node_answers_a_cyclone_dds_peer_field_by_field(
+    tmp_path: Path, rendered: Path, models: Tuple[Path, Path]
+) -> None:
+    exe = _require_dds()
     from PIL import Image
 
     dense, det = models
@@ -113,35 +156,7 @@ def test_the_node_answers_a_cyclone_dds_peer_field_by_field(
     Image.fromarray(frame.rgb).save(png)
     k = np.asarray(frame.cam_K, dtype=float).reshape(-1).tolist()
     bag = tmp_path / "published.mcap"
-    out = tmp_path / "peer.json"
-    run = subprocess.run(
-        [
-            "unshare",
-            "-n",
-            sys.executable,
-            PEER,
-            "--exe",
-            exe,
-            "--model",
-            dense,
-            "--detector",
-            det,
-            "--image",
-            png,
-            "--k",
-            json.dumps(k),
-            "--record",
-            bag,
-            "--out",
-            out,
-        ],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    assert run.returncode == 0, run.stderr
-    seen = json.loads(out.read_text())
-    assert seen["rc"] == 0, seen["stderr"]
+    seen = _run_peer(tmp_path, exe, dense, det, png, k)
     steps = {s["what"]: s["answered"] for s in seen["steps"]}
     # The good frames are answered; the bad ones are skipped, and the node goes on (bgr8
     # comes after them).
@@ -225,3 +240,64 @@ def test_the_node_answers_a_cyclone_dds_peer_field_by_field(
                 b["bbox"]["size_x"],
                 b["bbox"]["center"]["position"]["y"],
             )
+
+
+def test_the_node_pairs_depth_for_the_rgbd_models(
+    tmp_path: Path, rendered: Path, models: Tuple[Path, Path]
+) -> None:
+    """TNet through the node: 16UC1 depth published beside each image, paired by stamp; the
+    centres as `synthgen.Predictor` gives them on the same depth, with identity orientation
+    and the rotation's variances -1; an image with no depth near its stamp is skipped."""
+    exe = _require_dds()
+    from PIL import Image
+
+    _, det = models
+    tnet = tmp_path / "tnet"
+    run_cli(
+        exe, "train", "-q", "--model", "tnet", "--data", rendered, "--epochs", "1",
+        "--batch", "4", "--width", "16", "--out", tnet,
+    )  # fmt: skip
+    ds = synthgen.open_dataset(rendered)
+    reference = synthgen.Predictor(tnet, det, min_score=0.0)
+    assert reference.needs_depth
+
+    def depth_of(i: int) -> Tuple[np.ndarray, np.ndarray]:
+        mm = np.round(np.nan_to_num(ds[i].depth) * 1000).astype(np.uint16)
+        # As the node decodes 16UC1: millimetres / 1000 in float32.
+        return mm, mm.astype(np.float32) / np.float32(1000)
+
+    found = [
+        (i, reference.predict(ds[i].rgb, ds[i].cam_K, depth=depth_of(i)[1])) for i in range(len(ds))
+    ]
+    # The frame with a centre if the one-epoch detector's masks give one (their masks are
+    # often empty: then no centre, and the 3D arrays must be empty as the reference's), else
+    # the first with a detection.
+    index, want = max(
+        ((i, w) for i, w in found if w),
+        key=lambda iw: (sum(o["t"] is not None for o in iw[1]), -iw[0]),
+    )
+    frame = ds[index]
+    png, depth_png = tmp_path / "frame.png", tmp_path / "depth.png"
+    Image.fromarray(frame.rgb).save(png)
+    Image.fromarray(depth_of(index)[0]).save(depth_png)
+    k = np.asarray(frame.cam_K, dtype=float).reshape(-1).tolist()
+    seen = _run_peer(tmp_path, exe, tnet, det, png, k, "--depth-mm", depth_png)
+    steps = [(s["sec"], s["answered"]) for s in seen["steps"]]
+    assert steps == [(100, True), (101, False), (103, True)], seen
+    assert "no depth for the image" in seen["stdout"]
+    with_t = [o for o in want if o["t"] is not None]
+    for sec in (100, 103):
+        d3, d2 = seen["detections"][str(sec)], seen["detections_2d"][str(sec)]
+        assert d3["header"]["stamp"] == {"sec": sec, "nanosec": 250_000_000}
+        assert len(d2["detections"]) == len(want)
+        assert len(d3["detections"]) == len(with_t)
+        for got, exp in zip(d3["detections"], with_t):
+            r = got["results"][0]
+            assert r["hypothesis"]["class_id"] == str(exp["obj_id"])
+            p = r["pose"]["pose"]
+            np.testing.assert_allclose(
+                [p["position"][c] for c in "xyz"], np.asarray(exp["t"]), atol=1e-9
+            )
+            assert p["orientation"] == {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}
+            cov = r["pose"]["covariance"]
+            assert [cov[i * 7] for i in range(6)] == [0.0, 0.0, 0.0, -1.0, -1.0, -1.0]
