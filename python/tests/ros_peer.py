@@ -18,7 +18,7 @@ import sys
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, Dict, List, Optional
+from typing import Any, Dict, List, Optional, Tuple
 
 import cyclonedds.idl.types as t
 from cyclonedds.core import Policy, Qos
@@ -321,48 +321,44 @@ def main() -> int:
     if a.soak > 0:
         return soak(a, node, info_w, image_w, d3_r, good, k, w, h)
     steps: List[Dict[str, Any]] = []
-    if a.depth_mm:
-        import numpy as np
+    try:
+        if a.depth_mm:
+            import numpy as np
 
-        mm = np.asarray(PilImage.open(a.depth_mm), dtype=np.uint16)
-        depth = image(w, h, "16UC1", mm.astype("<u2").tobytes())
-        try:
+            mm = np.asarray(PilImage.open(a.depth_mm), dtype=np.uint16)
+            depth = image(w, h, "16UC1", mm.astype("<u2").tobytes())
             steps.append({"sec": 100, "what": "rgbd", "answered": publish(100, good, None, depth)})
             # An image with no depth near its stamp: skipped after its wait; the node goes on.
             steps.append({"sec": 101, "what": "no depth", "answered": publish(101, good, 2.0)})
             steps.append(
                 {"sec": 103, "what": "rgbd", "answered": publish(103, good, a.timeout, depth)}
             )
-        finally:
-            time.sleep(0.3)
-            poll()
-            node.send_signal(signal.SIGINT)
-            try:
-                out, err = node.communicate(timeout=30)
-            except subprocess.TimeoutExpired:
-                node.kill()
-                out, err = node.communicate()
-        return write_out(a, steps, got3, got2, node.returncode, out, err)
-    try:
-        ok = publish(100, good, None)
-        steps.append({"sec": 100, "what": "rgb8", "answered": ok})
-        # An encoding the node does not read, then a size that is not the camera info's: both
-        # skipped (no answer), and the node goes on.
-        bad = image(w, h, "yuv422", bytes(w * h * 2))
-        steps.append({"sec": 101, "what": "yuv422", "answered": publish(101, bad, 2.0)})
-        wrong = image(w // 2, h // 2, "rgb8", small.tobytes())
-        steps.append({"sec": 102, "what": "size", "answered": publish(102, wrong, 2.0)})
-        steps.append({"sec": 103, "what": "bgr8", "answered": publish(103, bgr, a.timeout)})
+        else:
+            ok = publish(100, good, None)
+            steps.append({"sec": 100, "what": "rgb8", "answered": ok})
+            # An encoding the node does not read, then a size that is not the camera info's:
+            # both skipped (no answer), and the node goes on.
+            bad = image(w, h, "yuv422", bytes(w * h * 2))
+            steps.append({"sec": 101, "what": "yuv422", "answered": publish(101, bad, 2.0)})
+            wrong = image(w // 2, h // 2, "rgb8", small.tobytes())
+            steps.append({"sec": 102, "what": "size", "answered": publish(102, wrong, 2.0)})
+            steps.append({"sec": 103, "what": "bgr8", "answered": publish(103, bgr, a.timeout)})
     finally:
         time.sleep(0.3)
         poll()
-        node.send_signal(signal.SIGINT)
-        try:
-            out, err = node.communicate(timeout=30)
-        except subprocess.TimeoutExpired:
-            node.kill()
-            out, err = node.communicate()
+        out, err = stop(node)
     return write_out(a, steps, got3, got2, node.returncode, out, err)
+
+
+def stop(node: "subprocess.Popen[str]") -> Tuple[str, str]:
+    """SIGINT, as Ctrl-C stops the node (it finishes --record and prints its summary); its
+    output. Killed if it has not stopped in 30 s."""
+    node.send_signal(signal.SIGINT)
+    try:
+        return node.communicate(timeout=30)
+    except subprocess.TimeoutExpired:
+        node.kill()
+        return node.communicate()
 
 
 def write_out(
@@ -433,12 +429,7 @@ def soak(
                     answered.setdefault(m.header.stamp.sec, time.time())
             time.sleep(0.01)
     finally:
-        node.send_signal(signal.SIGINT)
-        try:
-            out, err = node.communicate(timeout=30)
-        except subprocess.TimeoutExpired:
-            node.kill()
-            out, err = node.communicate()
+        out, err = stop(node)
     minutes: List[Dict[str, Any]] = []
     for m in range(int(a.soak // 60) + 1):
         ids = [j for j, t in sent.items() if m * 60 <= t - start < (m + 1) * 60]

@@ -23,7 +23,7 @@ pub use detector::{
 };
 pub use experiment::{ExperimentCommand, ExperimentMixArgs};
 pub use model::{ModelAlignArgs, ModelCommand};
-pub use predict::{PredictArgs, PREDICT_EXAMPLES};
+pub use predict::{PredictArgs, RefineArgs, PREDICT_EXAMPLES};
 pub use rgb::ExperimentRgbArgs;
 pub use ros::{RosArgs, ROS_EXAMPLES};
 pub use scale::{MergeArgs, Shard, MERGE_EXAMPLES};

@@ -187,14 +187,14 @@ pub fn paths(command: &Command) -> CommandPaths {
             p.input_opt("--depth", &a.depth);
             p.input_opt("--data", &a.data);
             p.input_opt("--bag", &a.bag);
-            p.input_opt("--refine-models", &a.refine_models);
+            p.input_opt("--refine-models", &a.refine.refine_models);
             p.output("--out", &a.out);
             p.output_opt("--draw", &a.draw);
         }
         Command::Ros(a) => {
             p.run_or_checkpoint("--model", &a.model);
             p.run_or_checkpoint("--detector", &a.detector);
-            p.input_opt("--refine-models", &a.refine_models);
+            p.input_opt("--refine-models", &a.refine.refine_models);
             p.output_opt("--record", &a.record);
         }
         Command::Experiment(ExperimentCommand::Mix(a)) => {

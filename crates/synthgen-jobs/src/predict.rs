@@ -717,8 +717,24 @@ fn load_models(req: &PredictorOptions, log: &Log<'_>) -> Result<Predictor> {
             "train the detector with masks (detector train without --no-masks), or predict with an rgb / rgb-dense model",
         ));
     }
-    // Full and the RGB models need the objects' models (their points, their symmetries).
-    let objects = if cfg.model.predicts_rotation() {
+    if req.refine.is_none() && req.refine_models.is_some() {
+        return Err(user_error(
+            "--refine-models gives the refinement its colours, and no --refine is asked for",
+            "add --refine views (or edges), or drop --refine-models",
+        ));
+    }
+    if req.refine.is_some() && !cfg.model.is_rgb_only() {
+        return Err(user_error(
+            format!(
+                "--refine edges and views refine the RGB models' estimates, and this is a {} model",
+                cfg.model.name()
+            ),
+            "drop --refine, or predict with an rgb or rgb-dense model",
+        ));
+    }
+    // Full and the RGB models need the objects' models (their points, their symmetries); the
+    // refinement (RGB models only) reads the same dataset's meshes.
+    let (objects, refiner) = if cfg.model.predicts_rotation() {
         let source = req.objects_from.clone().unwrap_or_else(|| cfg.data.clone());
         let ds = open_source(&source).map_err(|e| {
             user_error(
@@ -729,13 +745,19 @@ fn load_models(req: &PredictorOptions, log: &Log<'_>) -> Result<Predictor> {
                 "keep the training dataset where `synthgen train` read it (its models/ folder), or predict on a dataset with --data",
             )
         })?;
-        Some(load_dataset_objects(
-            ds.as_ref(),
-            shared.iter().copied(),
-            cfg.loss_points,
-        )?)
+        let objects = load_dataset_objects(ds.as_ref(), shared.iter().copied(), cfg.loss_points)?;
+        let refiner = match &req.refine {
+            Some(refine) => Some(Refiner::load(
+                ds.as_ref(),
+                &shared.iter().copied().collect(),
+                refine,
+                req.refine_models.as_deref(),
+            )?),
+            None => None,
+        };
+        (Some(objects), refiner)
     } else {
-        None
+        (None, None)
     };
     let base = cfg.data_options();
     let opts = DataOptions {
@@ -749,43 +771,6 @@ fn load_models(req: &PredictorOptions, log: &Log<'_>) -> Result<Predictor> {
             base.min_pixels
         },
         ..base
-    };
-    if req.refine.is_none() && req.refine_models.is_some() {
-        return Err(user_error(
-            "--refine-models gives the refinement its colours, and no --refine is asked for",
-            "add --refine views (or edges), or drop --refine-models",
-        ));
-    }
-    let refiner = match &req.refine {
-        Some(refine) => {
-            if !cfg.model.is_rgb_only() {
-                return Err(user_error(
-                    format!(
-                        "--refine edges and views refine the RGB models' estimates, and this is a {} model",
-                        cfg.model.name()
-                    ),
-                    "drop --refine, or predict with an rgb or rgb-dense model",
-                ));
-            }
-            let source = req.objects_from.clone().unwrap_or_else(|| cfg.data.clone());
-            let ds = open_source(&source).map_err(|e| {
-                user_error(
-                    format!(
-                        "the refinement needs the objects' models, read from {}, and it cannot be opened: {e}",
-                        source.display()
-                    ),
-                    "keep the training dataset where `synthgen train` read it, or predict on a dataset with --data",
-                )
-            })?;
-            let ids = shared.iter().copied().collect();
-            Some(Refiner::load(
-                ds.as_ref(),
-                &ids,
-                refine,
-                req.refine_models.as_deref(),
-            )?)
-        }
-        None => None,
     };
     Ok(Predictor {
         cfg,

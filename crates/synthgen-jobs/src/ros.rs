@@ -26,7 +26,7 @@ use synthgen_ros::msgs::{
 pub use synthgen_ros::node::NodeConfig;
 use synthgen_ros::node::PoseNode;
 use synthgen_ros::record::Recorder;
-use synthgen_ros::rosbag::{decode_pixels, Decoded, DEPTH_PAIRING_S};
+use synthgen_ros::rosbag::{decode_pixels, nearest_in_stamp, Decoded, DEPTH_PAIRING_S};
 
 use crate::predict::{FoundObject, Predictor, PredictorOptions};
 use crate::{user_error, Log};
@@ -540,11 +540,7 @@ fn prepare(
         Err(e) => return Err(skip("unreadable image", e)),
     };
     let d = if needs_depth {
-        let t = img.header.stamp.nanos();
-        let Some(m) = depth
-            .iter()
-            .min_by_key(|d| (d.header.stamp.nanos() - t).abs())
-            .filter(|d| ((d.header.stamp.nanos() - t).abs() as f64) * 1e-9 <= DEPTH_PAIRING_S)
+        let Some(m) = nearest_in_stamp(depth, img.header.stamp.nanos(), |d| d.header.stamp.nanos())
         else {
             return Ok(None);
         };

@@ -80,6 +80,19 @@ pub struct BagFrames {
 /// Depth and colour whose stamps differ by more than this are not one frame (seconds).
 pub const DEPTH_PAIRING_S: f64 = 0.05;
 
+/// Of `items`, the one whose stamp (`stamp`, nanoseconds) is nearest `t_ns`, if within
+/// [`DEPTH_PAIRING_S`]: a colour image's depth, in a bag or as the node receives them.
+pub fn nearest_in_stamp<'a, T>(
+    items: impl IntoIterator<Item = &'a T>,
+    t_ns: i64,
+    stamp: impl Fn(&T) -> i64,
+) -> Option<&'a T> {
+    items
+        .into_iter()
+        .min_by_key(|d| (stamp(d) - t_ns).abs())
+        .filter(|d| ((stamp(d) - t_ns).abs() as f64) * 1e-9 <= DEPTH_PAIRING_S)
+}
+
 impl BagFrames {
     /// The camera info for an image: the last one stamped at or before it, else the first.
     pub fn camera_for(&self, image: &RawImage) -> Option<&CameraInfo> {
@@ -93,11 +106,7 @@ impl BagFrames {
 
     /// The depth message nearest in stamp to `image`, within [`DEPTH_PAIRING_S`].
     pub fn depth_for(&self, image: &RawImage) -> Option<&RawImage> {
-        let t = image.header.nanos();
-        self.depth
-            .iter()
-            .min_by_key(|d| (d.header.nanos() - t).abs())
-            .filter(|d| ((d.header.nanos() - t).abs() as f64) * 1e-9 <= DEPTH_PAIRING_S)
+        nearest_in_stamp(&self.depth, image.header.nanos(), |d| d.header.nanos())
     }
 
     /// Decodes an image message (colour, or depth on a depth topic).

@@ -118,6 +118,20 @@ pub struct PredictArgs {
     #[arg(long)]
     pub force: bool,
 
+    #[command(flatten)]
+    pub refine: RefineArgs,
+
+    /// Worker threads (default: all cores).
+    #[arg(long, short = 'j', value_parser = crate::cli::threads())]
+    pub jobs: Option<usize>,
+
+    #[arg(long, value_enum, default_value = "cpu")]
+    pub device: DeviceArg,
+}
+
+/// `--refine` and `--refine-models` of `predict` and `ros`.
+#[derive(Debug, Args)]
+pub struct RefineArgs {
     /// Refine the RGB models' estimates on the image, each kept to its detection's box, as
     /// `eval --refine` does: edges (contours onto the image's edges), views (a search over
     /// rotations first, then edges and the model's colours; ~0.5 s an estimate on 2 cores).
@@ -128,11 +142,4 @@ pub struct PredictArgs {
     /// objects' models' (one subfolder per object, as `synthgen model align` writes).
     #[arg(long, value_name = "DIR")]
     pub refine_models: Option<PathBuf>,
-
-    /// Worker threads (default: all cores).
-    #[arg(long, short = 'j', value_parser = crate::cli::threads())]
-    pub jobs: Option<usize>,
-
-    #[arg(long, value_enum, default_value = "cpu")]
-    pub device: DeviceArg,
 }

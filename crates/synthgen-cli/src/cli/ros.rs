@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use crate::cli::{DeviceArg, RgbRefineArg};
+use crate::cli::{DeviceArg, RefineArgs};
 
 pub const ROS_EXAMPLES: &str = "Examples:
   # Beside a RealSense driver (realsense2_camera, align_depth.enable:=true), RGB-D model:
@@ -110,16 +110,8 @@ pub struct RosArgs {
     #[arg(long, value_name = "SECONDS", default_value_t = 10.0)]
     pub status_every: f64,
 
-    /// Refine the RGB models' estimates on the image, each kept to its detection's box, as
-    /// `eval --refine` does: edges (contours onto the image's edges), views (a search over
-    /// rotations first, then edges and the model's colours; ~0.5 s an estimate on 2 cores).
-    #[arg(long, value_enum, default_value_t = RgbRefineArg::None)]
-    pub refine: RgbRefineArg,
-
-    /// With --refine views: compare the image with these meshes' colours instead of the
-    /// objects' models' (one subfolder per object, as `synthgen model align` writes).
-    #[arg(long, value_name = "DIR")]
-    pub refine_models: Option<PathBuf>,
+    #[command(flatten)]
+    pub refine: RefineArgs,
 
     /// Worker threads (default: all cores).
     #[arg(long, short = 'j', value_parser = crate::cli::threads())]

@@ -47,8 +47,8 @@ pub fn run(args: PredictArgs, printer: &Printer) -> Result<ExitStatus> {
         draw: args.draw,
         jobs: args.jobs,
         cuda: args.device == DeviceArg::Cuda,
-        refine: refine_options(args.refine.name())?,
-        refine_models: args.refine_models,
+        refine: refine_options(args.refine.refine.name())?,
+        refine_models: args.refine.refine_models,
         force: args.force,
     };
     let s = predict(&request, printer)?;

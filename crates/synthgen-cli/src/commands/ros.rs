@@ -43,8 +43,8 @@ pub fn run(args: RosArgs, printer: &Printer) -> Result<ExitStatus> {
             min_score: args.min_score,
             per_object: args.per_object,
             cuda: args.device == DeviceArg::Cuda,
-            refine: refine_options(args.refine.name())?,
-            refine_models: args.refine_models.clone(),
+            refine: refine_options(args.refine.refine.name())?,
+            refine_models: args.refine.refine_models.clone(),
         },
         node: NodeConfig {
             domain_id,
