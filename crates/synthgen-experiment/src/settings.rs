@@ -45,14 +45,22 @@ fn changed_input(out: &Path, now: &[Input]) -> Option<String> {
     now.iter().find_map(|n| {
         let t = then.iter().find(|t| t.role == n.role)?;
         (t.fingerprint != n.fingerprint).then(|| {
+            let (tf, nf) = (&t.fingerprint, &n.fingerprint);
+            let what = if (tf.files, tf.bytes) == (nf.files, nf.bytes) {
+                format!(
+                    "the same {} files and {} bytes, but their names or modification times differ: files rewritten, or the folder copied without keeping times",
+                    nf.files, nf.bytes
+                )
+            } else {
+                format!(
+                    "then {} files, {} bytes; now {} files, {} bytes",
+                    tf.files, tf.bytes, nf.files, nf.bytes
+                )
+            };
             format!(
-                "the {} dataset {} changed since this experiment's finished steps read it (then {} files, {} bytes; now {} files, {} bytes): their results are not this data's",
+                "the {} dataset {} changed since this experiment's finished steps read it ({what}): their results are not this data's",
                 n.role,
                 n.path.display(),
-                t.fingerprint.files,
-                t.fingerprint.bytes,
-                n.fingerprint.files,
-                n.fingerprint.bytes
             )
         })
     })

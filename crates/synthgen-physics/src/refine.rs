@@ -12,6 +12,9 @@
 //! near-ties the pose closest to the given centre wins: where the points cannot tell (a face
 //! seen through a small hole), the network's centre decides.
 //!
+//! [`refine_pose`] finishes a whole pose (the Full model's): the given rotation is one more
+//! start, and it decides among the poses the depth cannot tell apart.
+//!
 //! A refined centre farther than [`RefineOptions::max_shift_m`] from the given one, or one
 //! that explains too few points, is refused and the given centre kept: ICP into a wrong
 //! minimum must not make a good estimate worse.
@@ -147,22 +150,64 @@ pub fn refine_centre(
     init_m: DVec3,
     opts: &RefineOptions,
 ) -> Option<Refined> {
+    fit(surface, points, init_m, None, opts)
+}
+
+/// Refines a whole pose (`init`, `cam_from_obj`, metres) on the instance's depth points: the
+/// same search as [`refine_centre`] over rotations spread on SO(3), with the given rotation
+/// as one more start continued on every point; among the near-ties of the fit (poses the
+/// points explain within 10 % of the best, e.g. a box's faces that geometry cannot tell
+/// apart) the one nearest the given rotation wins, so the depth decides what it can see and
+/// the network what only colour can tell. The fit is refused as [`refine_centre`] refuses it
+/// (a centre moved too far, too few points explained); the caller then keeps the given pose.
+pub fn refine_pose(
+    surface: &Surface,
+    points: &[DVec3],
+    init: &Pose,
+    opts: &RefineOptions,
+) -> Option<Refined> {
+    fit(
+        surface,
+        points,
+        init.translation_m,
+        Some(init.rotation),
+        opts,
+    )
+}
+
+/// The angle between two rotations, radians.
+fn angle_between(a: &DMat3, b: &DMat3) -> f64 {
+    let m = *a * b.transpose();
+    let tr = m.x_axis.x + m.y_axis.y + m.z_axis.z;
+    ((tr - 1.0) / 2.0).clamp(-1.0, 1.0).acos()
+}
+
+fn fit(
+    surface: &Surface,
+    points: &[DVec3],
+    init_m: DVec3,
+    prior: Option<DMat3>,
+    opts: &RefineOptions,
+) -> Option<Refined> {
     let pts: Vec<DVec3> = points.iter().copied().filter(|p| p.is_finite()).collect();
-    if pts.len() < 10 || !init_m.is_finite() {
+    if pts.len() < 10 || !init_m.is_finite() || prior.is_some_and(|r| !r.is_finite()) {
         return None;
     }
     let coarse: Vec<DVec3> = stride(&pts, opts.coarse_points.max(10));
+    let coarse_fit = |r0: DMat3| {
+        let (r, t) = icp(surface, &coarse, r0, init_m, opts.coarse_iterations, opts);
+        (score(surface, &coarse, r, t, opts).0, r, t)
+    };
     let mut starts: Vec<(f64, DMat3, DVec3)> = start_rotations(opts.directions, opts.turns)
         .into_iter()
-        .map(|r0| {
-            let (r, t) = icp(surface, &coarse, r0, init_m, opts.coarse_iterations, opts);
-            (score(surface, &coarse, r, t, opts).0, r, t)
-        })
+        .map(coarse_fit)
         .collect();
     starts.sort_by(|a, b| a.0.total_cmp(&b.0));
+    starts.truncate(opts.fine_starts.max(1));
+    // The given rotation is always continued, whatever its coarse score.
+    starts.extend(prior.map(coarse_fit));
     let mut fine: Vec<(f64, f64, DMat3, DVec3)> = starts
         .iter()
-        .take(opts.fine_starts.max(1))
         .map(|&(_, r0, t0)| {
             let (r, t) = icp(surface, &pts, r0, t0, opts.fine_iterations, opts);
             let (s, inliers) = score(surface, &pts, r, t, opts);
@@ -171,11 +216,16 @@ pub fn refine_centre(
         .collect();
     fine.sort_by(|a, b| a.0.total_cmp(&b.0));
     let best = fine.first()?.0;
-    // Near-ties (within 10 % of the best score): the pose nearest the given centre.
+    // Near-ties (within 10 % of the best score): the pose nearest the given rotation, else
+    // the given centre.
+    let near = |f: &(f64, f64, DMat3, DVec3)| match &prior {
+        Some(r0) => angle_between(&f.2, r0),
+        None => f.3.distance(init_m),
+    };
     let (_, inlier_fraction, r, t) = fine
         .iter()
         .filter(|f| f.0 <= 1.1 * best + 1e-9)
-        .min_by(|a, b| a.3.distance(init_m).total_cmp(&b.3.distance(init_m)))
+        .min_by(|a, b| near(a).total_cmp(&near(b)))
         .copied()?;
     let shift_m = t.distance(init_m);
     let accepted = shift_m <= opts.max_shift_m && inlier_fraction >= opts.min_inlier_fraction;
@@ -387,6 +437,42 @@ mod tests {
                 "pose {k}: {before:.4} m → {after:.4} m"
             );
         }
+    }
+
+    #[test]
+    fn a_whole_pose_is_refined_and_the_given_rotation_breaks_the_ties_of_geometry() {
+        // A box looks the same turned 180° about any of its axes: the depth cannot tell
+        // those poses apart, the given rotation does.
+        let model = Model::cuboid("box", Vec3::new(0.16, 0.08, 0.05));
+        let surface = Surface::new(&model).unwrap();
+        let opts = RefineOptions::default();
+        let gt = Pose::new(
+            rotation(DVec3::new(0.3, 1.0, 0.2), 40.0),
+            DVec3::new(0.02, 0.01, 0.7),
+        );
+        let pts = visible_points(&model, &gt, 0.001, 4);
+        let flip = gt.rotation * rotation(DVec3::Z, 180.0);
+        let off = rotation(DVec3::new(1.0, -0.5, 0.3), 25.0);
+        for (k, want) in [gt.rotation, flip].into_iter().enumerate() {
+            let init = Pose::new(
+                off * want,
+                gt.translation_m + DVec3::new(0.008, -0.006, 0.01),
+            );
+            let r = refine_pose(&surface, &pts, &init, &opts).unwrap();
+            let err = angle_between(&r.pose.rotation, &want).to_degrees();
+            assert!(r.accepted, "start {k}: refused ({r:?})");
+            assert!(
+                err < 3.0,
+                "start {k}: {err:.2}° from the expected pose ({r:?})"
+            );
+            assert!(
+                r.centre_m.distance(gt.translation_m) < 0.004,
+                "start {k}: {r:?}"
+            );
+        }
+        // A rotation with NaN is no start.
+        let bad = Pose::new(DMat3::from_cols_array(&[f64::NAN; 9]), gt.translation_m);
+        assert!(refine_pose(&surface, &pts, &bad, &opts).is_none());
     }
 
     #[test]

@@ -340,6 +340,121 @@ impl EvalReport {
     }
 }
 
+/// [`evaluate`] of each scene's GT instances and estimates on their own, by scene id (the
+/// scenes of `gts`).
+pub fn evaluate_per_scene(
+    gts: &[GtInstance],
+    estimates: &[Estimate],
+    objects: &BTreeMap<u32, EvalObject>,
+    rotations: Rotations,
+) -> Result<BTreeMap<u32, EvalReport>> {
+    let scenes: std::collections::BTreeSet<u32> = gts.iter().map(|g| g.scene_id).collect();
+    scenes
+        .into_iter()
+        .map(|sc| {
+            let g: Vec<GtInstance> = gts.iter().filter(|g| g.scene_id == sc).copied().collect();
+            let e: Vec<Estimate> = estimates
+                .iter()
+                .filter(|e| e.scene_id == sc)
+                .cloned()
+                .collect();
+            Ok((sc, evaluate(&g, &e, objects, rotations)?))
+        })
+        .collect()
+}
+
+/// The largest error of the ADD-S AUC, metres (PoseCNN's and DenseFusion's 10 cm).
+pub const AUC_MAX_M: f64 = 0.1;
+
+/// The area under the accuracy-threshold curve of `errors_m` (one error per GT instance, a
+/// miss as +∞) for thresholds from 0 to `max_m`, in percent, as the YCB-Video toolbox of
+/// PoseCNN and DenseFusion computes it (`VOCap` in `evaluate_poses_keyframe.m`): errors above
+/// `max_m` count as misses, the accuracy at each sorted error is the share of GT instances at
+/// or below it, each interval between consecutive errors (from 0, and on to `max_m`) counts at
+/// the accuracy of its right end, and the area is divided by `max_m`. None for no GT instance.
+pub fn auc_percent(errors_m: &[f64], max_m: f64) -> Option<f64> {
+    let n = errors_m.len();
+    if n == 0 {
+        return None;
+    }
+    let mut d: Vec<f64> = errors_m
+        .iter()
+        .copied()
+        .filter(|e| e.is_finite() && *e <= max_m)
+        .collect();
+    d.sort_by(f64::total_cmp);
+    if d.is_empty() {
+        return Some(0.0);
+    }
+    // mrec = [0, d.., max], mpre = [0, (1..=k)/n, k/n] (already non-decreasing).
+    let mut rec = Vec::with_capacity(d.len() + 2);
+    rec.push(0.0);
+    rec.extend_from_slice(&d);
+    rec.push(max_m);
+    let k = d.len();
+    let pre = |i: usize| -> f64 {
+        match i {
+            0 => 0.0,
+            i if i <= k => i as f64 / n as f64,
+            _ => k as f64 / n as f64,
+        }
+    };
+    let area: f64 = (1..rec.len())
+        .filter(|&i| rec[i] != rec[i - 1])
+        .map(|i| (rec[i] - rec[i - 1]) * pre(i))
+        .sum();
+    Some(100.0 * area / max_m)
+}
+
+/// ADD-S AUC (up to [`AUC_MAX_M`], percent) of an evaluation, overall, per object and per
+/// scene: every GT instance with ADD-S (the closest-point distance) for every object, as
+/// PoseCNN and DenseFusion report it on YCB-Video; a GT instance without an estimate is a miss.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AucScores {
+    pub all: Option<f64>,
+    pub per_object: BTreeMap<u32, f64>,
+    pub per_scene: BTreeMap<u32, f64>,
+}
+
+impl EvalReport {
+    /// The ADD-S AUC of the matches (see [`AucScores`]), with the poses `rotations` says.
+    pub fn add_s_auc(
+        &self,
+        objects: &BTreeMap<u32, EvalObject>,
+        rotations: Rotations,
+    ) -> AucScores {
+        let errors: Vec<(u32, u32, f64)> = self
+            .matches
+            .par_iter()
+            .map(|m| {
+                let e = match (&m.estimate, objects.get(&m.gt.obj_id)) {
+                    (Some((est, _)), Some(obj)) => crate::metrics::adi(
+                        &obj.points_m,
+                        &m.gt.pose_for(rotations),
+                        &est.pose_for(rotations),
+                    ),
+                    _ => f64::INFINITY,
+                };
+                (m.gt.obj_id, m.gt.scene_id, e)
+            })
+            .collect();
+        let group = |key: fn(&(u32, u32, f64)) -> u32| {
+            let mut by: BTreeMap<u32, Vec<f64>> = BTreeMap::new();
+            for e in &errors {
+                by.entry(key(e)).or_default().push(e.2);
+            }
+            by.into_iter()
+                .filter_map(|(k, v)| Some((k, auc_percent(&v, AUC_MAX_M)?)))
+                .collect()
+        };
+        AucScores {
+            all: auc_percent(&errors.iter().map(|e| e.2).collect::<Vec<_>>(), AUC_MAX_M),
+            per_object: group(|e| e.0),
+            per_scene: group(|e| e.1),
+        }
+    }
+}
+
 #[cfg(test)]
 #[allow(clippy::unwrap_used, clippy::expect_used)]
 mod tests {
@@ -378,6 +493,39 @@ mod tests {
                 symmetric: false,
             },
         )])
+    }
+
+    #[test]
+    fn auc_is_the_area_under_the_accuracy_curve_as_the_ycb_toolbox_computes_it() {
+        // Every error 0: accuracy 1 over the whole range.
+        assert_eq!(auc_percent(&[0.0, 0.0], 0.1), Some(100.0));
+        // Nothing within 10 cm (or a miss): 0.
+        assert_eq!(auc_percent(&[0.2, f64::INFINITY], 0.1), Some(0.0));
+        assert_eq!(auc_percent(&[], 0.1), None);
+        // One of two at 2 cm, the other missed: each interval counts at the accuracy of its
+        // right end (the toolbox's step), so 0.5 from 0 to 10 cm = 50 %.
+        let a = auc_percent(&[0.02, f64::INFINITY], 0.1).unwrap();
+        assert!((a - 50.0).abs() < 1e-9, "{a}");
+        // Errors 1, 3, 5 cm of 4 GT: steps (1-0)*1/4 + (3-1)*2/4 + (5-3)*3/4 + (10-5)*3/4
+        // = 0.25 + 1 + 1.5 + 3.75 = 6.5 cm of 10: 65 %; the order of the errors is irrelevant.
+        let a = auc_percent(&[0.05, 0.01, f64::NAN, 0.03], 0.1).unwrap();
+        assert!((a - 65.0).abs() < 1e-9, "{a}");
+    }
+
+    #[test]
+    fn add_s_auc_counts_misses_and_groups_by_object_and_scene() {
+        let mut g_other_scene = gt(1, 1, [0.0, 0.0, 1.0]);
+        g_other_scene.scene_id = 3;
+        let gts = [gt(0, 1, [0.0, 0.0, 1.0]), g_other_scene];
+        // Scene 0's estimate 2 cm off along x (ADD-S of the two points ±5 cm: 2 cm); scene
+        // 3's image has none.
+        let ests = [est(0, 1, 1.0, [0.02, 0.0, 1.0])];
+        let r = evaluate(&gts, &ests, &objects(), Rotations::AsStored).unwrap();
+        let auc = r.add_s_auc(&objects(), Rotations::AsStored);
+        assert!((auc.all.unwrap() - 50.0).abs() < 1e-9, "{auc:?}");
+        assert!((auc.per_object[&1] - 50.0).abs() < 1e-9);
+        assert!((auc.per_scene[&0] - 100.0).abs() < 1e-9, "{auc:?}");
+        assert_eq!(auc.per_scene[&3], 0.0);
     }
 
     #[test]

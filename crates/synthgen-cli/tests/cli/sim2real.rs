@@ -119,6 +119,25 @@ fn quick_sim2real_on_real_frames_reports_every_row_and_resumes() {
         assert!((0.0..=1.0).contains(&kept), "{}: {kept}", row["name"]);
     }
     check(&r["baselines"]["naive_icp"]["all"]);
+    // Issue 54: TNet's ICP gives a rotation too, scored as the rotation models are (BOP's AR,
+    // ADD-S AUC); the network's centres before it have none.
+    for m in [&r["all"], &r["baselines"]["naive_icp"]["all"]] {
+        for k in ["ar", "ar_vsd", "ar_mssd", "ar_mspd", "add_s_acc"] {
+            let v = m[k].as_f64().unwrap_or_else(|| panic!("{k}: {m}"));
+            assert!((0.0..=1.0).contains(&v), "{k}: {m}");
+        }
+        assert!(
+            (0.0..=100.0).contains(&m["add_s_auc"].as_f64().unwrap()),
+            "{m}"
+        );
+    }
+    let main = r["rows"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|x| x["name"] == "synth_fitted")
+        .unwrap();
+    assert!(main["before_refine"].get("ar").is_none(), "{main}");
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
     assert!(
         md.contains("refined by ICP") && md.contains("| naive_icp |"),
@@ -357,18 +376,93 @@ fn quick_full_model_reports_the_pose_metrics() {
             assert!(v.is_finite() && v >= 0.0, "{what} {k}: {m}");
         }
     };
-    pose_metrics(&r["all"], "all");
+    // Issue 54: BOP's AR (VSD on the real depth, MSSD, MSPD), the ADD-S AUC up to 10 cm,
+    // ADD(-S) under the issue's name and the median errors beside today's keys.
+    let bop_metrics = |m: &Value, what: &str| {
+        pose_metrics(m, what);
+        let f = |k: &str| m[k].as_f64().unwrap_or_else(|| panic!("{what} {k}: {m}"));
+        for k in ["ar", "ar_vsd", "ar_mssd", "ar_mspd"] {
+            assert!((0.0..=1.0).contains(&f(k)), "{what} {k}: {m}");
+        }
+        let mean = (f("ar_vsd") + f("ar_mssd") + f("ar_mspd")) / 3.0;
+        assert!((f("ar") - mean).abs() < 1e-9, "{what}: {m}");
+        assert!((0.0..=100.0).contains(&f("add_s_auc")), "{what}: {m}");
+        assert_eq!(m["acc_add"], m["add_s_acc"], "{what}");
+        assert!(
+            f("median_te_cm") >= 0.0 && f("median_re_deg") >= 0.0,
+            "{what}: {m}"
+        );
+    };
+    bop_metrics(&r["all"], "all");
+    bop_metrics(&r["scenes"]["1"], "scene 1");
     for id in ["1", "2", "3", "5"] {
-        pose_metrics(&r["objects"][id], id);
+        bop_metrics(&r["objects"][id], id);
     }
     for b in ["real_only", "synth_no_sensor", "synth_d455"] {
-        pose_metrics(&r["baselines"][b]["all"], b);
+        bop_metrics(&r["baselines"][b]["all"], b);
     }
-    // The naive centroid has no rotation: only the centre errors.
+    // The naive centroid has no rotation: only the centre errors; the ICP from it gives one.
     let naive = &r["baselines"]["naive_centroid"]["all"];
     assert!(naive["mean_centre_error_cm"].as_f64().is_some() && naive.get("add_s_acc").is_none());
+    bop_metrics(&r["baselines"]["naive_icp"]["all"], "naive_icp");
+    // --refine icp (the default) refines Full's whole pose; its scores before are kept.
+    let rows = r["rows"].as_array().unwrap();
+    let main = rows.iter().find(|x| x["name"] == "synth_fitted").unwrap();
+    bop_metrics(&main["before_refine"], "before_refine");
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
-    assert!(md.contains("ADD(-S) %") && md.contains("5cm5° %"), "{md}");
+    for h in ["ADD(-S) %", "5cm5° %", "| AR |", "ADD-S AUC", "AR before"] {
+        assert!(md.contains(h), "{h}: {md}");
+    }
+
+    // Another --refine scores the trained rows again, without training them.
+    let trained = std::fs::metadata(out.join("rows/synth_fitted/train/model.safetensors"))
+        .unwrap()
+        .modified()
+        .unwrap();
+    let o = sim2real(
+        &real,
+        &real,
+        &out,
+        &[
+            "--test-scenes",
+            "1",
+            "--frames",
+            "16",
+            "--model",
+            "full",
+            "--refine",
+            "none",
+        ],
+    );
+    let e = stderr(&o);
+    assert!(o.status.success(), "{e}");
+    assert!(
+        e.contains("synth_fitted: scoring its trained model again")
+            && !e.contains("training synth_fitted"),
+        "{e}"
+    );
+    let again = std::fs::metadata(out.join("rows/synth_fitted/train/model.safetensors"))
+        .unwrap()
+        .modified()
+        .unwrap();
+    assert_eq!(trained, again);
+    let settings: Value =
+        serde_json::from_slice(&std::fs::read(out.join("experiment.json")).unwrap()).unwrap();
+    assert_eq!(settings["refine"], "none");
+    let r2: Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    let rows2 = r2["rows"].as_array().unwrap();
+    let main2 = rows2.iter().find(|x| x["name"] == "synth_fitted").unwrap();
+    assert!(main2.get("before_refine").is_none(), "{main2}");
+    // Unrefined now: the scores the refined run had before its refinement.
+    for k in ["ar", "add_s_auc", "add_s_acc", "mean_centre_error_cm"] {
+        let (a, b) = (
+            main2["all"][k].as_f64().unwrap(),
+            main["before_refine"][k].as_f64().unwrap(),
+        );
+        assert!((a - b).abs() < 1e-9, "{k}: {a} vs {b}");
+    }
+    assert!(!rows2.iter().any(|x| x["name"] == "naive_icp"), "{r2}");
 }
 
 #[test]

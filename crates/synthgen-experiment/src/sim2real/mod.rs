@@ -54,8 +54,10 @@ impl TestObject {
     }
 }
 
-/// Everything that decides the numbers.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// Everything that decides the numbers. Two settings are equal when they train the same
+/// models: `refine` is left out (it applies after training; a finished row whose
+/// refinement differs is scored again from its models, `rows::current_record`).
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Settings {
     pub fit: PathBuf,
     pub test: PathBuf,
@@ -93,6 +95,19 @@ pub struct Settings {
 
 fn one() -> usize {
     1
+}
+
+impl PartialEq for Settings {
+    fn eq(&self, other: &Self) -> bool {
+        let training = |s: &Settings| {
+            let mut v = serde_json::to_value(s).unwrap_or_default();
+            if let Some(m) = v.as_object_mut() {
+                m.remove("refine");
+            }
+            v
+        };
+        training(self) == training(other)
+    }
 }
 
 /// A row trained on a synthetic set: how its scene differs from the fitted one, or which set
@@ -341,10 +356,11 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
         },
         per_object: args.per_object,
         ensemble: args.ensemble.unwrap_or(if args.quick { 1 } else { 3 }),
-        refine: if model == Model::Tnet {
+        // TNet's centre and Full's whole pose; RNet gives no centre to start from.
+        refine: if matches!(model, Model::Tnet | Model::Full) {
             if matches!(args.refine, Refine::Edges | Refine::Views) {
                 return Err(user_error(
-                    "--refine edges and views refine the RGB models' poses on the RGB images; a depth model's centre is refined with icp",
+                    "--refine edges and views refine the RGB models' poses on the RGB images; a depth model's pose is refined with icp",
                     "--refine icp (the default) or --refine none; --refine edges or views with --model rgb or rgb-dense",
                 ));
             }
@@ -461,17 +477,17 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
     ));
     let mut records: Vec<RowRecord> = Vec::new();
     let mut computed = 0;
-    let naive = match rows::read_record(&out, rows::NAIVE) {
+    let naive = match rows::current_record(&settings, &out, rows::NAIVE, &test, printer)? {
         Some(r) => r,
         None => {
             computed += 1;
-            rows::naive_row(&out, &test)?
+            rows::naive_row(&settings, &out, &test)?
         }
     };
     let mut synth_steps = None;
     let mut main_computed = false;
     for (v, dir) in &sets {
-        let record = match rows::read_record(&out, v.name) {
+        let record = match rows::current_record(&settings, &out, v.name, &test, printer)? {
             Some(r) => r,
             None => {
                 let src =
@@ -508,7 +524,7 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
         }
         records.push(record);
     }
-    let real_only = match rows::read_record(&out, REAL_ONLY) {
+    let real_only = match rows::current_record(&settings, &out, REAL_ONLY, &test, printer)? {
         Some(r) => Some(r),
         None if !wanted(REAL_ONLY) => None,
         None => Some({
@@ -549,11 +565,11 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
     records.extend(real_only);
     records.push(naive);
     if settings.refine == Refine::Icp {
-        match rows::read_record(&out, rows::NAIVE_ICP) {
+        match rows::current_record(&settings, &out, rows::NAIVE_ICP, &test, printer)? {
             Some(r) => records.push(r),
             None => {
                 computed += 1;
-                records.extend(rows::naive_icp_row(&out, &test)?);
+                records.extend(rows::naive_icp_row(&settings, &out, &test)?);
             }
         }
     }
@@ -583,7 +599,12 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
                 let earlier = std::fs::read_to_string(&path)
                     .ok()
                     .and_then(|t| serde_json::from_str::<rows::NoGtRecord>(&t).ok())
-                    .filter(|r| !fresh && !main_computed && r.detector == det.key.detector);
+                    .filter(|r| {
+                        !fresh
+                            && !main_computed
+                            && r.detector == det.key.detector
+                            && r.scoring == rows::scoring_key(&settings)
+                    });
                 let row = match earlier {
                     Some(r) => r,
                     None => {
@@ -622,7 +643,7 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
     for name in &names {
         let ablation_off = ablation_rows.contains(name);
         if !wanted(name) && !ablation_off && !records.iter().any(|r| r.name == *name) {
-            records.extend(rows::read_record(&out, name));
+            records.extend(rows::current_record(&settings, &out, name, &test, printer)?);
         }
     }
     records.sort_by_key(|r| names.iter().position(|n| *n == r.name));
@@ -848,7 +869,13 @@ fn check_settings(out: &Path, settings: &Settings, force: bool) -> Result<()> {
         force,
         &[&["rows", "sources", "fit", TIMING_FILE], detect::STALE].concat(),
         true,
-    )
+    )?;
+    // The same training with another `--refine`: the file says which one the rows have now.
+    atomic_write(
+        &out.join(SETTINGS_FILE),
+        (serde_json::to_string_pretty(settings)? + "\n").as_bytes(),
+    )?;
+    Ok(())
 }
 
 /// Where the steps' times are kept between runs.

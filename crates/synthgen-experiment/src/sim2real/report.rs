@@ -162,7 +162,8 @@ impl Report {
 
     pub fn markdown(&self) -> String {
         let s = &self.settings;
-        let full = s.model != "tnet";
+        // Rotation scores: the rotation models' rows, and TNet's with ICP's rotation.
+        let full = self.rows.iter().any(|r| r.all.add_s_acc.is_some());
         let mut o = String::new();
         let _ = writeln!(o, "# Synthetic to real: {} on real frames\n", s.model);
         let _ = writeln!(
@@ -190,12 +191,15 @@ impl Report {
             "| row | trained on | n | mean centre error cm | median cm |"
         );
         if full {
-            let _ = write!(o, " ADD(-S) % | 5cm5° % | mean te cm | mean re ° |");
+            let _ = write!(
+                o,
+                " AR | AR_VSD | AR_MSSD | AR_MSPD | ADD-S AUC | ADD(-S) % | 5cm5° % | median te cm | median re ° |"
+            );
         }
         let _ = writeln!(o);
         let _ = write!(o, "|---|---|---:|---:|---:|");
         if full {
-            let _ = write!(o, "---:|---:|---:|---:|");
+            let _ = write!(o, "---:|---:|---:|---:|---:|---:|---:|---:|---:|");
         }
         let _ = writeln!(o);
         for r in &self.rows {
@@ -214,16 +218,7 @@ impl Report {
                 r.all.n, r.all.mean_centre_error_cm, r.all.median_centre_error_cm
             );
             if full {
-                let f =
-                    |v: Option<f64>, k: f64| v.map_or("—".into(), |v| format!("{:.2}", v * k));
-                let _ = write!(
-                    o,
-                    " {} | {} | {} | {} |",
-                    f(r.all.add_s_acc, 100.0),
-                    f(r.all.acc_5cm5deg, 100.0),
-                    f(r.all.mean_te_cm, 1.0),
-                    f(r.all.mean_re_deg, 1.0)
-                );
+                let _ = write!(o, " {} |", rotation_cells(&r.all));
             }
             let _ = writeln!(o);
         }
@@ -239,18 +234,30 @@ impl Report {
         if !refined.is_empty() {
             let _ = writeln!(
                 o,
-                "\nThe trained rows' centres were refined by ICP on the real depth (`--refine icp`); before the refinement, mean centre error (cm), and the share of instances whose refined centre was kept:\n"
+                "\nThe trained rows' poses were refined by ICP on the real depth (`--refine icp`: TNet's centre, the fit giving the rotation; Full's whole pose, its rotation deciding between fits the depth cannot tell apart); before and after the refinement, and the share of instances whose fit was kept:\n"
             );
-            let _ = writeln!(o, "| row | before | after | kept % |\n|---|---:|---:|---:|");
+            let _ = writeln!(
+                o,
+                "| row | mean centre cm before | after | AR before | after | ADD-S AUC before | after | ADD(-S) % before | after | kept % |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+            );
+            let f = |v: Option<f64>, k: f64, d: usize| {
+                v.filter(|v| v.is_finite())
+                    .map_or("—".into(), |v| format!("{:.d$}", v * k))
+            };
             for r in refined {
+                let b = r.before_refine.as_ref();
                 let _ = writeln!(
                     o,
-                    "| {} | {:.2} | {:.2} | {:.0} |",
+                    "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.0} |",
                     r.name,
-                    r.before_refine
-                        .as_ref()
-                        .map_or(f64::NAN, |m| m.mean_centre_error_cm),
-                    r.all.mean_centre_error_cm,
+                    f(b.map(|m| m.mean_centre_error_cm), 1.0, 2),
+                    f(Some(r.all.mean_centre_error_cm), 1.0, 2),
+                    f(b.and_then(|m| m.ar), 1.0, 3),
+                    f(r.all.ar, 1.0, 3),
+                    f(b.and_then(|m| m.add_s_auc), 1.0, 1),
+                    f(r.all.add_s_auc, 1.0, 1),
+                    f(b.and_then(|m| m.add_s_acc), 100.0, 1),
+                    f(r.all.add_s_acc, 100.0, 1),
                     100.0 * r.refine_accepted.unwrap_or(0.0)
                 );
             }
@@ -267,7 +274,43 @@ impl Report {
             v
         };
         let _ = writeln!(o, "\nMean centre error (cm) per object:\n");
-        row_table(&mut o, "object", &self.rows, &ids, |r| &r.objects);
+        let centre = |m: &Metrics| Some(m.mean_centre_error_cm);
+        row_table(
+            &mut o,
+            "object",
+            &self.rows,
+            &ids,
+            |r| &r.objects,
+            centre,
+            2,
+        );
+        if full {
+            let tables: [(&str, fn(&Metrics) -> Option<f64>, usize); 3] = [
+                (
+                    "BOP's AR per object (the rows with a rotation; GT masks)",
+                    |m| m.ar,
+                    3,
+                ),
+                ("ADD-S AUC (up to 10 cm, %) per object", |m| m.add_s_auc, 1),
+                (
+                    "Median rotation error (°) per object",
+                    |m| m.median_re_deg,
+                    1,
+                ),
+            ];
+            for (title, value, digits) in tables {
+                let _ = writeln!(o, "\n{title}:\n");
+                row_table(
+                    &mut o,
+                    "object",
+                    &self.rows,
+                    &ids,
+                    |r| &r.objects,
+                    value,
+                    digits,
+                );
+            }
+        }
         // Per test scene, when there are several.
         let scene_ids: Vec<String> = self
             .rows
@@ -278,7 +321,27 @@ impl Report {
             .collect();
         if scene_ids.len() > 1 {
             let _ = writeln!(o, "\nMean centre error (cm) per test scene:\n");
-            row_table(&mut o, "scene", &self.rows, &scene_ids, |r| &r.scenes);
+            row_table(
+                &mut o,
+                "scene",
+                &self.rows,
+                &scene_ids,
+                |r| &r.scenes,
+                centre,
+                2,
+            );
+            if full {
+                let _ = writeln!(o, "\nBOP's AR per test scene:\n");
+                row_table(
+                    &mut o,
+                    "scene",
+                    &self.rows,
+                    &scene_ids,
+                    |r| &r.scenes,
+                    |m| m.ar,
+                    3,
+                );
+            }
         }
         let skipped: usize = self.skipped_frames.values().map(Vec::len).sum();
         if skipped > 0 {
@@ -312,24 +375,47 @@ impl Report {
         if let (Some(d), Some(r)) = (&self.detector, &self.no_gt_row) {
             o += &super::detect::markdown(d);
             let main = self.rows.iter().find(|x| x.name == MAIN_ROW);
+            let rot_head = if full {
+                (
+                    " AR | AR_VSD | AR_MSSD | AR_MSPD | ADD-S AUC | ADD(-S) % | 5cm5° % | median te cm | median re ° |",
+                    "---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+                )
+            } else {
+                ("", "")
+            };
             let _ = write!(
                 o,
-                "\n{MAIN_ROW} from raw frames (no GT mask anywhere: each instance's points from the detector's mask of its object in its image, best first{}; {} of {} GT instances got one, the others are misses):\n\n| masks | n | mean centre error cm | median cm |\n|---|---:|---:|---:|\n| detected (no GT) | {} | {} | {} |\n",
+                "\n{MAIN_ROW} from raw frames (no GT mask anywhere: each instance's points from the detector's mask of its object in its image, best first{}; {} of {} GT instances got one, the others are misses{}):\n\n| masks | n | mean centre error cm | median cm |{}\n|---|---:|---:|---:|{}\n| detected (no GT) | {} | {} | {} |{}\n",
                 if s.refine == crate::options::Refine::Icp { ", then ICP as the row" } else { "" },
                 r.detected,
                 r.n_gt,
+                if full { ", counted as wrong in the rotation scores" } else { "" },
+                rot_head.0,
+                rot_head.1,
                 r.all.n,
                 cm2(r.all.mean_centre_error_cm),
-                cm2(r.all.median_centre_error_cm)
+                cm2(r.all.median_centre_error_cm),
+                if full { format!(" {} |", rotation_cells(&r.all)) } else { String::new() }
             );
             if let Some(m) = main {
                 let _ = writeln!(
                     o,
-                    "| GT visible masks | {} | {:.2} | {:.2} |",
-                    m.all.n, m.all.mean_centre_error_cm, m.all.median_centre_error_cm
+                    "| GT visible masks | {} | {:.2} | {:.2} |{}",
+                    m.all.n,
+                    m.all.mean_centre_error_cm,
+                    m.all.median_centre_error_cm,
+                    if full {
+                        format!(" {} |", rotation_cells(&m.all))
+                    } else {
+                        String::new()
+                    }
                 );
             }
-            o += "\nPer object (mean centre error cm):\n\n| object | GT | detected | no GT | GT masks |\n|---|---:|---:|---:|---:|\n";
+            o += if full {
+                "\nPer object (mean centre error cm; BOP's AR):\n\n| object | GT | detected | no GT | GT masks | AR no GT | AR GT masks |\n|---|---:|---:|---:|---:|---:|---:|\n"
+            } else {
+                "\nPer object (mean centre error cm):\n\n| object | GT | detected | no GT | GT masks |\n|---|---:|---:|---:|---:|\n"
+            };
             let mut ids: Vec<&String> = r.objects_detected.keys().collect();
             ids.sort_by_key(|k| (k.parse::<u64>().unwrap_or(u64::MAX), (*k).clone()));
             for k in ids {
@@ -337,12 +423,25 @@ impl Report {
                 let cm = |m: Option<&Metrics>| {
                     m.map_or("–".to_string(), |m| cm2(m.mean_centre_error_cm))
                 };
-                let _ = writeln!(
+                let _ = write!(
                     o,
                     "| {k} | {n} | {found} | {} | {} |",
                     cm(r.objects.get(k)),
                     cm(main.and_then(|m| m.objects.get(k)))
                 );
+                if full {
+                    let ar = |m: Option<&Metrics>| {
+                        m.and_then(|m| m.ar)
+                            .map_or("–".to_string(), |v| format!("{v:.3}"))
+                    };
+                    let _ = write!(
+                        o,
+                        " {} | {} |",
+                        ar(r.objects.get(k)),
+                        ar(main.and_then(|m| m.objects.get(k)))
+                    );
+                }
+                let _ = writeln!(o);
             }
         }
         for n in &self.notes {
@@ -405,14 +504,38 @@ impl Report {
     }
 }
 
-/// A markdown table of each row's mean centre error per key (an object or a scene id), with
-/// the first row's instance count that has the key; "—" where a row lacks it.
+/// The rotation scores of a table row: AR and its parts, ADD-S AUC, ADD(-S) and 5cm5° (%),
+/// median translation (cm) and rotation (°) errors; "—" where there is none.
+fn rotation_cells(m: &Metrics) -> String {
+    let f = |v: Option<f64>, k: f64, d: usize| {
+        v.filter(|v| v.is_finite())
+            .map_or("—".into(), |v| format!("{:.d$}", v * k))
+    };
+    [
+        f(m.ar, 1.0, 3),
+        f(m.ar_vsd, 1.0, 3),
+        f(m.ar_mssd, 1.0, 3),
+        f(m.ar_mspd, 1.0, 3),
+        f(m.add_s_auc, 1.0, 1),
+        f(m.add_s_acc, 100.0, 1),
+        f(m.acc_5cm5deg, 100.0, 1),
+        f(m.median_te_cm, 1.0, 2),
+        f(m.median_re_deg, 1.0, 1),
+    ]
+    .join(" | ")
+}
+
+/// A markdown table of each row's `value` per key (an object or a scene id) with `digits`
+/// decimals, and the first row's instance count that has the key; "—" where a row lacks it
+/// or the value.
 fn row_table(
     o: &mut String,
     what: &str,
     rows: &[RowRecord],
     keys: &[String],
     by: impl Fn(&RowRecord) -> &BTreeMap<String, Metrics>,
+    value: impl Fn(&Metrics) -> Option<f64>,
+    digits: usize,
 ) {
     let _ = write!(o, "| {what} | n |");
     for r in rows {
@@ -431,9 +554,9 @@ fn row_table(
             .unwrap_or(0);
         let _ = write!(o, "| {key} | {n} |");
         for r in rows {
-            match by(r).get(key) {
-                Some(m) => {
-                    let _ = write!(o, " {:.2} |", m.mean_centre_error_cm);
+            match by(r).get(key).and_then(&value).filter(|v| v.is_finite()) {
+                Some(v) => {
+                    let _ = write!(o, " {v:.digits$} |");
                 }
                 None => {
                     let _ = write!(o, " — |");

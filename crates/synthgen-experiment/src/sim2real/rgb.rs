@@ -27,7 +27,8 @@ use synthgen_train::baseline::MeanBoxPose;
 use synthgen_train::bop::{prepare_bop, BopOptions, BopReport, BopSetup};
 use synthgen_train::data::{load_source_instances, DataOptions, Instance};
 use synthgen_train::eval::{
-    eval_objects, evaluate, prediction_estimates, read_gt, GtInstance, ObjectScores,
+    eval_objects, evaluate, evaluate_per_scene, prediction_estimates, read_gt, GtInstance,
+    ObjectScores,
 };
 use synthgen_train::metrics::Rotations;
 use synthgen_train::models::rgb::{Translation, DEFAULT_RGB_CROP};
@@ -1136,30 +1137,19 @@ fn score(
             )
         })
         .collect();
-    let scene_ids: BTreeSet<u32> = test.gts.iter().map(|g| g.scene_id).collect();
-    let mut scenes = BTreeMap::new();
-    for sc in scene_ids {
-        let gts: Vec<GtInstance> = test
-            .gts
-            .iter()
-            .filter(|g| g.scene_id == sc)
-            .cloned()
-            .collect();
-        let ests: Vec<Estimate> = estimates
-            .iter()
-            .filter(|e| e.scene_id == sc)
-            .cloned()
-            .collect();
-        let r = evaluate(&gts, &ests, &objs, Rotations::default())?;
-        scenes.insert(
-            sc.to_string(),
-            Scores::new(
-                &r.all,
-                bop.mspd.per_scene_mean_recall.get(&sc).copied(),
-                bop.mssd.per_scene_mean_recall.get(&sc).copied(),
-            ),
-        );
-    }
+    let scenes = evaluate_per_scene(&test.gts, estimates, &objs, Rotations::default())?
+        .into_iter()
+        .map(|(sc, r)| {
+            (
+                sc.to_string(),
+                Scores::new(
+                    &r.all,
+                    bop.mspd.per_scene_mean_recall.get(&sc).copied(),
+                    bop.mssd.per_scene_mean_recall.get(&sc).copied(),
+                ),
+            )
+        })
+        .collect();
     Ok((all, objects, scenes))
 }
 

@@ -12,10 +12,17 @@ use synthgen_core::glam::DVec3;
 use synthgen_core::NoProgress;
 use synthgen_formats::io::atomic_write;
 use synthgen_formats::source::FrameSource;
-use synthgen_physics::refine::{refine_centre, RefineOptions, Refined, Surface};
+use synthgen_physics::refine::{refine_centre, refine_pose, RefineOptions, Refined, Surface};
+use synthgen_render::ObjectRenderer;
+use synthgen_train::bop::{
+    load_render_models, prepare_bop, BopOptions, BopSetup, ErrorRecall, Target,
+};
 use synthgen_train::data::{load_source_instances, DataOptions, Instance};
 use synthgen_train::dataset_objects::load_each_object;
-use synthgen_train::eval::{read_gt, score_predictions, GtInstance};
+use synthgen_train::eval::{
+    eval_objects, evaluate, evaluate_per_scene, prediction_estimates, read_gt, GtInstance,
+    ObjectScores,
+};
 use synthgen_train::metrics::Rotations;
 use synthgen_train::models::tnet::DEFAULT_SCALE;
 use synthgen_train::models::ModelKind;
@@ -52,6 +59,29 @@ pub struct Metrics {
     pub mean_te_cm: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mean_re_deg: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub median_te_cm: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub median_re_deg: Option<f64>,
+    /// BOP 2019's Average Recall, the mean of `ar_vsd` (on the real depth), `ar_mssd` and
+    /// `ar_mspd` (fractions), as bop_toolkit scores it; the targets are the GT instances at
+    /// least 10 % visible. Models that give a rotation.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ar: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ar_vsd: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ar_mssd: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ar_mspd: Option<f64>,
+    /// The area under the ADD-S accuracy curve up to 10 cm, percent, as PoseCNN and
+    /// DenseFusion report YCB-Video (every GT instance; a miss counts as wrong).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub add_s_auc: Option<f64>,
+    /// The share of GT instances with ADD(-S) below 10 % of the diameter (ADD-S for the
+    /// symmetric objects): `add_s_acc` under the name of the tables.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub acc_add: Option<f64>,
 }
 
 /// An f64 that JSON wrote as null (serde_json writes NaN so) read back as NaN.
@@ -84,6 +114,16 @@ pub struct RowRecord {
     /// With `--refine icp`: the share of the instances whose refined centre was kept.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub refine_accepted: Option<f64>,
+    /// How the row was scored ([`scoring_key`]); a row scored otherwise is scored again
+    /// from its trained models, without training.
+    #[serde(default)]
+    pub scoring: String,
+}
+
+/// What decides a row's scores once its models are trained: the metrics' version and the
+/// refinement. A finished row whose `scoring` differs is rescored ([`current_record`]).
+pub fn scoring_key(s: &Settings) -> String {
+    format!("bop-ar-auc-1 refine={:?}", s.refine).to_lowercase()
 }
 
 /// The finished row's record, if one reads.
@@ -106,6 +146,21 @@ pub struct TestSet {
     pub objects: Option<Objects>,
     /// The objects' surfaces for `--refine icp`.
     pub surfaces: Option<BTreeMap<u32, Surface>>,
+    /// BOP's AR of the rotations (models that give one, and TNet with ICP's rotation).
+    pub bop: Option<BopScoring>,
+}
+
+/// The test frames as BOP scores them: images, targets (the GT instances scored, at least
+/// 10 % visible), the objects' models and VSD's renderer.
+pub struct BopScoring {
+    setup: BopSetup,
+    renderer: ObjectRenderer,
+}
+
+/// Whether the rows get rotation scores: the rotation models, and TNet with ICP (the fit's
+/// rotation).
+fn scores_rotations(s: &Settings) -> bool {
+    model_kind(s) != ModelKind::Tnet || s.refine == Refine::Icp
 }
 
 fn model_kind(s: &Settings) -> ModelKind {
@@ -144,15 +199,20 @@ pub fn load_test(s: &Settings, test: &dyn FrameSource, scenes: &[u32]) -> Result
             test.root().display()
         );
     }
-    let (gts, objects) = if model_kind(s) == ModelKind::Tnet {
-        (Vec::new(), None)
+    let (gts, objects, bop) = if !scores_rotations(s) {
+        (Vec::new(), None, None)
     } else {
         let ids: BTreeSet<u32> = instances.iter().map(|i| i.obj_id).collect();
-        let gts = read_gt(test, &set.split, MIN_VISIB_FRACT)?
+        let gts: Vec<GtInstance> = read_gt(test, &set.split, MIN_VISIB_FRACT)?
             .into_iter()
             .filter(|g| keep(g.scene_id))
             .collect();
-        (gts, Some(load_dataset_objects(test, ids, LOSS_POINTS)?))
+        let objects = load_dataset_objects(test, ids, LOSS_POINTS)?;
+        (
+            gts.clone(),
+            Some(objects),
+            Some(bop_scoring(test, &set.split, &gts)?),
+        )
     };
     let surfaces = match s.refine {
         Refine::None | Refine::Edges | Refine::Views => None,
@@ -181,25 +241,55 @@ pub fn load_test(s: &Settings, test: &dyn FrameSource, scenes: &[u32]) -> Result
         gts,
         objects,
         surfaces,
+        bop,
     })
 }
 
-/// With `--refine icp`: each prediction's centre refined by ICP of its object's model on the
-/// instance's real depth points (in parallel over instances). Returns the centres before and
-/// the share of refinements kept; `None` (nothing changed) without surfaces.
-fn refine_centres(
+/// BOP's scoring of `split` of `test` with the GT instances `gts` as its targets (those at
+/// least 10 % visible in the test scenes, as BOP's own target files choose them).
+fn bop_scoring(test: &dyn FrameSource, split: &str, gts: &[GtInstance]) -> Result<BopScoring> {
+    let mut setup = prepare_bop(test, split, None, &BopOptions::default())
+        .with_context(|| format!("cannot prepare BOP scoring of {}", test.root().display()))?;
+    let mut counts: BTreeMap<(u32, u32, u32), usize> = BTreeMap::new();
+    for g in gts {
+        *counts.entry((g.scene_id, g.im_id, g.obj_id)).or_default() += 1;
+    }
+    setup.targets = counts
+        .into_iter()
+        .map(|((scene_id, im_id, obj_id), inst_count)| Target {
+            scene_id,
+            im_id,
+            obj_id,
+            inst_count,
+        })
+        .collect();
+    let models = load_render_models(test, setup.obj_ids())
+        .with_context(|| format!("cannot load the models of {}", test.root().display()))?;
+    let renderer = ObjectRenderer::new(models)
+        .with_context(|| format!("cannot render the models of {}", test.root().display()))?;
+    Ok(BopScoring { setup, renderer })
+}
+
+/// With `--refine icp`: each prediction refined by ICP of its object's model on the
+/// instance's real depth points (in parallel over instances): a whole pose (the Full model's)
+/// from its rotation and centre ([`refine_pose`]), a centre alone (TNet's) from the spread of
+/// starting rotations ([`refine_centre`]), the fit's rotation then becoming the prediction's
+/// (kept or not: there is no other); a refused whole-pose fit leaves the network's pose, and
+/// a prediction without a centre (RNet's) is left as it is. Returns the predictions before
+/// and the share of refinements kept; `None` (nothing changed) without surfaces.
+fn refine_predictions(
     tested: &[&Instance],
     preds: &mut [Prediction],
     test: &TestSet,
-) -> Option<(Vec<Option<[f32; 3]>>, f64)> {
+) -> Option<(Vec<Prediction>, f64)> {
     let surfaces = test.surfaces.as_ref()?;
-    let before: Vec<Option<[f32; 3]>> = preds.iter().map(|p| p.centre_m).collect();
+    let before: Vec<Prediction> = preds.to_vec();
     let opts = RefineOptions::default();
     let refined: Vec<Option<Refined>> = tested
         .par_iter()
         .zip(&before)
-        .map(|(inst, c)| {
-            let c = (*c)?;
+        .map(|(inst, p)| {
+            let c = p.centre_m?;
             let surface = surfaces.get(&inst.obj_id)?;
             let pts: Vec<DVec3> = inst
                 .points_m
@@ -207,12 +297,25 @@ fn refine_centres(
                 .map(|p| DVec3::new(p[0].into(), p[1].into(), p[2].into()))
                 .collect();
             let init = DVec3::new(c[0].into(), c[1].into(), c[2].into());
-            refine_centre(surface, &pts, init, &opts)
+            match p.rotation {
+                Some((r, _)) => {
+                    refine_pose(surface, &pts, &synthgen_core::Pose::new(r, init), &opts)
+                }
+                None => refine_centre(surface, &pts, init, &opts),
+            }
         })
         .collect();
     let mut kept = 0usize;
-    for (p, r) in preds.iter_mut().zip(&refined) {
-        if let Some(r) = r.filter(|r| r.accepted) {
+    for ((p, r), b) in preds.iter_mut().zip(&refined).zip(&before) {
+        let Some(r) = r else { continue };
+        match b.rotation {
+            // A whole pose: the fit's when it is kept, else the network's as it was.
+            Some((_, confidence)) if r.accepted => p.rotation = Some((r.pose.rotation, confidence)),
+            Some(_) => {}
+            // A centre alone: the fit's rotation is the only one there is.
+            None => p.rotation = Some((r.pose.rotation, 1.0)),
+        }
+        if r.accepted {
             kept += 1;
             p.centre_m = Some(r.centre_m.to_array().map(|v| v as f32));
         }
@@ -335,27 +438,18 @@ pub fn train_row(
     } else {
         1
     };
-    let tested: Vec<&Instance> = test.instances.iter().collect();
     let mut outcome = None;
-    let mut sums: Vec<[f64; 3]> = vec![[0.0; 3]; tested.len()];
-    let mut preds = Vec::new();
-    let mut seconds_eval = 0.0;
     for k in 0..members {
         let cfg = TrainConfig {
             objects: Vec::new(),
             seed: member_seed(s.seed, k),
             ..cfg.clone()
         };
-        let run_dir = if k == 0 {
-            dir.join("train")
-        } else {
-            dir.join(format!("train_{k}"))
-        };
         let o = train::train(
             &cfg,
             &set,
             objects.as_ref(),
-            &run_dir,
+            &member_dir(&dir, k),
             false,
             &device,
             &Observer {
@@ -364,9 +458,58 @@ pub fn train_row(
             },
         )?;
         outcome.get_or_insert(o);
-        let t1 = Instant::now();
+    }
+    let outcome = outcome.context("no ensemble member trained")?;
+    let seconds_train = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    let tested: Vec<&Instance> = test.instances.iter().collect();
+    let preds = predict_members(&dir, &tested, test)?;
+    let scores = score_row(&tested, preds, test)?;
+    let record = RowRecord {
+        name: spec.name.to_string(),
+        what: spec.what.clone(),
+        trained_on: Some(spec.data.root().to_path_buf()),
+        train_instances: outcome.n_train,
+        epochs,
+        all: scores.all,
+        objects: scores.objects,
+        scenes: scores.scenes,
+        last_epoch: outcome.history.last().cloned(),
+        seconds_train,
+        seconds_eval: t1.elapsed().as_secs_f64(),
+        before_refine: scores.before_refine,
+        refine_accepted: scores.refine_accepted,
+        scoring: scoring_key(s),
+    };
+    write_record(out, &record)?;
+    Ok(record)
+}
+
+/// The run folder of ensemble member `k` of a row (member 0: `train/`).
+fn member_dir(row: &Path, k: usize) -> PathBuf {
+    if k == 0 {
+        row.join("train")
+    } else {
+        row.join(format!("train_{k}"))
+    }
+}
+
+/// The predictions of the trained models in the row folder `dir` (every ensemble member
+/// there, their centres averaged) for `tested`.
+fn predict_members(dir: &Path, tested: &[&Instance], test: &TestSet) -> Result<Vec<Prediction>> {
+    let device = train::device(false)?;
+    let mut sums: Vec<[f64; 3]> = vec![[0.0; 3]; tested.len()];
+    let mut preds = Vec::new();
+    let mut members = 0usize;
+    for k in 0.. {
+        let run_dir = member_dir(dir, k);
+        if !run_dir.join(MODEL_FILE).is_file() {
+            break;
+        }
+        let cfg: TrainConfig =
+            train::read_run_config(&run_dir.join(train::CONFIG_FILE), train::RunKind::Pose)?;
         let net = load_model(&run_dir.join(MODEL_FILE), &cfg, &device)?;
-        preds = net.predict(&tested, test.objects.as_ref(), 64)?;
+        preds = net.predict(tested, test.objects.as_ref(), 64)?;
         for (sum, p) in sums.iter_mut().zip(&preds) {
             if let Some(c) = p.centre_m {
                 for (a, v) in sum.iter_mut().zip(c) {
@@ -374,51 +517,96 @@ pub fn train_row(
                 }
             }
         }
-        seconds_eval += t1.elapsed().as_secs_f64();
+        members += 1;
+    }
+    if members == 0 {
+        anyhow::bail!("no trained model in {}", dir.display());
     }
     if members > 1 {
         for (p, sum) in preds.iter_mut().zip(&sums) {
             p.centre_m = Some(sum.map(|v| (v / members as f64) as f32));
         }
     }
-    let outcome = outcome.context("no ensemble member trained")?;
-    let seconds_train = t0.elapsed().as_secs_f64() - seconds_eval;
-    let t1 = Instant::now();
-    let (before_refine, refine_accepted) = match refine_centres(&tested, &mut preds, test) {
-        Some((before, kept)) => {
-            let unrefined: Vec<Prediction> = preds
-                .iter()
-                .zip(before)
-                .map(|(p, c)| Prediction { centre_m: c, ..*p })
-                .collect();
-            (Some(score(&tested, &unrefined, test)?.0), Some(kept))
-        }
+    Ok(preds)
+}
+
+/// A row's scores: overall, per object and per test scene, after the refinement the test set
+/// asks for, with the scores before it and the share of fits kept.
+struct RowScores {
+    all: Metrics,
+    objects: BTreeMap<String, Metrics>,
+    scenes: BTreeMap<String, Metrics>,
+    before_refine: Option<Metrics>,
+    refine_accepted: Option<f64>,
+}
+
+fn score_row(
+    tested: &[&Instance],
+    mut preds: Vec<Prediction>,
+    test: &TestSet,
+) -> Result<RowScores> {
+    let (before_refine, refine_accepted) = match refine_predictions(tested, &mut preds, test) {
+        Some((before, kept)) => (Some(score(tested, &before, test)?.0), Some(kept)),
         None => (None, None),
     };
-    let (all, objects_m, scenes) = score(&tested, &preds, test)?;
-    let record = RowRecord {
-        name: spec.name.to_string(),
-        what: spec.what.clone(),
-        trained_on: Some(spec.data.root().to_path_buf()),
-        train_instances: outcome.n_train,
-        epochs,
+    let (all, objects, scenes) = score(tested, &preds, test)?;
+    Ok(RowScores {
         all,
-        objects: objects_m,
+        objects,
         scenes,
-        last_epoch: outcome.history.last().cloned(),
-        seconds_train,
-        seconds_eval: seconds_eval + t1.elapsed().as_secs_f64(),
         before_refine,
         refine_accepted,
+    })
+}
+
+/// The finished row `name`'s record as this run scores it: read back when it was scored the
+/// same way ([`scoring_key`]); otherwise scored again from its trained models without
+/// training (the baselines recomputed). `None` when the row has to be trained.
+pub fn current_record(
+    s: &Settings,
+    out: &Path,
+    name: &str,
+    test: &TestSet,
+    printer: &Log,
+) -> Result<Option<RowRecord>> {
+    let Some(mut rec) = read_record(out, name) else {
+        return Ok(None);
     };
-    write_record(out, &record)?;
-    Ok(record)
+    if rec.scoring == scoring_key(s) {
+        return Ok(Some(rec));
+    }
+    match name {
+        NAIVE => return naive_row(s, out, test).map(Some),
+        NAIVE_ICP => return naive_icp_row(s, out, test),
+        _ => {}
+    }
+    let dir = row_dir(out, name);
+    if !member_dir(&dir, 0).join(MODEL_FILE).is_file() {
+        return Ok(None);
+    }
+    printer.info(format!(
+        "{name}: scoring its trained model again ({})",
+        scoring_key(s)
+    ));
+    let t0 = Instant::now();
+    let tested: Vec<&Instance> = test.instances.iter().collect();
+    let preds = predict_members(&dir, &tested, test)?;
+    let scores = score_row(&tested, preds, test)?;
+    rec.all = scores.all;
+    rec.objects = scores.objects;
+    rec.scenes = scores.scenes;
+    rec.before_refine = scores.before_refine;
+    rec.refine_accepted = scores.refine_accepted;
+    rec.seconds_eval = t0.elapsed().as_secs_f64();
+    rec.scoring = scoring_key(s);
+    write_record(out, &rec)?;
+    Ok(Some(rec))
 }
 
 /// With `--refine icp`, the naive baseline refined the same way: the ICP started from the
 /// mean of the masked depth points instead of a model's centre (what the network adds to
 /// the refinement). `None` without `--refine icp`.
-pub fn naive_icp_row(out: &Path, test: &TestSet) -> Result<Option<RowRecord>> {
+pub fn naive_icp_row(s: &Settings, out: &Path, test: &TestSet) -> Result<Option<RowRecord>> {
     let t0 = Instant::now();
     let tested: Vec<&Instance> = test.instances.iter().collect();
     let mut preds: Vec<Prediction> = tested
@@ -428,7 +616,7 @@ pub fn naive_icp_row(out: &Path, test: &TestSet) -> Result<Option<RowRecord>> {
             rotation: None,
         })
         .collect();
-    let Some((_, kept)) = refine_centres(&tested, &mut preds, test) else {
+    let Some((_, kept)) = refine_predictions(&tested, &mut preds, test) else {
         return Ok(None);
     };
     std::fs::create_dir_all(row_dir(out, NAIVE_ICP))?;
@@ -448,6 +636,7 @@ pub fn naive_icp_row(out: &Path, test: &TestSet) -> Result<Option<RowRecord>> {
         seconds_eval: t0.elapsed().as_secs_f64(),
         before_refine: None,
         refine_accepted: Some(kept),
+        scoring: scoring_key(s),
     };
     write_record(out, &record)?;
     Ok(Some(record))
@@ -461,7 +650,7 @@ fn member_seed(seed: u64, k: usize) -> u64 {
 }
 
 /// The naive baseline: the centre is the mean of the instance's masked depth points.
-pub fn naive_row(out: &Path, test: &TestSet) -> Result<RowRecord> {
+pub fn naive_row(s: &Settings, out: &Path, test: &TestSet) -> Result<RowRecord> {
     let t0 = Instant::now();
     std::fs::create_dir_all(row_dir(out, NAIVE))?;
     let errors: Vec<(u32, f64)> = test
@@ -495,6 +684,7 @@ pub fn naive_row(out: &Path, test: &TestSet) -> Result<RowRecord> {
         seconds_eval: t0.elapsed().as_secs_f64(),
         before_refine: None,
         refine_accepted: None,
+        scoring: scoring_key(s),
     };
     write_record(out, &record)?;
     Ok(record)
@@ -547,6 +737,14 @@ fn centre_metrics(errors_m: impl Iterator<Item = f64>) -> Metrics {
         acc_5cm5deg: None,
         mean_te_cm: None,
         mean_re_deg: None,
+        median_te_cm: None,
+        median_re_deg: None,
+        ar: None,
+        ar_vsd: None,
+        ar_mssd: None,
+        ar_mspd: None,
+        add_s_auc: None,
+        acc_add: None,
     }
 }
 
@@ -581,26 +779,72 @@ fn score(
         .into_iter()
         .map(|(id, v)| (id.to_string(), centre_metrics(v.into_iter())))
         .collect();
-    if let Some(objs) = &test.objects {
-        let report = score_predictions(
-            preds,
-            tested.iter().copied(),
-            &test.gts,
-            objs,
-            Rotations::default(),
-        )?;
-        let fill = |m: &mut Metrics, s: &synthgen_train::eval::ObjectScores| {
-            m.add_s_acc = Some(s.add_s_acc);
-            m.acc_5cm5deg = Some(s.acc_5cm5deg);
-            m.mean_te_cm = s.mean_te_cm;
-            m.mean_re_deg = s.mean_re_deg;
+    // Rotation scores when the predictions have rotations (TNet's before its ICP has none).
+    let Some(objs) = test
+        .objects
+        .as_ref()
+        .filter(|_| preds.iter().any(|p| p.rotation.is_some()))
+    else {
+        return Ok((all, objects, scenes));
+    };
+    let mut scenes = scenes;
+    let eval_objs = eval_objects(objs);
+    let estimates = prediction_estimates(preds, tested.iter().copied());
+    let rotations = Rotations::default();
+    let report = evaluate(&test.gts, &estimates, &eval_objs, rotations)?;
+    let auc = report.add_s_auc(&eval_objs, rotations);
+    let bop = match &test.bop {
+        Some(b) => Some(b.setup.evaluate(
+            &estimates,
+            Some(&b.renderer),
+            &BopOptions::default(),
+            &NoProgress,
+        )?),
+        None => None,
+    };
+    let fill = |m: &mut Metrics, s: &ObjectScores| {
+        m.add_s_acc = Some(s.add_s_acc);
+        m.acc_add = Some(s.add_s_acc);
+        m.acc_5cm5deg = Some(s.acc_5cm5deg);
+        m.mean_te_cm = s.mean_te_cm;
+        m.mean_re_deg = s.mean_re_deg;
+        m.median_te_cm = s.median_te_cm;
+        m.median_re_deg = s.median_re_deg;
+    };
+    // BOP's AR and its parts for one key (an object or a scene; None: all).
+    let fill_bop = |m: &mut Metrics, key: Option<(bool, u32)>| {
+        let Some(b) = &bop else { return };
+        let of = |e: &ErrorRecall| match key {
+            None => Some(e.mean_recall),
+            Some((true, id)) => e.per_object_mean_recall.get(&id).copied(),
+            Some((false, id)) => e.per_scene_mean_recall.get(&id).copied(),
         };
-        fill(&mut all, &report.all);
-        for (id, sc) in &report.per_object {
-            if let Some(m) = objects.get_mut(&id.to_string()) {
-                fill(m, sc);
-            }
-        }
+        m.ar_mssd = of(&b.mssd);
+        m.ar_mspd = of(&b.mspd);
+        m.ar_vsd = b.vsd.as_ref().and_then(of);
+        m.ar = match (m.ar_vsd, m.ar_mssd, m.ar_mspd) {
+            (Some(v), Some(s), Some(p)) => Some((v + s + p) / 3.0),
+            _ => None,
+        };
+    };
+    fill(&mut all, &report.all);
+    fill_bop(&mut all, None);
+    all.add_s_auc = auc.all;
+    for (id, sc) in &report.per_object {
+        let m = objects
+            .entry(id.to_string())
+            .or_insert_with(|| centre_metrics(std::iter::empty()));
+        fill(m, sc);
+        fill_bop(m, Some((true, *id)));
+        m.add_s_auc = auc.per_object.get(id).copied();
+    }
+    for (sc, r) in evaluate_per_scene(&test.gts, &estimates, &eval_objs, rotations)? {
+        let m = scenes
+            .entry(sc.to_string())
+            .or_insert_with(|| centre_metrics(std::iter::empty()));
+        fill(m, &r.all);
+        fill_bop(m, Some((false, sc)));
+        m.add_s_auc = auc.per_scene.get(&sc).copied();
     }
     Ok((all, objects, scenes))
 }
@@ -627,6 +871,9 @@ pub struct NoGtRecord {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub before_refine: Option<Metrics>,
     pub seconds: f64,
+    /// How it was scored ([`scoring_key`]).
+    #[serde(default)]
+    pub scoring: String,
 }
 
 /// The file of [`NoGtRecord`] in the main row's folder.
@@ -672,52 +919,14 @@ pub fn no_gt_row(
     let keep = |scene: u32| scenes.is_empty() || scenes.contains(&scene);
     let tested: Vec<&Instance> = set.instances.iter().filter(|i| keep(i.scene_id)).collect();
     let dir = row_dir(out, row);
-    let device = train::device(false)?;
-    let mut sums: Vec<[f64; 3]> = vec![[0.0; 3]; tested.len()];
-    let mut preds = Vec::new();
-    let mut members = 0usize;
-    for k in 0.. {
-        let run_dir = if k == 0 {
-            dir.join("train")
-        } else {
-            dir.join(format!("train_{k}"))
-        };
-        if !run_dir.join(MODEL_FILE).is_file() {
-            break;
-        }
-        let cfg: TrainConfig =
-            train::read_run_config(&run_dir.join(train::CONFIG_FILE), train::RunKind::Pose)?;
-        let net = load_model(&run_dir.join(MODEL_FILE), &cfg, &device)?;
-        preds = net.predict(&tested, test.objects.as_ref(), 64)?;
-        for (sum, p) in sums.iter_mut().zip(&preds) {
-            if let Some(c) = p.centre_m {
-                for (a, v) in sum.iter_mut().zip(c) {
-                    *a += f64::from(v);
-                }
-            }
-        }
-        members += 1;
-    }
-    if members == 0 {
-        anyhow::bail!("no trained model in {}", dir.display());
-    }
-    if members > 1 {
-        for (p, sum) in preds.iter_mut().zip(&sums) {
-            p.centre_m = Some(sum.map(|v| (v / members as f64) as f32));
-        }
-    }
-    let before_refine = match refine_centres(&tested, &mut preds, test) {
-        Some((before, _)) => {
-            let unrefined: Vec<Prediction> = preds
-                .iter()
-                .zip(before)
-                .map(|(p, c)| Prediction { centre_m: c, ..*p })
-                .collect();
-            Some(score(&tested, &unrefined, test)?.0)
-        }
-        None => None,
-    };
-    let (all, objects, scenes_m) = score(&tested, &preds, test)?;
+    let preds = predict_members(&dir, &tested, test)?;
+    let RowScores {
+        all,
+        objects,
+        scenes: scenes_m,
+        before_refine,
+        ..
+    } = score_row(&tested, preds, test)?;
     let mut objects_detected: BTreeMap<String, [usize; 2]> = BTreeMap::new();
     for i in &test.instances {
         objects_detected.entry(i.obj_id.to_string()).or_default()[0] += 1;
@@ -736,6 +945,7 @@ pub fn no_gt_row(
         objects_detected,
         before_refine,
         seconds: t0.elapsed().as_secs_f64(),
+        scoring: scoring_key(s),
     };
     atomic_write(
         &dir.join(NO_GT_FILE),
