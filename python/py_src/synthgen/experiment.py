@@ -170,8 +170,11 @@ def sim2real(
         models, cycles_frames: the RGB models' replacement meshes and Cycles rows.
         ablation, unseen_up, mask_jitter_px, mask_shift_px, occlusion_prob, point_dropout,
             per_object, ensemble: the depth models' knobs (docs/experiments.md).
-        refine: ``"icp"`` (TNet's centres refined by ICP of the object's model on the real
-            depth), ``"edges"`` (the RGB models' estimates refined on the real RGB images:
+        refine: ``"icp"`` (the depth models' poses refined by ICP of the object's model on
+            the real depth: TNet's centre, the fit giving its rotation; Full's whole pose, its
+            rotation judging between fits the depth cannot tell apart; the rows with a
+            rotation are scored with BOP's AR and the ADD-S AUC), ``"edges"`` (the RGB models'
+            estimates refined on the real RGB images:
             each object's outline moved onto the image's edges), ``"views"`` (as edges, after a
             search over each object's rotations about the estimate, with the models' colours
             where they have them) or ``"none"``.

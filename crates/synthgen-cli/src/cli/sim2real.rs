@@ -48,11 +48,12 @@ impl Sim2realModelArg {
 /// `experiment sim2real --refine`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum RefineArg {
-    /// The network's centre as it is.
+    /// The network's pose as it is.
     None,
     /// ICP of the object's model on the instance's real depth points, from the network's
-    /// centre (starts from a spread of rotations; a fit that moves the centre more than 3 cm
-    /// or explains under half of the points is refused).
+    /// centre (starts from a spread of rotations, and the network's rotation where it gives
+    /// one; a fit that moves the centre more than 3 cm or explains under half of the points is
+    /// refused).
     Icp,
     /// The RGB models (--model rgb, rgb-dense): each estimate's model contour moved onto the
     /// edges of its real RGB image (a refinement that matches too little of the contour is
@@ -110,8 +111,11 @@ baseline (the centre = the mean of the masked real depth points: no training), a
 trained on real frames only (the --fit frames outside the test scenes, as many steps as
 the synthetic rows), and with --ablation one row per knob.
 
-Output (in --out): report.md (printed), report.json ({\"all\", \"objects\", \"baselines\"}),
-plot.png (mean centre error per row), experiment.json (the settings). The RGB models:
+Output (in --out): report.md (printed), report.json ({\"all\", \"objects\", \"scenes\",
+\"baselines\"}: centre errors; for rows with a rotation (full, rnet, TNet with --refine icp)
+also BOP's \"ar\" (VSD on the real depth, MSSD, MSPD), \"add_s_auc\" (up to 10 cm, %),
+\"acc_add\", 5cm5° and median errors), plot.png (mean centre error per row),
+experiment.json (the settings). The RGB models:
 report.json ({\"all\", \"objects\", \"scenes\", \"rows\"}: AR_MSPD, AR_MSSD, 5cm5°, ADD(-S),
 medians; the main row is synth_realistic), rows/NAME/results.csv (BOP results format).
 Both add \"detection\" (bbox/segm AP, AP50 per object) and \"no_gt\" (the main row's scores
@@ -216,15 +220,18 @@ pub struct ExperimentSim2realArgs {
     #[arg(long, value_name = "K", value_parser = parse_ensemble)]
     pub ensemble: Option<usize>,
 
-    /// How TNet's centres are finished on the real depth: `icp` fits each object's model to
-    /// the instance's depth points from the network's centre (as PoseCNN and DenseFusion
-    /// finish theirs), `none` keeps the network's centre. With `icp` each trained row also
-    /// reports its centres before the refinement, and the row naive_icp (the same ICP from
-    /// the naive centroid) shows what the network adds. --model rnet|full keep their poses as
-    /// predicted. The RGB models (--model rgb|rgb-dense) take `edges` or `views`: each trained
-    /// row's estimates refined on the real RGB images (the contour onto the image's edges;
-    /// `views` searches the rotations first), with its scores before the refinement beside
-    /// them; with `icp` (the default) they keep theirs.
+    /// How the depth models' poses are finished on the real depth: `icp` fits each object's
+    /// model to the instance's depth points (as PoseCNN and DenseFusion finish theirs) — from
+    /// TNet's centre, the fit then giving the rotation TNet lacks; from Full's whole pose, its
+    /// rotation one more start and the judge between fits the depth cannot tell apart — and
+    /// `none` keeps the network's. With `icp` each trained row also reports its scores before
+    /// the refinement, and the row naive_icp (the same ICP from the naive centroid) shows what
+    /// the network adds; --model rnet (no centre) keeps its poses. Changing it on a finished
+    /// experiment scores its trained rows again without training them. The RGB models
+    /// (--model rgb|rgb-dense) take `edges` or `views`: each trained row's estimates refined on
+    /// the real RGB images (the contour onto the image's edges; `views` searches the rotations
+    /// first), with its scores before the refinement beside them; with `icp` (the default)
+    /// they keep theirs.
     #[arg(long, value_enum, default_value_t = RefineArg::Icp)]
     pub refine: RefineArg,
 

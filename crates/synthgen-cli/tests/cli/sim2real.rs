@@ -413,6 +413,32 @@ fn quick_full_model_reports_the_pose_metrics() {
     for h in ["ADD(-S) %", "5cm5° %", "| AR |", "ADD-S AUC", "AR before"] {
         assert!(md.contains(h), "{h}: {md}");
     }
+    // The rows' final poses as BOP results, and pictures of the main row's over the first and
+    // last test frames (real 640×480 photographs, drawn on).
+    let csv = std::fs::read_to_string(out.join("rows/synth_fitted/results.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 80, "{csv}");
+    assert!(
+        csv.starts_with("scene_id,im_id,obj_id,score,R,t,time\n1,"),
+        "{csv}"
+    );
+    let pictures = r["pictures"].as_array().unwrap();
+    assert_eq!(pictures.len(), 2, "{r}");
+    for p in pictures {
+        let p = out.join(p.as_str().unwrap());
+        let img = image::open(&p).unwrap().to_rgb8();
+        assert_eq!(img.dimensions(), (640, 480), "{}", p.display());
+        let real = image::open(ycbv_real().join("data/0001/000001-color.png"))
+            .unwrap()
+            .to_rgb8();
+        if p.ends_with("gt_masks_000001_000001.png") {
+            let changed = img
+                .pixels()
+                .zip(real.pixels())
+                .filter(|(a, b)| a != b)
+                .count();
+            assert!(changed > 1000, "{changed} pixels drawn on {}", p.display());
+        }
+    }
 
     // Another --refine scores the trained rows again, without training them.
     let trained = std::fs::metadata(out.join("rows/synth_fitted/train/model.safetensors"))

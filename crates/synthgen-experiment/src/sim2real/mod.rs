@@ -7,6 +7,7 @@
 //! `row.json`, written last), so a re-run with the same options resumes.
 
 mod detect;
+mod pictures;
 mod report;
 mod rgb;
 mod rows;
@@ -664,7 +665,36 @@ pub fn run(args: Sim2realOptions, printer: &Log) -> Result<String> {
         .iter()
         .map(|(v, dir)| (v.uses_set.unwrap_or(v.name).to_string(), failed_frames(dir)))
         .collect();
+    // Pictures of the main row's poses over real frames, with GT masks and from raw frames.
+    let mut pictures = Vec::new();
+    if let Some(objs) = &test.objects {
+        let frames = pictures::test_frames(test_src.as_ref(), &test.split, &settings.test_scenes)?;
+        let objs = synthgen_train::eval::eval_objects(objs);
+        let row = crate::settings::row_dir(&out, report::MAIN_ROW);
+        for (file, tag) in [
+            (rows::RESULTS_FILE, "gt_masks"),
+            (rows::NO_GT_RESULTS_FILE, "no_gt"),
+        ] {
+            let path = row.join(file);
+            if !path.is_file() {
+                continue;
+            }
+            let est = synthgen_train::results::read_results_csv(&path)
+                .with_context(|| format!("cannot read {}", path.display()))?;
+            pictures.extend(pictures::draw_estimates(
+                &out,
+                tag,
+                &frames,
+                &est.estimates,
+                &objs,
+            )?);
+        }
+    }
     let mut rep = report::Report::new(&settings, records, timing, notes, skipped);
+    rep.pictures = pictures
+        .iter()
+        .map(|p| p.strip_prefix(&out).unwrap_or(p).to_path_buf())
+        .collect();
     rep.set_no_gt(detection, no_gt);
     rep.write(&out)?;
     let md = rep.markdown();

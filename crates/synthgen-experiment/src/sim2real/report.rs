@@ -74,6 +74,8 @@ pub struct Report {
     pub no_gt_scenes: Option<BTreeMap<String, Metrics>>,
     pub no_gt_row: Option<NoGtRecord>,
     pub detector: Option<DetectorRecord>,
+    /// The main row's poses drawn over real test frames (relative to the output folder).
+    pub pictures: Vec<std::path::PathBuf>,
 }
 
 impl Report {
@@ -137,6 +139,7 @@ impl Report {
             no_gt_scenes: None,
             no_gt_row: None,
             detector: None,
+            pictures: Vec::new(),
         }
     }
 
@@ -442,6 +445,15 @@ impl Report {
                     );
                 }
                 let _ = writeln!(o);
+            }
+        }
+        if !self.pictures.is_empty() {
+            let _ = writeln!(
+                o,
+                "\nThe main row's poses over real test frames (model points in the object's colour, GT in white; `gt_masks_*` with GT masks, `no_gt_*` from raw frames):\n"
+            );
+            for p in &self.pictures {
+                let _ = writeln!(o, "- `{}`", p.display());
             }
         }
         for n in &self.notes {

@@ -27,6 +27,7 @@ use synthgen_train::metrics::Rotations;
 use synthgen_train::models::tnet::DEFAULT_SCALE;
 use synthgen_train::models::ModelKind;
 use synthgen_train::pose_model::{load_dataset_objects, Objects, Prediction};
+use synthgen_train::results::{write_results_csv, Estimate};
 use synthgen_train::train::{
     self, centre_error_m, load_model, EpochMetrics, Schedule, TrainConfig, TrainObserver,
     MODEL_FILE,
@@ -123,7 +124,7 @@ pub struct RowRecord {
 /// What decides a row's scores once its models are trained: the metrics' version and the
 /// refinement. A finished row whose `scoring` differs is rescored ([`current_record`]).
 pub fn scoring_key(s: &Settings) -> String {
-    format!("bop-ar-auc-1 refine={:?}", s.refine).to_lowercase()
+    format!("bop-ar-auc-2 refine={:?}", s.refine).to_lowercase()
 }
 
 /// The finished row's record, if one reads.
@@ -139,6 +140,8 @@ fn write_record(out: &Path, r: &RowRecord) -> Result<()> {
 
 /// The real test instances, loaded once for every row.
 pub struct TestSet {
+    /// The test dataset's split the instances are of.
+    pub split: String,
     pub instances: Vec<Instance>,
     /// GT instances for the rotation metrics of `full` (every one counts).
     pub gts: Vec<GtInstance>,
@@ -237,6 +240,7 @@ pub fn load_test(s: &Settings, test: &dyn FrameSource, scenes: &[u32]) -> Result
         }
     };
     Ok(TestSet {
+        split: set.split.clone(),
         instances,
         gts,
         objects,
@@ -465,6 +469,7 @@ pub fn train_row(
     let tested: Vec<&Instance> = test.instances.iter().collect();
     let preds = predict_members(&dir, &tested, test)?;
     let scores = score_row(&tested, preds, test)?;
+    write_results(&dir.join(RESULTS_FILE), scores.estimates.as_deref())?;
     let record = RowRecord {
         name: spec.name.to_string(),
         what: spec.what.clone(),
@@ -533,6 +538,8 @@ fn predict_members(dir: &Path, tested: &[&Instance], test: &TestSet) -> Result<V
 /// A row's scores: overall, per object and per test scene, after the refinement the test set
 /// asks for, with the scores before it and the share of fits kept.
 struct RowScores {
+    /// The final (refined) poses as BOP results, when they have rotations.
+    estimates: Option<Vec<Estimate>>,
     all: Metrics,
     objects: BTreeMap<String, Metrics>,
     scenes: BTreeMap<String, Metrics>,
@@ -550,13 +557,39 @@ fn score_row(
         None => (None, None),
     };
     let (all, objects, scenes) = score(tested, &preds, test)?;
+    let estimates = preds
+        .iter()
+        .any(|p| p.rotation.is_some())
+        .then(|| prediction_estimates(&preds, tested.iter().copied()));
     Ok(RowScores {
+        estimates,
         all,
         objects,
         scenes,
         before_refine,
         refine_accepted,
     })
+}
+
+/// A row's final poses in BOP's results format (`rows/NAME/results.csv`: the refined ones,
+/// what bop_toolkit or `synthgen eval --results` scores again; RNet's carry the GT
+/// translation it borrows), for the rows that give rotations.
+pub const RESULTS_FILE: &str = "results.csv";
+/// The main row's poses from raw frames, as [`RESULTS_FILE`].
+pub const NO_GT_RESULTS_FILE: &str = "no_gt_results.csv";
+
+/// Writes `estimates` to `path` (nothing when there are none: no rotations), replacing an
+/// older file either way.
+fn write_results(path: &Path, estimates: Option<&[Estimate]>) -> Result<()> {
+    match estimates {
+        Some(e) if !e.is_empty() => {
+            write_results_csv(path, e).with_context(|| format!("cannot write {}", path.display()))
+        }
+        _ => {
+            let _ = std::fs::remove_file(path);
+            Ok(())
+        }
+    }
 }
 
 /// The finished row `name`'s record as this run scores it: read back when it was scored the
@@ -592,6 +625,7 @@ pub fn current_record(
     let tested: Vec<&Instance> = test.instances.iter().collect();
     let preds = predict_members(&dir, &tested, test)?;
     let scores = score_row(&tested, preds, test)?;
+    write_results(&dir.join(RESULTS_FILE), scores.estimates.as_deref())?;
     rec.all = scores.all;
     rec.objects = scores.objects;
     rec.scenes = scores.scenes;
@@ -621,6 +655,10 @@ pub fn naive_icp_row(s: &Settings, out: &Path, test: &TestSet) -> Result<Option<
     };
     std::fs::create_dir_all(row_dir(out, NAIVE_ICP))?;
     let (all, objects, scenes) = score(&tested, &preds, test)?;
+    write_results(
+        &row_dir(out, NAIVE_ICP).join(RESULTS_FILE),
+        Some(&prediction_estimates(&preds, tested.iter().copied())),
+    )?;
     let record = RowRecord {
         name: NAIVE_ICP.into(),
         what: "ICP of the object's model on the real depth from the naive centroid (no training)"
@@ -921,12 +959,14 @@ pub fn no_gt_row(
     let dir = row_dir(out, row);
     let preds = predict_members(&dir, &tested, test)?;
     let RowScores {
+        estimates,
         all,
         objects,
         scenes: scenes_m,
         before_refine,
         ..
     } = score_row(&tested, preds, test)?;
+    write_results(&dir.join(NO_GT_RESULTS_FILE), estimates.as_deref())?;
     let mut objects_detected: BTreeMap<String, [usize; 2]> = BTreeMap::new();
     for i in &test.instances {
         objects_detected.entry(i.obj_id.to_string()).or_default()[0] += 1;
