@@ -288,7 +288,7 @@ impl Report {
             2,
         );
         if full {
-            let tables: [(&str, fn(&Metrics) -> Option<f64>, usize); 3] = [
+            let tables: [(&str, Value, usize); 3] = [
                 (
                     "BOP's AR per object (the rows with a rotation; GT masks)",
                     |m| m.ar,
@@ -515,6 +515,9 @@ impl Report {
         c
     }
 }
+
+/// A number of a row's [`Metrics`] for a table.
+type Value = fn(&Metrics) -> Option<f64>;
 
 /// The rotation scores of a table row: AR and its parts, ADD-S AUC, ADD(-S) and 5cm5° (%),
 /// median translation (cm) and rotation (°) errors; "—" where there is none.
