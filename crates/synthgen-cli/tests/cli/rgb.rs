@@ -387,7 +387,16 @@ fn experiment_rgb_refuses_to_resume_when_its_data_changed() {
         .unwrap()
         .set_modified(std::time::UNIX_EPOCH + std::time::Duration::from_secs(1))
         .unwrap();
-    refused(&exp(&[]), &["--train dataset", "changed", "then", "now"]);
+    // The same files and bytes: the message says what differs (not "then N, now N").
+    refused(
+        &exp(&[]),
+        &[
+            "--train dataset",
+            "changed",
+            "the same",
+            "modification times differ",
+        ],
+    );
 }
 
 /// `train --model rgb-dense` and its evaluation, on renders and on the real Linemod-Occluded
