@@ -143,7 +143,8 @@ pub struct ExperimentMixArgs {
     pub repeats: usize,
 
     /// Small and fast, to check the pipeline: the --quick defaults above and rendered sets
-    /// at a quarter of the camera's resolution (160x120 for 640x480).
+    /// at a quarter of the camera's resolution (160x120 for 640x480); with --real the
+    /// synthetic set keeps the scene's size (a mix has one image size).
     #[arg(long)]
     pub quick: bool,
 

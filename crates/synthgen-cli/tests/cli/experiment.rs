@@ -223,6 +223,10 @@ fn real_ycbv_experiment_tests_on_a_held_out_scene_and_resumes() {
     assert_eq!(after("--obj-ids"), "1,2,3,5,7,8,9,10,14,16,18,21");
     assert_eq!(after("--units"), "m");
     assert!(after("--objects").ends_with("002_master_chef_can/textured_simple.obj"));
+    // With real frames --quick keeps the synthetic frames at the scene's size: one camera.json
+    // for the mixed dataset (the colour models refuse other sizes).
+    assert!(!argv.contains(&"--image-size"), "{argv:?}");
+    assert!(!err.contains("image sizes differ"), "{err}");
     assert_eq!(settings["test_scenes"], serde_json::json!(["2"]));
     assert_eq!(settings["plus_real"], 40);
     let synth_models: BTreeSet<String> = std::fs::read_dir(out.join("sources/synth/models"))
@@ -330,6 +334,39 @@ fn real_ycbv_experiment_tests_on_a_held_out_scene_and_resumes() {
 }
 
 /// A YCB-Video folder that is ycbv_real without the model of `missing` (a class folder).
+/// Issue 54: the mixing table of the Full model (colour + points) on real frames, one
+/// command: its rows read the colour crops of mixed datasets, so every frame of a mix must
+/// have the mix's image size (a --quick render at a quarter of it failed every mixed row).
+#[test]
+#[cfg_attr(
+    not(has_shared_data),
+    ignore = "needs ../shared/data beside the checkout (probed when the crate was built)"
+)]
+fn real_ycbv_mix_of_the_full_model_reports_add_on_the_real_test_scene() {
+    let real = ycbv_real();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("mix_full");
+    let o = real_experiment(
+        &real,
+        &out,
+        &[
+            "--test-scenes",
+            "2",
+            "--ratios",
+            "6/0,3/3,0/6",
+            "--model",
+            "full",
+        ],
+    );
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    let md = String::from_utf8_lossy(&o.stdout);
+    assert!(md.contains("test ADD(-S) acc %"), "{md}");
+    for row in ["real 6 + synth 0", "real 3 + synth 3", "real 0 + synth 6"] {
+        assert!(md.contains(&format!("| {row} |")), "{row}: {md}");
+    }
+}
+
 fn ycbv_without_model(real: &Path, dir: &Path, missing: &str) -> PathBuf {
     let root = dir.join(format!("ycbv_without_{missing}"));
     std::fs::create_dir_all(root.join("models")).unwrap();

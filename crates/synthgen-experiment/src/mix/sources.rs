@@ -218,7 +218,9 @@ fn render_settings(
         "--out".into(),
         dir.display().to_string(),
     ]);
-    if args.quick {
+    // With real frames the synthetic ones keep the scene's size: a mixed dataset has one
+    // camera.json, and the models that read colour refuse images of another size.
+    if args.quick && args.real.is_none() {
         // A quarter of the resolution, with the intrinsics scaled to match.
         let k = spec.camera.intrinsics()?;
         call.overrides.image_size = Some([(k.width / 4).max(8), (k.height / 4).max(8)]);
