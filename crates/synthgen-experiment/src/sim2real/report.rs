@@ -243,10 +243,7 @@ impl Report {
                 o,
                 "| row | mean centre cm before | after | AR before | after | ADD-S AUC before | after | ADD(-S) % before | after | kept % |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
             );
-            let f = |v: Option<f64>, k: f64, d: usize| {
-                v.filter(|v| v.is_finite())
-                    .map_or("—".into(), |v| format!("{:.d$}", v * k))
-            };
+            let f = cell;
             for r in refined {
                 let b = r.before_refine.as_ref();
                 let _ = writeln!(
@@ -276,19 +273,13 @@ impl Report {
             v.dedup();
             v
         };
-        let _ = writeln!(o, "\nMean centre error (cm) per object:\n");
-        let centre = |m: &Metrics| Some(m.mean_centre_error_cm);
-        row_table(
-            &mut o,
-            "object",
-            &self.rows,
-            &ids,
-            |r| &r.objects,
-            centre,
+        let mut per_object: Vec<Table> = vec![(
+            "Mean centre error (cm) per object",
+            |m| Some(m.mean_centre_error_cm),
             2,
-        );
+        )];
         if full {
-            let tables: [(&str, Value, usize); 3] = [
+            per_object.extend::<[Table; 3]>([
                 (
                     "BOP's AR per object (the rows with a rotation; GT masks)",
                     |m| m.ar,
@@ -300,19 +291,10 @@ impl Report {
                     |m| m.median_re_deg,
                     1,
                 ),
-            ];
-            for (title, value, digits) in tables {
-                let _ = writeln!(o, "\n{title}:\n");
-                row_table(
-                    &mut o,
-                    "object",
-                    &self.rows,
-                    &ids,
-                    |r| &r.objects,
-                    value,
-                    digits,
-                );
-            }
+            ]);
+        }
+        for t in per_object {
+            row_table(&mut o, t, "object", &self.rows, &ids, |r| &r.objects);
         }
         // Per test scene, when there are several.
         let scene_ids: Vec<String> = self
@@ -323,27 +305,16 @@ impl Report {
             .into_iter()
             .collect();
         if scene_ids.len() > 1 {
-            let _ = writeln!(o, "\nMean centre error (cm) per test scene:\n");
-            row_table(
-                &mut o,
-                "scene",
-                &self.rows,
-                &scene_ids,
-                |r| &r.scenes,
-                centre,
+            let mut per_scene: Vec<Table> = vec![(
+                "Mean centre error (cm) per test scene",
+                |m| Some(m.mean_centre_error_cm),
                 2,
-            );
+            )];
             if full {
-                let _ = writeln!(o, "\nBOP's AR per test scene:\n");
-                row_table(
-                    &mut o,
-                    "scene",
-                    &self.rows,
-                    &scene_ids,
-                    |r| &r.scenes,
-                    |m| m.ar,
-                    3,
-                );
+                per_scene.push(("BOP's AR per test scene", |m| m.ar, 3));
+            }
+            for t in per_scene {
+                row_table(&mut o, t, "scene", &self.rows, &scene_ids, |r| &r.scenes);
             }
         }
         let skipped: usize = self.skipped_frames.values().map(Vec::len).sum();
@@ -516,16 +487,20 @@ impl Report {
     }
 }
 
-/// A number of a row's [`Metrics`] for a table.
-type Value = fn(&Metrics) -> Option<f64>;
+/// A table cell: `v` times `k` with `d` decimals, "—" where there is no finite value.
+fn cell(v: Option<f64>, k: f64, d: usize) -> String {
+    v.filter(|v| v.is_finite())
+        .map_or("—".into(), |v| format!("{:.d$}", v * k))
+}
+
+/// One per-key table of report.md: its title, the number of each row's [`Metrics`] it shows,
+/// and that number's decimals.
+type Table = (&'static str, fn(&Metrics) -> Option<f64>, usize);
 
 /// The rotation scores of a table row: AR and its parts, ADD-S AUC, ADD(-S) and 5cm5° (%),
 /// median translation (cm) and rotation (°) errors; "—" where there is none.
 fn rotation_cells(m: &Metrics) -> String {
-    let f = |v: Option<f64>, k: f64, d: usize| {
-        v.filter(|v| v.is_finite())
-            .map_or("—".into(), |v| format!("{:.d$}", v * k))
-    };
+    let f = cell;
     [
         f(m.ar, 1.0, 3),
         f(m.ar_vsd, 1.0, 3),
@@ -540,18 +515,18 @@ fn rotation_cells(m: &Metrics) -> String {
     .join(" | ")
 }
 
-/// A markdown table of each row's `value` per key (an object or a scene id) with `digits`
-/// decimals, and the first row's instance count that has the key; "—" where a row lacks it
-/// or the value.
+/// The titled markdown table `(title, value, digits)` of each row's value per key (an object
+/// or a scene id) with `digits` decimals, and the first row's instance count that has the
+/// key; "—" where a row lacks it or the value.
 fn row_table(
     o: &mut String,
+    (title, value, digits): Table,
     what: &str,
     rows: &[RowRecord],
     keys: &[String],
     by: impl Fn(&RowRecord) -> &BTreeMap<String, Metrics>,
-    value: impl Fn(&Metrics) -> Option<f64>,
-    digits: usize,
 ) {
+    let _ = writeln!(o, "\n{title}:\n");
     let _ = write!(o, "| {what} | n |");
     for r in rows {
         let _ = write!(o, " {} |", r.name);
@@ -569,7 +544,7 @@ fn row_table(
             .unwrap_or(0);
         let _ = write!(o, "| {key} | {n} |");
         for r in rows {
-            match by(r).get(key).and_then(&value).filter(|v| v.is_finite()) {
+            match by(r).get(key).and_then(value).filter(|v| v.is_finite()) {
                 Some(v) => {
                     let _ = write!(o, " {v:.digits$} |");
                 }
